@@ -22,7 +22,7 @@ fmus: $(STAMP)
 	@if [ -f fmus/build.py ]; then $(BIN)/python fmus/build.py; fi
 
 run: fmus
-	$(BIN)/pkmbench run-default
+	$(BIN)/pkmbench kins-demo
 
 test: fmus
 	$(BIN)/python -m pytest

@@ -1,0 +1,106 @@
+"""The feed profile: what every planner returns and Interpolator.fmu replays.
+
+A profile is the arc length s(t) along one path geometry and its derivatives, sampled at
+the servo period T from t = 0 (rest at the path start) to the end (rest at the path end).
+File form (the `profile_file` of Interpolator.fmu): CSV ``t,s,sd,sdd,sddd`` with 17
+significant digits, so a round trip through the file is exact.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path as FsPath
+from typing import Any
+
+import numpy as np
+
+HEADER = "t,s,sd,sdd,sddd"
+
+
+class ProfileError(ValueError):
+    """A profile is inconsistent (runs backwards, does not end at rest, NaN, …)."""
+
+
+@dataclass
+class Profile:
+    planner: str
+    T: float                      # servo period, s
+    s: np.ndarray                 # arc length, mm
+    sd: np.ndarray                # ṡ, mm/s
+    sdd: np.ndarray               # s̈, mm/s²
+    sddd: np.ndarray              # s⃛, mm/s³
+    path: Any                     # the geometry s refers to (planners.path.Path)
+    planning_time_s: float = 0.0
+    info: dict = field(default_factory=dict)   # planner diagnostics (JSON-serialisable)
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.arange(len(self.s)) * self.T
+
+    @property
+    def execution_time_s(self) -> float:
+        return (len(self.s) - 1) * self.T
+
+    @classmethod
+    def from_s(cls, planner: str, T: float, s: np.ndarray, path, **kw) -> "Profile":
+        """Build a profile from s sampled at T; derivatives by differences at T.
+
+        Backward differences, matching how the metrics read the trajectory: sd[k] is the
+        mean speed over the period ending at t_k (0 at k = 0).
+        """
+        s = np.asarray(s, float)
+        sd = np.zeros_like(s)
+        sdd = np.zeros_like(s)
+        sddd = np.zeros_like(s)
+        sd[1:] = np.diff(s) / T
+        sdd[1:] = np.diff(sd) / T
+        sddd[1:] = np.diff(sdd) / T
+        return cls(planner, T, s, sd, sdd, sddd, path, **kw)
+
+    def validate(self, length: float | None = None, tol: float = 1e-9) -> None:
+        """Raise ProfileError unless the profile is finite, monotone and at rest at both ends."""
+        arrays = {"s": self.s, "sd": self.sd, "sdd": self.sdd, "sddd": self.sddd}
+        n = len(self.s)
+        if n < 2:
+            raise ProfileError(f"{self.planner}: profile has {n} sample(s); need ≥ 2")
+        for k, a in arrays.items():
+            if len(a) != n:
+                raise ProfileError(f"{self.planner}: {k} has {len(a)} samples, s has {n}")
+            if not np.isfinite(a).all():
+                i = int(np.argmax(~np.isfinite(a)))
+                raise ProfileError(f"{self.planner}: {k}[{i}] (t = {i * self.T:.6g} s) is not finite")
+        if not self.T > 0:
+            raise ProfileError(f"{self.planner}: servo period T = {self.T} must be > 0")
+        back = np.diff(self.s) < -tol
+        if back.any():
+            i = int(np.argmax(back)) + 1
+            raise ProfileError(f"{self.planner}: profile runs backwards at sample {i} "
+                               f"(t = {i * self.T:.6g} s): s {self.s[i - 1]:.12g} → {self.s[i]:.12g} mm")
+        if abs(self.s[0]) > tol:
+            raise ProfileError(f"{self.planner}: profile starts at s = {self.s[0]:.12g} mm, not 0")
+        L = self.path.length if length is None else length
+        if abs(self.s[-1] - L) > tol:
+            raise ProfileError(f"{self.planner}: profile ends at s = {self.s[-1]:.12g} mm, "
+                               f"path length is {L:.12g} mm")
+
+    # -- file form ------------------------------------------------------------------
+    def save_csv(self, file) -> None:
+        data = np.column_stack([self.t, self.s, self.sd, self.sdd, self.sddd])
+        np.savetxt(file, data, delimiter=",", header=HEADER, comments="", fmt="%.17g")
+
+    @classmethod
+    def load_csv(cls, file, path, planner: str = "file") -> "Profile":
+        file = FsPath(file)
+        try:
+            with open(file) as f:
+                head = f.readline().strip()
+            if head != HEADER:
+                raise ProfileError(f"{file}: header is '{head}', expected '{HEADER}'")
+            data = np.loadtxt(file, delimiter=",", skiprows=1, ndmin=2)
+        except OSError as e:
+            raise ProfileError(f"{file}: cannot read profile: {e.strerror}") from None
+        except ValueError as e:
+            raise ProfileError(f"{file}: malformed profile: {e}") from None
+        if data.shape[1] != 5 or len(data) < 2:
+            raise ProfileError(f"{file}: expected ≥ 2 rows of 5 columns, got shape {data.shape}")
+        T = float(data[1, 0] - data[0, 0])
+        return cls(planner, T, data[:, 1], data[:, 2], data[:, 3], data[:, 4], path)
