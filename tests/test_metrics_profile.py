@@ -1,0 +1,114 @@
+"""harness.metrics and planners.profile against closed forms and round trips."""
+import numpy as np
+import pytest
+
+from harness.metrics import chord_error_mm, command_metrics, differences, limit_ratios
+from kins import Limits, load_machine
+from planners.profile import Profile, ProfileError
+
+
+class Line:
+    """A stand-in path: straight line from a to b (arc-length parametrised)."""
+
+    def __init__(self, a, b):
+        self.a, self.b = np.asarray(a, float), np.asarray(b, float)
+        self.length = float(np.linalg.norm(self.b - self.a))
+
+    def point(self, s):
+        return self.a + np.asarray(s, float)[:, None] / self.length * (self.b - self.a)
+
+
+class Circle:
+    def __init__(self, r):
+        self.r, self.length = r, 2 * np.pi * r
+
+    def point(self, s):
+        th = np.asarray(s, float) / self.r
+        return np.stack([self.r * np.cos(th), self.r * np.sin(th), np.zeros_like(th)], axis=1)
+
+
+def test_differences_of_a_cubic_are_exact():
+    T = 1e-3
+    t = np.arange(50) * T
+    x = 2.0 + 3.0 * t + 5.0 * t**2 + 7.0 * t**3          # third derivative 42
+    d = differences(x[:, None], T)
+    assert d["velocity"].shape == (49, 1) and d["jerk"].shape == (47, 1)
+    np.testing.assert_allclose(d["jerk"], 42.0, rtol=1e-6)
+    # backward difference of a quadratic: exact derivative at the midpoint
+    np.testing.assert_allclose(d["acceleration"][:, 0], 10.0 + 42.0 * (t[1:-1]), rtol=1e-6)
+
+
+def test_limit_ratios_peak_and_violation_time():
+    T = 0.01
+    v = np.array([0, 1, 3, 3, 3, 1, 0], float)     # speeds per period
+    x = np.concatenate([[0.0], np.cumsum(v * T)])
+    peak, viol = limit_ratios(x[:, None], T, Limits(v=2.0, a=1e9, j=1e12))
+    assert peak["velocity"] == pytest.approx(1.5)
+    assert viol["velocity"] == pytest.approx(3 * T)   # three periods at 3 > 2
+
+
+def test_command_metrics_keops_line_closed_form():
+    """A constant-feed straight line through the centre of keops along x: the Cartesian
+    velocity ratio is feed/v_max exactly; joints move at |∂q/∂x|·feed."""
+    m = load_machine("keops")
+    T = m.servo_period_s
+    feed = 100.0
+    n = 400
+    s = np.arange(n) * feed * T
+    P = np.column_stack([-20.0 + s, np.zeros(n), np.full(n, -400.0)])
+    out = command_metrics(m, P, T, s)
+    assert out["cartesian_peak_ratio"]["velocity"] == pytest.approx(feed / 1000.0, rel=1e-9)
+    assert out["cartesian_peak_ratio"]["feed"] == pytest.approx(feed / 1000.0, rel=1e-9)
+    assert out["cartesian_peak_ratio"]["acceleration"] < 1e-6
+    dq = np.abs(m.jacobian(P)[:, :, 0]).max() * feed
+    assert out["joint_peak_ratio"]["velocity"] == pytest.approx(dq / 1000.0, rel=1e-3)
+    assert out["feasible"] is True
+    assert out["execution_time_s"] == pytest.approx((n - 1) * T)
+
+
+def test_chord_error_of_sampled_circle():
+    r, ds = 10.0, 0.5
+    c = Circle(r)
+    s = np.arange(0, c.length, ds)
+    err = chord_error_mm(c.point(s), c, s)
+    assert err == pytest.approx(r * (1 - np.cos(ds / (2 * r))), rel=1e-9)
+
+
+def test_profile_round_trip_is_exact(tmp_path):
+    path = Line([0, 0, 0], [10.0 / 3.0, 0, 0])
+    T = 1e-3
+    t = np.linspace(0, 1, 1001)
+    s = path.length * (3 * t**2 - 2 * t**3)
+    p = Profile.from_s("test", T, s, path)
+    p.validate()
+    f = tmp_path / "profile.csv"
+    p.save_csv(f)
+    q = Profile.load_csv(f, path)
+    for k in ("s", "sd", "sdd", "sddd"):
+        assert np.array_equal(getattr(p, k), getattr(q, k))
+    assert q.T == pytest.approx(T, rel=1e-12)
+    assert f.read_text().splitlines()[0] == "t,s,sd,sdd,sddd"
+
+
+def test_profile_validation_errors():
+    path = Line([0, 0, 0], [1, 0, 0])
+    T = 1e-3
+    with pytest.raises(ProfileError, match="runs backwards at sample 2"):
+        Profile.from_s("p", T, [0, 0.6, 0.5, 1.0], path).validate()
+    with pytest.raises(ProfileError, match="ends at s = 0.9"):
+        Profile.from_s("p", T, [0, 0.5, 0.9], path).validate()
+    with pytest.raises(ProfileError, match=r"sd\[1\] .* is not finite"):
+        Profile("p", T, np.array([0, 1.0]), np.array([0, np.nan]), np.zeros(2), np.zeros(2), path).validate()
+
+
+def test_profile_load_rejects_bad_files(tmp_path):
+    path = Line([0, 0, 0], [1, 0, 0])
+    f = tmp_path / "bad.csv"
+    f.write_text("t,s\n0,0\n")
+    with pytest.raises(ProfileError, match="bad.csv: header is 't,s'"):
+        Profile.load_csv(f, path)
+    with pytest.raises(ProfileError, match="cannot read profile"):
+        Profile.load_csv(tmp_path / "missing.csv", path)
+    f.write_text("t,s,sd,sdd,sddd\n0,0,0,0,zero\n")
+    with pytest.raises(ProfileError, match="malformed profile"):
+        Profile.load_csv(f, path)
