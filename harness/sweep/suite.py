@@ -1,0 +1,187 @@
+"""Sweep suites: a suite file expanded into tasks, and the task keys.
+
+A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axes:
+
+    name = "nightly"
+    [[run]]                      # any number; machines × paths × planners of each are crossed
+    machine = "keops"            # or machines = [...]; an id of benchmarks/machines/ or a .toml file
+    path = "bird"                # or paths = [...]; an id of benchmarks/paths/ or a .json/.ngc file
+    planners = ["trapezoid", "scurve"]
+    [planner_options.pso]        # optional, passed to the planner
+    iterations = 40
+    [sweep]                      # optional axes, crossed with every run
+    seeds = [0, 1]               # default [0]
+    presets = ["none", "nominal"]  # jitter presets of the EtherCAT FMU, default ["none"]
+    [[sweep.variation]]          # default: one variation "base" that changes nothing
+    name = "jerk_half"
+    set = { "limits.joint.j" = 2.5e5 }   # dotted keys of the machine file, overridden
+
+One task = (machine, path, planner, seed, preset, variation). A task carries the *contents*
+of its machine and path files, so a worker on another host needs only the code.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import tomllib
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+MACHINE_DIR = REPO / "benchmarks" / "machines"
+PATH_DIR = REPO / "benchmarks" / "paths"
+PATH_SUFFIXES = (".json", ".ngc")
+# Sources whose change can change a result: every task key depends on their hash.
+CODE_DIRS = ("kins", "planners", "harness")
+FMU_DIR = REPO / "fmus" / "build"
+
+
+class SuiteError(ValueError):
+    """A suite file is malformed; the message names the file and the key."""
+
+
+def _list(d: dict, one: str, many: str, src: str, where: str) -> list:
+    if one in d and many in d:
+        raise SuiteError(f"{src}: {where} has both '{one}' and '{many}'; use one")
+    v = [d[one]] if one in d else d.get(many)
+    if not isinstance(v, list) or not v:
+        raise SuiteError(f"{src}: {where} needs '{one}' or a non-empty list '{many}'")
+    return v
+
+
+def resolve_machine(name: str, base: Path = REPO) -> Path:
+    p = Path(name)
+    if p.suffix == ".toml":
+        p = p if p.is_absolute() else (base / p)
+    else:
+        p = MACHINE_DIR / f"{name}.toml"
+    if not p.exists():
+        known = ", ".join(sorted(q.stem for q in MACHINE_DIR.glob("*.toml")))
+        raise SuiteError(f"machine '{name}': no file {p} (known: {known})")
+    return p
+
+
+def resolve_path(name: str, base: Path = REPO) -> Path:
+    p = Path(name)
+    if p.suffix in PATH_SUFFIXES:
+        p = p if p.is_absolute() else (base / p)
+        if p.exists():
+            return p
+    else:
+        for suf in PATH_SUFFIXES:
+            if (PATH_DIR / f"{name}{suf}").exists():
+                return PATH_DIR / f"{name}{suf}"
+    known = ", ".join(sorted(q.stem for q in PATH_DIR.iterdir() if q.suffix in PATH_SUFFIXES)) \
+        if PATH_DIR.exists() else ""
+    raise SuiteError(f"path '{name}': no file found (looked in {PATH_DIR}; known: {known or 'none'})")
+
+
+def _rel(p: Path) -> str:
+    try:
+        return str(p.resolve().relative_to(REPO))
+    except ValueError:
+        return str(p)
+
+
+def load_suite(file: str | Path) -> dict:
+    file = Path(file)
+    if not file.exists():
+        raise SuiteError(f"{file}: no such suite file")
+    try:
+        return tomllib.loads(file.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise SuiteError(f"{file}: not valid TOML: {e}") from None
+
+
+def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
+    """The tasks of a suite, in a stable order (runs × seeds × presets × variations)."""
+    runs = suite.get("run") or suite.get("runs")
+    if runs is None and ("machine" in suite or "machines" in suite):
+        runs = [suite]                       # a flat suite: top-level machines/paths/planners
+    if not isinstance(runs, list) or not runs:
+        raise SuiteError(f"{src}: no [[run]] tables (need machine(s), path(s), planners)")
+    sweep = suite.get("sweep", {})
+    seeds = sweep.get("seeds", [0])
+    presets = sweep.get("presets", ["none"])
+    variations = sweep.get("variation", [{"name": "base"}])
+    if not (isinstance(seeds, list) and seeds and all(isinstance(s, int) and not isinstance(s, bool) for s in seeds)):
+        raise SuiteError(f"{src}: [sweep] seeds must be a non-empty list of integers, got {seeds!r}")
+    if not (isinstance(presets, list) and presets and all(isinstance(s, str) for s in presets)):
+        raise SuiteError(f"{src}: [sweep] presets must be a non-empty list of names, got {presets!r}")
+    names = set()
+    for i, v in enumerate(variations):
+        if not isinstance(v, dict) or not isinstance(v.get("name"), str):
+            raise SuiteError(f"{src}: [[sweep.variation]] #{i + 1} needs a name")
+        if v["name"] in names:
+            raise SuiteError(f"{src}: [[sweep.variation]] name '{v['name']}' is used twice")
+        names.add(v["name"])
+        if not isinstance(v.get("set", {}), dict):
+            raise SuiteError(f"{src}: [[sweep.variation]] '{v['name']}': set must be a table")
+    options = suite.get("planner_options", {})
+    tasks, seen = [], set()
+    for i, run in enumerate(runs):
+        where = f"[[run]] #{i + 1}"
+        machines = _list(run, "machine", "machines", src, where)
+        paths = _list(run, "path", "paths", src, where)
+        planners = _list(run, "planner", "planners", src, where)
+        for m in machines:
+            mfile = resolve_machine(m, base)
+            for p in paths:
+                pfile = resolve_path(p, base)
+                for pl in planners:
+                    for seed in seeds:
+                        for preset in presets:
+                            for v in variations:
+                                t = make_task(mfile, pfile, pl, seed, preset, v,
+                                              options.get(pl, {}))
+                                ident = (t["machine"], t["path"], pl, seed, preset, v["name"])
+                                if ident in seen:
+                                    continue           # the same task listed twice runs once
+                                seen.add(ident)
+                                tasks.append(t)
+    return tasks
+
+
+def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
+              preset: str = "none", variation: dict | None = None,
+              planner_options: dict | None = None) -> dict:
+    """One task dict (the task-function interface, see harness.sweep)."""
+    return {
+        "machine": machine_file.stem, "machine_file": _rel(machine_file),
+        "path": path_file.stem, "path_file": _rel(path_file),
+        "planner": planner, "planner_options": dict(planner_options or {}),
+        "seed": int(seed), "preset": preset,
+        "variation": {"name": "base", "set": {}} | dict(variation or {}),
+        # contents travel with the task: a remote worker needs no benchmarks/ folder
+        "files": {"machine.toml": machine_file.read_text(),
+                  f"path{path_file.suffix}": path_file.read_text()},
+    }
+
+
+def _hash_files(files) -> str:
+    """Hash of (repo-relative name, content) pairs: equal across clones of the repository."""
+    h = hashlib.sha256()
+    for name, f in sorted((_rel(f), f) for f in files):
+        h.update(name.encode() + b"\0")
+        h.update(hashlib.sha256(f.read_bytes()).digest())
+    return h.hexdigest()
+
+
+def code_version(extra: list[Path] = ()) -> str:
+    """Hash of the sources of kins/, planners/, harness/ and of the built FMUs."""
+    files = [f for d in CODE_DIRS for f in (REPO / d).rglob("*.py") if "__pycache__" not in f.parts]
+    files += list(FMU_DIR.glob("*.fmu")) if FMU_DIR.exists() else []
+    files += [Path(e) for e in extra]
+    return _hash_files([f for f in files if f.exists()])
+
+
+def task_key(task: dict, version: str, task_fn: str = "") -> str:
+    """sha256 of everything that determines a task's result."""
+    ident = {k: task[k] for k in ("planner", "planner_options", "seed", "preset", "variation", "files")}
+    ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
+    return hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
+
+
+def task_label(task: dict) -> str:
+    """Human name of a task, also the entry name in CI baselines."""
+    return (f"{task['machine']}/{task['path']}/{task['planner']}/seed{task['seed']}/"
+            f"{task['preset']}/{task['variation']['name']}")

@@ -1,0 +1,170 @@
+"""Task functions for sweeps (the interface is in harness/sweep/__init__.py).
+
+- ``default_task``: the harness's full co-simulation run when it is installed, else
+  ``plan_task``.
+- ``plan_task``: planning only — ``planners.plan`` + ``harness.metrics`` on the commanded
+  trajectory (no FMUs): cheap, deterministic apart from ``planning_time_s``.
+- ``line_task``: a quintic (minimum-jerk) move along a straight line, with no planner at
+  all: its numbers have a closed form, so the sweep machinery can be tested while the
+  planners are being written, and it can be made CPU-heavy (``repeat``) for the speed-up
+  benchmark.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import math
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+
+class TaskError(ValueError):
+    """A task's inputs are unusable; the message names the task's file and key."""
+
+
+# -- machine of a task, with its variation applied ---------------------------------------
+def machine_raw(task: dict) -> dict:
+    """The machine file of the task as a dict, the variation's dotted keys overridden."""
+    raw = tomllib.loads(task["files"]["machine.toml"])
+    var = task["variation"]
+    for dotted, value in sorted(var.get("set", {}).items()):
+        node, parts = raw, dotted.split(".")
+        for p in parts[:-1]:
+            if not isinstance(node.get(p), dict):
+                raise TaskError(f"variation '{var['name']}': {task['machine_file']} has no table "
+                                f"'{p}' (in key '{dotted}')")
+            node = node[p]
+        if parts[-1] not in node:
+            raise TaskError(f"variation '{var['name']}': {task['machine_file']} has no key '{dotted}'")
+        node[parts[-1]] = copy.deepcopy(value)
+    return raw
+
+
+def task_machine(task: dict):
+    from kins import _build            # the loader's validation, on the varied dict
+    src = task["machine_file"]
+    if task["variation"].get("set"):
+        src += f" (variation {task['variation']['name']})"
+    return _build(machine_raw(task), src)
+
+
+def write_toml(d: dict, file: Path) -> None:
+    """Minimal TOML writer (numbers, strings, booleans, lists, tables) for varied machine files."""
+    def val(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, list):
+            return "[" + ", ".join(val(x) for x in v) + "]"
+        raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+    lines = []
+
+    def table(node, prefix):
+        scalars = {k: v for k, v in node.items() if not isinstance(v, dict)}
+        if prefix and scalars:
+            lines.append(f"[{prefix}]")
+        for k, v in scalars.items():
+            lines.append(f"{k} = {val(v)}")
+        for k, v in node.items():
+            if isinstance(v, dict):
+                table(v, f"{prefix}.{k}" if prefix else k)
+    table(d, "")
+    file.write_text("\n".join(lines) + "\n")
+
+
+def task_input_files(task: dict, folder: Path) -> tuple[Path, Path]:
+    """Write the task's (varied) machine file and its path file into ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    mfile = folder / f"{task['machine']}.toml"
+    if task["variation"].get("set"):
+        write_toml(machine_raw(task), mfile)
+    else:
+        mfile.write_text(task["files"]["machine.toml"])
+    (pname, ptext), = [(k, v) for k, v in task["files"].items() if k.startswith("path.")]
+    pfile = folder / f"{task['path']}{Path(pname).suffix}"
+    pfile.write_text(ptext)
+    return mfile, pfile
+
+
+def _write_command(file: Path, T: float, P: np.ndarray, Q: np.ndarray) -> None:
+    t = np.arange(len(P)) * T
+    np.savetxt(file, np.column_stack([t, P, Q]), delimiter=",", header="t,x,y,z,q1,q2,q3",
+               comments="", fmt="%.17g")
+
+
+def _write_summary(out_dir: Path, task: dict, machine, metrics: dict) -> None:
+    summary = {"machine": task["machine"], "path": task["path"],
+               "servo_period_s": machine.servo_period_s,
+               "planners": {task["planner"]: metrics}}
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True) + "\n")
+
+
+# -- line_task -------------------------------------------------------------------------------
+def line_task(task: dict, out_dir: Path) -> dict:
+    """Quintic move s(τ) = L(10τ³ − 15τ⁴ + 6τ⁵) along a line path (a degree-1 NURBS of 2 points).
+
+    Options: ``feed_mm_s`` (peak feed, default the machine's feed_max/2; duration
+    D = 1.875 L / feed, the quintic's peak speed being 15/8 · L/D), ``repeat`` (compute the
+    metrics this many times: CPU load for benchmarks, result unchanged).
+    Planner name ``quintic``; any other name is an error (so a sweep can contain a failing task).
+    """
+    from harness.metrics import command_metrics
+    if task["planner"] != "quintic":
+        raise TaskError(f"line_task knows only planner 'quintic', not '{task['planner']}'")
+    machine = task_machine(task)
+    ptext = task["files"].get("path.json")
+    nurbs = json.loads(ptext) if ptext else {}
+    cps = nurbs.get("control_points", [])
+    if nurbs.get("degree") != 1 or len(cps) != 2:
+        raise TaskError(f"{task['path_file']}: line_task needs a degree-1 NURBS with 2 control points")
+    A, B = np.array(cps[0], float), np.array(cps[1], float)
+    L = float(np.linalg.norm(B - A))
+    opts = task["planner_options"]
+    feed = float(opts.get("feed_mm_s", machine.limits.feed_max / 2))
+    T = machine.servo_period_s
+    t0 = time.perf_counter()
+    D = 15 / 8 * L / feed
+    n = math.ceil(D / T)
+    tau = np.minimum(np.arange(n + 1) * T / D, 1.0)
+    s = L * tau**3 * (10 - 15 * tau + 6 * tau**2)
+    P = A + np.outer(s / L, B - A)
+    planning = time.perf_counter() - t0
+    for _ in range(int(opts.get("repeat", 1))):
+        metrics = command_metrics(machine, P, T, s)
+    metrics["planning_time_s"] = planning
+    metrics["max_chord_error_um"] = 0.0          # chords of a line lie on the line
+    _write_command(out_dir / "command.csv", T, P, machine.ik(P))
+    _write_summary(out_dir, task, machine, metrics)
+    return metrics
+
+
+# -- plan_task ---------------------------------------------------------------------------------
+def plan_task(task: dict, out_dir: Path) -> dict:
+    """Planning only: the planner's profile, interpolated at T, and its metrics (no FMUs)."""
+    import planners
+    from harness.metrics import chord_error_mm, command_metrics
+    if not hasattr(planners, "plan"):
+        raise TaskError("planners.plan is not available yet (issue: planners)")
+    machine = task_machine(task)
+    _, pfile = task_input_files(task, out_dir / "inputs")
+    path = planners.load_path(pfile)
+    prof = planners.plan(task["planner"], path, machine, **task["planner_options"])
+    P = path.point(prof.s)
+    metrics = command_metrics(machine, P, prof.T, prof.s)
+    metrics["planning_time_s"] = float(prof.planning_time_s)
+    metrics["max_chord_error_um"] = 1e3 * chord_error_mm(P, path, prof.s)
+    _write_command(out_dir / "command.csv", prof.T, P, machine.ik(P))
+    _write_summary(out_dir, task, machine, metrics)
+    return metrics
+
+
+def default_task(task: dict, out_dir: Path) -> dict:
+    """The full co-simulation when the harness provides it, else planning only."""
+    return plan_task(task, out_dir)

@@ -1,0 +1,174 @@
+"""pkmbench sweep: failing tasks, resume, keys, variations, a real scheduler + 2 worker processes.
+
+The tasks are ``harness.sweep.tasks:line_task`` (a quintic move along a line on KEOPS), whose
+metrics have closed forms: for s = L(10τ³ − 15τ⁴ + 6τ⁵) over D, peak speed 15L/8D, peak
+acceleration 10L/(√3 D²), peak jerk 60L/D³.
+"""
+from __future__ import annotations
+
+import json
+import math
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from harness.cli import main as cli
+from harness.sweep import (SweepStore, make_task, run_sweep, task_key, tasks_from_suite_file)
+from harness.sweep.suite import REPO
+
+LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
+        "control_points": [[-50, 0, -400], [50, 0, -400]], "weights": [1, 1]}
+LINE_TASK = "harness.sweep.tasks:line_task"
+
+
+def write_suite(tmp: Path, planners=("quintic", "bogus"), extra="") -> Path:
+    (tmp / "line.json").write_text(json.dumps(LINE))
+    suite = tmp / "suite.toml"
+    suite.write_text(f"""name = "test"
+[[run]]
+machine = "keops"
+path = "{tmp / 'line.json'}"
+planners = {json.dumps(list(planners))}
+[planner_options.quintic]
+feed_mm_s = 500.0
+{extra}""")
+    return suite
+
+
+def test_failing_task_is_recorded_others_finish_and_rerun_skips(tmp_path):
+    tasks = tasks_from_suite_file(write_suite(tmp_path, extra="[sweep]\nseeds = [0, 1]\n"))
+    assert len(tasks) == 4
+    out = tmp_path / "out"
+    r = run_sweep(tasks, out, task_fn=LINE_TASK, workers=2, progress=False)
+    assert (r.ok, r.failed, r.skipped) == (2, 2, 0)
+    assert all("bogus" in err and "TaskError" in err for _, err in r.failures)
+    rows = SweepStore(out / "results.sqlite").to_rows()
+    ok = [row for row in rows if row["status"] == "ok"]
+    assert len(ok) == 2 and {row["seed"] for row in ok} == {0, 1}
+    # closed forms of the quintic: L = 100 mm, peak feed 500 mm/s ⇒ D = 0.375 s; limits 1000/1e4/5e5
+    L, D = 100.0, 15 / 8 * 100.0 / 500.0
+    m = ok[0]["metrics"]
+    assert m["execution_time_s"] == pytest.approx(D, abs=250e-6)
+    assert m["cartesian_peak_ratio"]["velocity"] == pytest.approx(0.5, rel=1e-5)
+    assert m["cartesian_peak_ratio"]["acceleration"] == pytest.approx(10 * L / math.sqrt(3) / D**2 / 1e4, rel=1e-3)
+    # jerk 60L/D³(1 − 6τ + 6τ²) peaks at τ = 0; the first third difference reads it at t = 1.5 T
+    tau = 1.5 * 250e-6 / D
+    assert m["cartesian_peak_ratio"]["jerk"] == pytest.approx(60 * L / D**3 * (1 - 6 * tau + 6 * tau**2) / 5e5, rel=1e-5)
+    assert m["feasible"] is True
+    # each run's files are kept under the sweep folder
+    summary = json.loads((out / ok[0]["run_dir"] / "summary.json").read_text())
+    assert summary["planners"]["quintic"]["execution_time_s"] == m["execution_time_s"]
+    assert (out / ok[0]["run_dir"] / "command.csv").read_text().startswith("t,x,y,z,q1,q2,q3\n")
+    failed = [row for row in rows if row["status"] == "error"]
+    assert len(failed) == 2 and all("Traceback" in row["traceback"] for row in failed)
+
+    # second run: the finished tasks are skipped; only the failed ones are tried again
+    r2 = run_sweep(tasks, out, task_fn=LINE_TASK, workers=0, progress=False)
+    assert (r2.skipped, r2.ok, r2.failed) == (2, 0, 2)
+    # a changed input (the planner option) is new work
+    tasks[0]["planner_options"] = {"feed_mm_s": 250.0}
+    r3 = run_sweep(tasks, out, task_fn=LINE_TASK, workers=0, progress=False)
+    assert (r3.skipped, r3.ok) == (1, 1)
+
+
+def test_task_key_covers_inputs_and_code(tmp_path):
+    write_suite(tmp_path)
+    mfile = REPO / "benchmarks/machines/keops.toml"
+    t = make_task(mfile, tmp_path / "line.json", "quintic", seed=0)
+    k = task_key(t, "v1")
+    assert k == task_key(make_task(mfile, tmp_path / "line.json", "quintic", seed=0), "v1")
+    assert k != task_key(t, "v2")                                           # code/FMU version
+    assert k != task_key(make_task(mfile, tmp_path / "line.json", "quintic", seed=1), "v1")
+    assert k != task_key(make_task(mfile, tmp_path / "line.json", "quintic", preset="heavy"), "v1")
+    alt = tmp_path / "keops.toml"
+    alt.write_text(mfile.read_text().replace("j = 5.0e5", "j = 4.0e5", 1))
+    assert k != task_key(make_task(alt, tmp_path / "line.json", "quintic"), "v1")  # file content
+    (tmp_path / "line.json").write_text(json.dumps(LINE | {"weights": [1, 1.0000001]}))
+    assert k != task_key(make_task(mfile, tmp_path / "line.json", "quintic"), "v1")
+
+
+def test_variation_changes_the_machine_and_bad_variation_is_a_clear_failure(tmp_path):
+    suite = write_suite(tmp_path, planners=["quintic"], extra="""[sweep]
+[[sweep.variation]]
+name = "base"
+[[sweep.variation]]
+name = "slow_axes"
+set = { "limits.cartesian.v" = 500.0 }
+[[sweep.variation]]
+name = "typo"
+set = { "limits.cartesian.vv" = 1.0 }
+""")
+    r = run_sweep(tasks_from_suite_file(suite), tmp_path / "o", task_fn=LINE_TASK, workers=0, progress=False)
+    assert (r.ok, r.failed) == (2, 1)
+    assert "typo" in r.failures[0][1] and "limits.cartesian.vv" in r.failures[0][1]
+    rows = {row["variation"]: row["metrics"] for row in SweepStore(tmp_path / "o/results.sqlite").to_rows()}
+    base, slow = rows["base"]["cartesian_peak_ratio"]["velocity"], rows["slow_axes"]["cartesian_peak_ratio"]["velocity"]
+    assert slow == pytest.approx(2 * base, rel=1e-12)
+
+
+def test_suite_errors_name_the_file_and_key(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[run]]\nmachine = "nosuch"\npath = "x.json"\nplanners = ["a"]\n')
+    assert cli(["sweep", str(bad)]) == 2
+    assert "machine 'nosuch'" in capsys.readouterr().err
+    bad.write_text('[[run]]\nmachine = "keops"\nplanners = ["a"]\n')
+    assert cli(["sweep", str(bad)]) == 2
+    assert "[[run]] #1 needs 'path'" in capsys.readouterr().err
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_sweep_through_a_real_scheduler_with_two_worker_processes(tmp_path, capsys):
+    suite = write_suite(tmp_path, extra="[sweep]\nseeds = [0, 1, 2]\n")
+    addr = f"tcp://127.0.0.1:{_free_port()}"
+    dask = [sys.executable, "-m", "dask"]
+    procs = [subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", addr.rsplit(":", 1)[1],
+                                      "--no-dashboard"], cwd=REPO,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        for _ in range(2):
+            procs.append(subprocess.Popen(dask + ["worker", addr, "--nthreads", "1", "--no-dashboard",
+                                                  "--no-nanny"], cwd=REPO,
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+        with Client(addr, timeout="20s") as c:                 # wait until both workers joined
+            c.wait_for_workers(2, timeout=30)
+        code = cli(["sweep", str(suite), "--scheduler", addr, "--task", LINE_TASK,
+                    "--out", str(tmp_path / "out"), "--no-progress"])
+        out = capsys.readouterr().out
+        assert code == 1                                     # the bogus tasks failed …
+        assert "3 run, 0 already done, 3 failed" in out      # … and the others finished
+        rows = SweepStore(tmp_path / "out/results.sqlite").to_rows()
+        assert sorted(r["status"] for r in rows) == ["error"] * 3 + ["ok"] * 3
+        pids = {r["worker"].rsplit(":", 1)[1] for r in rows}
+        assert str(__import__("os").getpid()) not in pids    # ran on the workers, not here
+        # the second run through the scheduler skips the finished ones
+        cli(["sweep", str(suite), "--scheduler", addr, "--task", LINE_TASK,
+             "--out", str(tmp_path / "out"), "--no-progress"])
+        assert "0 run, 3 already done, 3 failed" in capsys.readouterr().out
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("harness.sweep.CONNECT_TIMEOUT", "1s")
+    suite = write_suite(tmp_path, planners=["quintic"])
+    t0 = time.perf_counter()
+    assert cli(["sweep", str(suite), "--scheduler", f"tcp://127.0.0.1:{_free_port()}",
+                "--task", LINE_TASK, "--out", str(tmp_path / "o")]) == 2
+    assert "cannot reach the dask scheduler" in capsys.readouterr().err
+    assert time.perf_counter() - t0 < 30
