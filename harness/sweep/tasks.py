@@ -112,7 +112,8 @@ def line_task(task: dict, out_dir: Path) -> dict:
 
     Options: ``feed_mm_s`` (peak feed, default the machine's feed_max/2; duration
     D = 1.875 L / feed, the quintic's peak speed being 15/8 · L/D), ``repeat`` (compute the
-    metrics this many times: CPU load for benchmarks, result unchanged).
+    metrics this many times: CPU load for benchmarks, result unchanged), ``planning_repeat``
+    (compute the profile this many times inside the timed planning: a slower planner).
     Planner name ``quintic``; any other name is an error (so a sweep can contain a failing task).
     """
     from harness.metrics import command_metrics
@@ -128,13 +129,16 @@ def line_task(task: dict, out_dir: Path) -> dict:
     L = float(np.linalg.norm(B - A))
     opts = task["planner_options"]
     feed = float(opts.get("feed_mm_s", machine.limits.feed_max / 2))
+    if not (math.isfinite(feed) and feed > 0):
+        raise TaskError(f"planner_options.quintic.feed_mm_s = {feed} must be a number > 0")
     T = machine.servo_period_s
     t0 = time.perf_counter()
-    D = 15 / 8 * L / feed
-    n = math.ceil(D / T)
-    tau = np.minimum(np.arange(n + 1) * T / D, 1.0)
-    s = L * tau**3 * (10 - 15 * tau + 6 * tau**2)
-    P = A + np.outer(s / L, B - A)
+    for _ in range(int(opts.get("planning_repeat", 1))):      # a deliberately slower "planner"
+        D = 15 / 8 * L / feed
+        n = math.ceil(D / T)
+        tau = np.minimum(np.arange(n + 1) * T / D, 1.0)
+        s = L * tau**3 * (10 - 15 * tau + 6 * tau**2)
+        P = A + np.outer(s / L, B - A)
     planning = time.perf_counter() - t0
     for _ in range(int(opts.get("repeat", 1))):
         metrics = command_metrics(machine, P, T, s)

@@ -1,0 +1,134 @@
+"""pkmbench ci / history: pass on an unchanged baseline, fail on an injected regression with the
+metric named, JUnit XML + Markdown written, history appended; tolerance rules; the committed
+baseline matches the nightly suite.
+"""
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from harness.cli import main as cli
+from harness.sweep import ci
+from harness.sweep.history import History
+from harness.sweep.suite import REPO
+
+LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
+        "control_points": [[-50, 0, -400], [50, 0, -400]], "weights": [1, 1]}
+LINE_TASK = "harness.sweep.tasks:line_task"
+ENTRY = "keops/line/quintic/seed0/none/base"
+
+
+def suite(tmp: Path, options: str) -> Path:
+    (tmp / "line.json").write_text(json.dumps(LINE))
+    f = tmp / "suite.toml"
+    f.write_text(f'[[run]]\nmachine = "keops"\npath = "{tmp / "line.json"}"\nplanners = ["quintic"]\n'
+                 f'[planner_options.quintic]\n{options}\n')
+    return f
+
+
+def run_ci(tmp: Path, suite_file: Path, *extra: str) -> int:
+    return cli(["ci", "--suite", str(suite_file), "--baseline", str(tmp / "baseline.json"),
+                "--out", str(tmp / "ci"), "--task", LINE_TASK, "--workers", "1", *extra])
+
+
+def test_ci_passes_unchanged_and_fails_on_slower_or_worse_planner(tmp_path, capsys):
+    good = suite(tmp_path, "feed_mm_s = 500.0")
+    assert run_ci(tmp_path, good, "--update-baseline") == 0
+    base = json.loads((tmp_path / "baseline.json").read_text())
+    assert base["format"] == ci.FORMAT and set(base["entries"]) == {ENTRY}
+    assert base["entries"][ENTRY]["execution_time_s"] == pytest.approx(0.375, abs=250e-6)
+    assert "planning_time_ratio" in base["entries"][ENTRY]
+    capsys.readouterr()
+
+    assert run_ci(tmp_path, good) == 0                                     # unchanged: pass
+    assert "PASS" in capsys.readouterr().out
+    suites = ET.parse(tmp_path / "ci/junit.xml").getroot()
+    assert suites.get("failures") == "0" and int(suites.get("tests")) > 10
+
+    # a worse planner: 1 % lower peak feed ⇒ 1 % longer execution, beyond ±0.5 %
+    assert run_ci(tmp_path, suite(tmp_path, "feed_mm_s = 495.0")) == 1
+    out = capsys.readouterr().out
+    assert "FAIL" in out and ENTRY in out and "`execution_time_s`" in out and "±0.5 %" in out
+    failures = {tc.get("name") for tc in ET.parse(tmp_path / "ci/junit.xml").getroot().iter("testcase")
+                if tc.find("failure") is not None}
+    assert "execution_time_s" in failures
+    md = (tmp_path / "ci/summary.md").read_text()
+    assert "execution_time_s increased" in md
+
+    # a slower planner: the same profile computed 3000 times inside the timed planning
+    assert run_ci(tmp_path, suite(tmp_path, "feed_mm_s = 500.0\nplanning_repeat = 3000")) == 1
+    out = capsys.readouterr().out
+    assert "`planning_time_ratio`" in out and "slower" in out
+    assert "`execution_time_s`" not in out                                 # only what changed
+
+    with History(tmp_path / "ci/history.sqlite") as h:
+        runs = h.runs()
+        assert [r["passed"] for r in runs] == [1, 1, 0, 0]
+        assert [r["mode"] for r in runs] == ["update-baseline", "check", "check", "check"]
+        exec_series = h.series("execution_time_s")[ENTRY]
+        D = [15 / 8 * 100 / f for f in (500, 500, 495, 500)]             # quintic duration, ceil'd to T
+        assert [v for _, v in exec_series] == pytest.approx(D, abs=250e-6)
+    assert cli(["history", "--history", str(tmp_path / "ci/history.sqlite")]) == 0
+    assert (tmp_path / "ci/trend.png").stat().st_size > 1000
+
+
+def test_failed_task_is_a_regression_and_does_not_update_the_baseline(tmp_path, capsys):
+    good = suite(tmp_path, "feed_mm_s = 500.0")
+    assert run_ci(tmp_path, good, "--update-baseline") == 0
+    before = (tmp_path / "baseline.json").read_text()
+    bad = suite(tmp_path, "feed_mm_s = -1.0")       # negative feed ⇒ NaN-free error in the task
+    bad.write_text(bad.read_text().replace('["quintic"]', '["quintic", "bogus"]'))
+    assert run_ci(tmp_path, bad, "--update-baseline") == 1
+    assert (tmp_path / "baseline.json").read_text() == before
+    capsys.readouterr()
+    assert run_ci(tmp_path, bad) == 1
+    out = capsys.readouterr().out
+    assert "task failed" in out and "bogus" in out
+
+
+def test_tolerance_rules():
+    base = {"entries": {"e": {"execution_time_s": 1.0, "joint_peak_ratio.jerk": 1.2, "feasible": False,
+                              "planning_time_ratio": 0.2, "planning_time_s": 0.01}}}
+
+    def fails(**now):
+        cur = dict(base["entries"]["e"]) | now
+        return {c.metric for c in ci.compare(base, {"e": cur}, {}) if not c.ok}
+
+    assert fails() == set()
+    assert fails(execution_time_s=1.0049) == set() and fails(execution_time_s=0.9951) == set()
+    assert fails(execution_time_s=1.0051) == {"execution_time_s"}
+    assert fails(**{"joint_peak_ratio.jerk": 1.2 + 9e-7}) == set()
+    assert fails(**{"joint_peak_ratio.jerk": 1.2 - 2e-6}) == {"joint_peak_ratio.jerk"}
+    assert fails(feasible=True) == {"feasible"}
+    assert fails(planning_time_s=10.0) == set()                 # raw wall time is not compared
+    assert fails(planning_time_ratio=0.29) == set()              # ≤ 1.5×
+    assert fails(planning_time_ratio=0.299) == set()
+    assert fails(planning_time_ratio=0.01) == set()              # faster is fine
+    assert fails(planning_time_ratio=0.31) == {"planning_time_ratio"}                # > 1.5× and > +0.1
+    tiny = {"entries": {"e": {"planning_time_ratio": 0.001}}}
+    assert not [c for c in ci.compare(tiny, {"e": {"planning_time_ratio": 0.01}}, {}) if not c.ok]  # noise floor
+    cs = ci.compare(base, {}, {})
+    assert [(c.metric, c.ok) for c in cs] == [("entry", False)]
+
+
+def test_reference_workload_is_positive_and_stable():
+    a, b = ci.reference_workload_s(3), ci.reference_workload_s(3)
+    assert 0 < a < 5 and 0.5 < a / b < 2
+
+
+def test_committed_baseline_matches_the_nightly_suite():
+    """The committed baseline was written by `pkmbench ci --update-baseline` for this suite."""
+    from harness.sweep import expand, load_suite, task_label
+    bfile, sfile = REPO / "results/baseline.json", REPO / "benchmarks/suites/nightly.toml"
+    if not bfile.exists():
+        pytest.skip("no committed baseline yet")
+    b = json.loads(bfile.read_text())
+    assert b["format"] == ci.FORMAT
+    labels = {task_label(t) for t in expand(load_suite(sfile), str(sfile))}
+    assert set(b["entries"]) == labels
+    for name, e in b["entries"].items():
+        assert isinstance(e["feasible"], bool) and e["execution_time_s"] > 0, name
+        assert all(v == v for v in e.values() if isinstance(v, float)), name     # no NaN
