@@ -1,0 +1,106 @@
+"""Joint and Cartesian derivatives along a path, shared by scurve_joint, pso, toppra, optimal.
+
+Every planner that limits the joints of a PKM needs q(s) and its arc-length derivatives
+q′, q″, q‴ (the chain rule then gives joint velocity, acceleration and jerk for any
+s(t)).  kins gives the IK and the Jacobian but no higher derivatives, so we differentiate
+the IK numerically — but not along the path itself (that would smear the derivatives over
+an exact-stop corner): at each s we take the path's own one-sided derivatives
+(P, P′, P″, P‴ from ``path.derivs``), build the local cubic X(h) = P + P′h + P″h²/2 + P‴h³/6
+and difference q(X(h)) on a 5-point stencil in h.  X(h) agrees with the path to third order,
+so these are the derivatives of q(s) at s, with O(h²) truncation (h = 0.02 mm → ~1e-4
+relative on q‴ at 1 mm radius, round-off ~1e-8).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+try:
+    from . import PlanningError  # the registry's error type (planners/__init__.py)
+except ImportError:  # pragma: no cover - only until the registry lands
+    class PlanningError(ValueError):
+        """A planner cannot produce a profile (the message says why)."""
+
+from kins import WorkspaceError
+
+STENCIL_H_MM = 0.02
+
+
+def check_limits(limits, who: str) -> None:
+    """Raise PlanningError if a limit is not a finite positive number."""
+    for group in ("joint", "cartesian"):
+        lim = getattr(limits, group)
+        for k in ("v", "a", "j"):
+            val = getattr(lim, k)
+            if not (np.isfinite(val) and val > 0):
+                raise PlanningError(f"{who}: {group} limit {k} = {val} must be > 0")
+    for k in ("feed_max", "chord_error_mm"):
+        val = getattr(limits, k)
+        if not (np.isfinite(val) and val > 0):
+            raise PlanningError(f"{who}: limit {k} = {val} must be > 0")
+
+
+def check_path(path, who: str) -> None:
+    L = getattr(path, "length", None)
+    if L is None or not np.isfinite(L) or L <= 0:
+        raise PlanningError(f"{who}: path has length {L!r}; need a non-empty path")
+
+
+def cartesian_derivs(path, s):
+    """(P, P′, P″, P‴) at arc lengths s, each (N, 3)."""
+    P, P1, P2, P3 = path.derivs(np.asarray(s, float))
+    return np.asarray(P, float), np.asarray(P1, float), np.asarray(P2, float), np.asarray(P3, float)
+
+
+def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
+    """(q, q′, q″, q‴) at arc lengths s, each (N, 3): joint positions and their derivatives
+    with respect to arc length.  Raises PlanningError naming the first point that leaves the
+    workspace (the kins message names the point and the joint)."""
+    s = np.asarray(s, float)
+    P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
+    try:
+        Q0 = machine.ik(P)
+    except WorkspaceError as e:
+        raise PlanningError(f"path point at s = {s[e.index]:.6g} mm leaves the workspace: {e}") from None
+    Q = {0: Q0}
+    for k in (-2, -1, 1, 2):
+        d = k * h
+        X = P + P1 * d + P2 * (d * d / 2) + P3 * (d * d * d / 6)
+        Qk, reach = machine._ik(X)  # stencil points are ≤ 2h off the path: no stroke check
+        if (reach < 0).any():
+            i = int(np.argmax((reach < 0).any(axis=1)))
+            raise PlanningError(f"path point at s = {s[i]:.6g} mm {P[i]} is at the edge of reach")
+        Q[k] = Qk
+    q1 = (-Q[2] + 8 * Q[1] - 8 * Q[-1] + Q[-2]) / (12 * h)
+    q2 = (-Q[2] + 16 * Q[1] - 30 * Q[0] + 16 * Q[-1] - Q[-2]) / (12 * h * h)
+    q3 = (Q[2] - 2 * Q[1] + 2 * Q[-1] - Q[-2]) / (2 * h ** 3)
+    return Q0, q1, q2, q3
+
+
+def time_derivs(D1, D2, D3, sd, sdd, sddd):
+    """Velocity, acceleration, jerk in time of x(s(t)) from x′, x″, x‴ (N, k) and ṡ, s̈, s⃛ (N,).
+
+    ẋ = x′ṡ,  ẍ = x″ṡ² + x′s̈,  x⃛ = x‴ṡ³ + 3x″ṡs̈ + x′s⃛.  Broadcasts over leading axes.
+    """
+    sd, sdd, sddd = (np.asarray(x, float)[..., None] for x in (sd, sdd, sddd))
+    v = D1 * sd
+    a = D2 * sd * sd + D1 * sdd
+    j = D3 * sd ** 3 + 3 * D2 * sd * sdd + D1 * sddd
+    return v, a, j
+
+
+def peak_ratios(v, a, j, lim) -> np.ndarray:
+    """[v, a, j] peak |value| / limit (over all leading axes) for a kins Limits."""
+    return np.array([np.abs(v).max() / lim.v, np.abs(a).max() / lim.a, np.abs(j).max() / lim.j])
+
+
+def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
+    """min(F_max, F_clim) along s: the programmed feed ceiling and the chord-error cap
+    F_clim = (2/T)√(ρ² − (ρ − ε)²) of Erwinski et al., TII 2022 (the chord of one period
+    deviates ≤ ε from an arc of radius ρ)."""
+    kappa = np.asarray(path.curvature(s) if kappa is None else kappa, float)
+    eps = limits.chord_error_mm
+    with np.errstate(divide="ignore"):
+        rho = np.where(kappa > 0, 1.0 / np.maximum(kappa, 1e-300), np.inf)
+    # ρ ≤ ε: any chord is within ε; cap by the diameter per period
+    fc = np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)), 2 * rho / T)
+    return np.minimum(limits.feed_max, fc)

@@ -1,0 +1,337 @@
+"""S-curve feed planning with the feed limiting function (FLF) — `scurve` and `scurve_joint`.
+
+Erwinski, Wawrzak, Paprocki, "Multi-criteria… feedrate planning", IEEE TII 18(11) 2022 and
+Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
+
+1. FLF(s) = min(F_max, F_clim, F_alim, F_jlim) with F_clim = (2/T)√(ρ² − (ρ − ε)²),
+   F_alim = √(A/κ), F_jlim = ∛(J/κ²).
+2. Critical points: the path ends and exact-stop corners (feed 0) and the FLF local minima
+   (a sample lower than 5 neighbours on each side, refined by Brent's method).
+3. Between critical points one jerk-limited 1-D profile (v0, a = 0) → (v1, a = 0) over the arc
+   length of the segment: computed by ruckig (time-optimal with target velocity) rather than
+   hand-written seven-phase formulas; its peak feed is lowered by bisection (≤ 30 iterations
+   or Δ < 0.001 mm/s, TII 2022) until it stays under the FLF.
+4. Forward/backward consistency: the feed at each critical point is lowered until every
+   segment can change between its end feeds within its length.
+5. Axis-limit repair: a segment whose axes break a limit gets its J, then its A, lowered
+   (a one-dimensional search for the largest value without violation, as TII 2022's golden
+   section; stop at a relative width of 1 %); if lowering A and J cannot fix it (a violation
+   caused by the feed itself, e.g. v or centripetal terms), its end and peak feeds are scaled
+   down.  `scurve` checks the Cartesian axes — the paper's method, which lets the joints of
+   a delta break their limits; `scurve_joint` checks the joints through the IK and adds the
+   joint-velocity cap V_joint / max|q′(s)| to the FLF: the conservative fix a user would try.
+
+The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
+lands on s = L at rest.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from ruckig import InputParameter, Result, Ruckig, Trajectory
+from scipy.optimize import minimize_scalar
+
+from .joint_limits import (PlanningError, cartesian_derivs, check_limits, check_path,
+                           joint_derivs, peak_ratios, time_derivs)
+from .profile import Profile
+
+MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
+PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
+PEAK_BISECTION_TOL = 1e-3   # mm/s
+
+
+# -- the feed limiting function ----------------------------------------------------
+def flf(path, limits, T, s, *, joint_machine=None):
+    """FLF at arc lengths s (mm/s).  With ``joint_machine`` adds V_joint / max|q′(s)|."""
+    s = np.asarray(s, float)
+    kappa = np.abs(np.asarray(path.curvature(s), float))
+    A, J = limits.cartesian.a, limits.cartesian.j
+    eps = limits.chord_error_mm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(kappa > 0, 1.0 / kappa, np.inf)
+        # ρ² − (ρ − ε)² = 2ρε − ε² (no inf − inf on straight parts); ρ ≤ ε: the diameter per period
+        fc = np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)),
+                      2 * rho / T)
+        fa = np.sqrt(A / kappa)
+        fj = np.cbrt(J / (kappa * kappa))
+    F = np.minimum.reduce([np.full_like(s, limits.feed_max), fc, fa, fj])
+    if joint_machine is not None:
+        _, q1, _, _ = joint_derivs(joint_machine, path, s)
+        with np.errstate(divide="ignore"):
+            F = np.minimum(F, limits.joint.v / np.abs(q1).max(axis=1))
+    return F
+
+
+# -- 1-D jerk-limited pieces --------------------------------------------------------
+def min_distance(v0, v1, A, J):
+    """Shortest arc length in which the feed can change from v0 to v1 (a = 0 at both ends)."""
+    dv = abs(v1 - v0)
+    if dv <= A * A / J:
+        return (v0 + v1) * math.sqrt(dv / J)
+    return 0.5 * (v0 + v1) * (dv / A + A / J)
+
+
+def reachable(v0, L, A, J, vmax):
+    """Largest v1 ≤ vmax that can be reached from v0 (either way) within L."""
+    if min_distance(v0, vmax, A, J) <= L:
+        return vmax
+    lo, hi = v0, vmax
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if min_distance(v0, mid, A, J) <= L:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+class Segment:
+    """One ruckig profile between two critical points, as arrays of its seven phases."""
+
+    __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "tcum", "j", "a", "v", "p", "duration")
+
+    def __init__(self, s0, L, v0, v1, A, J, vpeak):
+        self.s0, self.L, self.v0, self.v1, self.A, self.J, self.vpeak = s0, L, v0, v1, A, J, vpeak
+        self.duration = None
+
+    def compute(self, otg, inp, traj) -> bool:
+        inp.current_position = [0.0]
+        inp.current_velocity = [self.v0]
+        inp.current_acceleration = [0.0]
+        inp.target_position = [self.L]
+        inp.target_velocity = [self.v1]
+        inp.target_acceleration = [0.0]
+        inp.max_velocity = [max(self.vpeak, self.v0, self.v1)]
+        inp.min_velocity = [0.0]
+        inp.max_acceleration = [self.A]
+        inp.max_jerk = [self.J]
+        try:
+            res = otg.calculate(inp, traj)
+        except Exception:  # ruckig.RuckigError: no profile for these inputs
+            return False
+        if res not in (Result.Working, Result.Finished):
+            return False
+        prof = traj.profiles[0][0]
+        self.tcum = np.concatenate([[0.0], np.cumsum(prof.t)])
+        self.j, self.a = np.array(prof.j), np.array(prof.a)
+        self.v, self.p = np.array(prof.v), np.array(prof.p)
+        self.duration = float(traj.duration)
+        return True
+
+    def at(self, tt):
+        """(p, v, a, j) at local times tt (clipped to the segment)."""
+        tt = np.clip(np.asarray(tt, float), 0.0, self.duration)
+        k = np.clip(np.searchsorted(self.tcum, tt, side="right") - 1, 0, 6)
+        dt = tt - self.tcum[k]
+        j = self.j[k]
+        a = self.a[k] + j * dt
+        v = self.v[k] + self.a[k] * dt + j * dt * dt / 2
+        p = self.p[k] + self.v[k] * dt + self.a[k] * dt * dt / 2 + j * dt ** 3 / 6
+        return p, v, a, j
+
+
+class _Planner:
+    def __init__(self, path, machine, limits, joint: bool, margin: float, grid_mm: float):
+        self.path, self.machine, self.limits, self.joint = path, machine, limits, joint
+        self.T = machine.servo_period_s
+        self.otg, self.inp, self.traj = Ruckig(1), InputParameter(1), Trajectory(1)
+        lim = limits.joint if joint else limits.cartesian
+        # plan the check against slightly tightened limits: the metrics read jerk as a third
+        # difference at T, which can exceed the continuous peak by a fraction of a percent
+        self.check = type(lim)(lim.v * (1 - margin), lim.a * (1 - margin), lim.j * (1 - margin))
+        L = path.length
+        n = max(2001, int(math.ceil(L / grid_mm)) + 1)
+        self.grid = np.linspace(0.0, L, n)
+        self.F = flf(path, limits, self.T, self.grid, joint_machine=machine if joint else None)
+
+    def F_at(self, s):
+        return flf(self.path, self.limits, self.T, np.atleast_1d(s),
+                   joint_machine=self.machine if self.joint else None)
+
+    # -- critical points ----------------------------------------------------------
+    def critical_points(self):
+        L, g, F = self.path.length, self.grid, self.F
+        corners = [float(c) for c in (self.path.corners() if hasattr(self.path, "corners") else [])
+                   if 0 < c < L]
+        pts = {0.0: 0.0, L: 0.0}
+        for c in corners:
+            pts[c] = 0.0
+        n = len(F)
+        m = MIN_NEIGHBOURS
+        Fp = np.concatenate([np.full(m, np.inf), F, np.full(m, np.inf)])
+        is_min = np.ones(n, bool)
+        for k in range(1, m + 1):
+            is_min &= (F < Fp[m - k:m - k + n]) & (F < Fp[m + k:m + k + n])
+        h = g[1] - g[0]
+        cs = np.array(sorted(pts))
+        for i in np.nonzero(is_min)[0]:
+            if np.min(np.abs(cs - g[i])) < 2 * m * h:      # a corner's own dip: it stops there
+                continue
+            lo, hi = g[max(i - 1, 0)], g[min(i + 1, n - 1)]
+            r = minimize_scalar(lambda x: float(self.F_at(x)[0]), bounds=(lo, hi), method="bounded",
+                                options={"xatol": 1e-6})
+            s_min, f_min = (float(r.x), float(r.fun)) if r.fun <= F[i] else (float(g[i]), float(F[i]))
+            pts[s_min] = f_min
+        s = np.array(sorted(pts))
+        keep = np.concatenate([[True], np.diff(s) > 1e-9])
+        s = s[keep]
+        v = np.array([pts[x] for x in s])
+        v[0] = v[-1] = 0.0
+        return s, v
+
+    # -- segments -----------------------------------------------------------------
+    def consistent(self, v, Ls, A, J):
+        v = v.copy()
+        for i in range(len(Ls) - 1, -1, -1):
+            v[i] = min(v[i], reachable(v[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], v[i]))
+        for i in range(len(Ls)):
+            v[i + 1] = min(v[i + 1], reachable(v[i], Ls[i] * (1 - 1e-9), A[i], J[i], v[i + 1]))
+        return v
+
+    def fit_peak(self, seg: Segment, vcap: float) -> bool:
+        """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection)."""
+        lo = max(seg.v0, seg.v1, 1e-6)
+        i0, i1 = np.searchsorted(self.grid, [seg.s0, seg.s0 + seg.L])
+        fmax = float(self.F[i0:i1 + 1].max()) if i1 >= i0 else lo
+        hi = max(lo, min(vcap, fmax))
+
+        def under_flf():
+            tt = np.linspace(0, seg.duration, 48)
+            p, vv, _, _ = seg.at(tt)
+            return bool(np.all(vv <= np.interp(seg.s0 + p, self.grid, self.F) + 1e-6))
+
+        seg.vpeak = hi
+        if not seg.compute(self.otg, self.inp, self.traj):
+            return False
+        if under_flf() or hi == lo:
+            return True
+        good = lo
+        for _ in range(PEAK_BISECTION_ITERS):
+            if hi - good < PEAK_BISECTION_TOL:
+                break
+            mid = 0.5 * (good + hi)
+            seg.vpeak = mid
+            if seg.compute(self.otg, self.inp, self.traj) and under_flf():
+                good = mid
+            else:
+                hi = mid
+        seg.vpeak = good
+        return seg.compute(self.otg, self.inp, self.traj)
+
+    def ratios(self, seg: Segment) -> np.ndarray:
+        """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits)."""
+        n = int(min(400, max(32, math.ceil(seg.duration / (2 * self.T)))))
+        tt = np.linspace(0, seg.duration, n)
+        p, v, a, j = seg.at(tt)
+        s = np.clip(seg.s0 + p, seg.s0, seg.s0 + seg.L)
+        # evaluate just inside the segment: at a corner the derivatives are one-sided
+        s = np.clip(s, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
+        cart = cartesian_derivs(self.path, s)
+        D = joint_derivs(self.machine, self.path, s, cart=cart) if self.joint else cart
+        xv, xa, xj = time_derivs(D[1], D[2], D[3], v, a, j)
+        return peak_ratios(xv, xa, xj, self.check)
+
+    def seg_ok(self, seg, vcap) -> bool:
+        return self.fit_peak(seg, vcap) and bool(np.all(self.ratios(seg) <= 1.0))
+
+    def run(self, max_rounds: int = 60):
+        s_c, v_c = self.critical_points()
+        Ls = np.diff(s_c)
+        nseg = len(Ls)
+        A = np.full(nseg, self.limits.cartesian.a)
+        J = np.full(nseg, self.limits.cartesian.j)
+        vcap = np.full(nseg, self.limits.feed_max)
+        repairs = 0
+        for rnd in range(max_rounds):
+            v = self.consistent(v_c, Ls, A, J)
+            segs, bad = [], []
+            for i in range(nseg):
+                seg = Segment(s_c[i], Ls[i], v[i], v[i + 1], A[i], J[i], vcap[i])
+                if not self.fit_peak(seg, vcap[i]):
+                    raise PlanningError(f"scurve: ruckig found no profile for segment {i} "
+                                        f"(s = {s_c[i]:.6g}…{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
+                segs.append(seg)
+                r = self.ratios(seg)
+                if np.any(r > 1.0):
+                    bad.append((i, r))
+            if not bad:
+                return segs, {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
+                              "critical_points_mm": s_c.tolist()}
+            for i, r in bad:
+                repairs += 1
+                seg = segs[i]
+                # TII 2022 axis repair: lower J, then A, to the largest value without violation
+                for attr in ("J", "A"):
+                    full = getattr(seg, attr)
+
+                    def ok(f, attr=attr, full=full):
+                        setattr(seg, attr, full * f)
+                        return self.seg_ok(seg, vcap[i])
+
+                    if ok(0.05):
+                        lo, hi = 0.05, 1.0
+                        while hi - lo > 0.01:
+                            mid = 0.5 * (lo + hi)
+                            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+                        setattr(seg, attr, full * lo)
+                        break
+                    setattr(seg, attr, full)
+                A[i], J[i] = seg.A, seg.J
+                seg.A, seg.J = A[i], J[i]
+                if not self.seg_ok(seg, vcap[i]):
+                    # a violation of the feed itself: scale the segment's feeds down
+                    r = self.ratios(seg)
+                    f = float(np.clip(0.98 * min(1 / r[0], r[1] ** -0.5, r[2] ** (-1 / 3)), 0.3, 0.98))
+                    vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
+                    v_c[i] = min(v_c[i], v[i] * f)
+                    v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
+        raise PlanningError(f"scurve: axis-limit repair did not converge in {max_rounds} rounds "
+                            f"({len(bad)} segment(s) still violate)")
+
+
+def sample(segs, path, T, planner, info) -> Profile:
+    """Join the segments and sample s(t) at exact multiples of T, ending at s = L at rest."""
+    durs = np.array([g.duration for g in segs])
+    starts = np.concatenate([[0.0], np.cumsum(durs)])
+    total = float(starts[-1])
+    N = max(1, int(math.ceil(total / T - 1e-9)))
+    t = np.arange(N + 1) * T
+    s = np.empty(N + 1)
+    sd, sdd, sddd = np.zeros(N + 1), np.zeros(N + 1), np.zeros(N + 1)
+    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(segs) - 1)
+    for i, g in enumerate(segs):
+        m = k == i
+        if m.any():
+            p, v, a, j = g.at(t[m] - starts[i])
+            s[m], sd[m], sdd[m], sddd[m] = g.s0 + p, v, a, j
+    L = path.length
+    s = np.minimum(np.maximum.accumulate(s), L)
+    s[0] = 0.0
+    s[-1], sd[-1], sdd[-1], sddd[-1] = L, 0.0, 0.0, 0.0
+    info = dict(info, continuous_time_s=total)
+    return Profile(planner, T, s, sd, sdd, sddd, path, info=info)
+
+
+def _plan(path, machine, limits, joint: bool, margin: float, grid_mm: float) -> Profile:
+    t0 = time.perf_counter()
+    name = "scurve_joint" if joint else "scurve"
+    limits = machine.limits if limits is None else limits
+    check_limits(limits, name)
+    check_path(path, name)
+    pl = _Planner(path, machine, limits, joint, margin, grid_mm)
+    segs, info = pl.run()
+    prof = sample(segs, path, pl.T, name, info)
+    prof.planning_time_s = time.perf_counter() - t0
+    return prof
+
+
+def plan(path, machine, limits=None, *, margin: float = 0.005, grid_mm: float = 0.05) -> Profile:
+    """`scurve`: FLF s-curve with the Cartesian axis-limit repair of TII 2022."""
+    return _plan(path, machine, limits, False, margin, grid_mm)
+
+
+def plan_joint(path, machine, limits=None, *, margin: float = 0.005, grid_mm: float = 0.05) -> Profile:
+    """`scurve_joint`: the same, repairing against the joint limits through the IK."""
+    return _plan(path, machine, limits, True, margin, grid_mm)
