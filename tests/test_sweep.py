@@ -172,3 +172,19 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys, monkeypatch):
                 "--task", LINE_TASK, "--out", str(tmp_path / "o")]) == 2
     assert "cannot reach the dask scheduler" in capsys.readouterr().err
     assert time.perf_counter() - t0 < 30
+
+
+def test_report_tables_ratio_failures_and_plots(tmp_path, capsys):
+    suite = write_suite(tmp_path)
+    run_sweep(tasks_from_suite_file(suite), tmp_path / "s", task_fn=LINE_TASK, workers=0, progress=False)
+    assert cli(["report", str(tmp_path / "s"), "--reference", "quintic"]) == 0
+    md = (tmp_path / "s/report/report.md").read_text()
+    assert "## keops / line" in md
+    quintic = next(line for line in md.splitlines() if line.startswith("| quintic |"))
+    cells = [c.strip() for c in quintic.strip("|").split("|")]
+    assert cells[2] == "0.375" and cells[3] == "1.000" and cells[4] == "yes"     # ÷ itself = 1
+    assert "FAILED: TaskError" in md and "bogus" in md
+    assert (tmp_path / "s/report/group00.png").stat().st_size > 1000
+    assert "<table>" in (tmp_path / "s/report/report.html").read_text()
+    assert cli(["report", str(tmp_path / "nothing")]) == 2
+    assert "not a sweep folder" in capsys.readouterr().err

@@ -158,7 +158,8 @@ def plan_task(task: dict, out_dir: Path) -> dict:
         raise TaskError("planners.plan is not available yet (issue: planners)")
     machine = task_machine(task)
     _, pfile = task_input_files(task, out_dir / "inputs")
-    path = planners.load_path(pfile)
+    from planners.path import load_path
+    path = load_path(pfile)
     prof = planners.plan(task["planner"], path, machine, **task["planner_options"])
     P = path.point(prof.s)
     metrics = command_metrics(machine, P, prof.T, prof.s)
