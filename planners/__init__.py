@@ -15,7 +15,7 @@ _REGISTRY = {
     "scurve": ("planners.scurve", "plan"),
     "scurve_joint": ("planners.scurve", "plan_joint"),
     "pso": ("planners.pso", "plan"),
-    "toppra": ("planners.toppra", "plan"),
+    "toppra": ("planners.toppra_ref", "plan"),
     "optimal": ("planners.optimal", "plan"),
 }
 PLANNERS = ("trapezoid", "scurve", "scurve_joint", "pso", "toppra", "optimal")
@@ -50,3 +50,40 @@ def plan(name: str, path, machine, limits=None, **options):
     profile.planning_time_s = time.perf_counter() - t0
     profile.validate()
     return profile
+
+
+def check_limits(limits, planner: str = "planner") -> None:
+    """Raise PlanningError unless every limit is a finite number > 0."""
+    vals = {"feed_max": limits.feed_max, "chord_error_mm": limits.chord_error_mm}
+    for group in ("joint", "cartesian"):
+        lim = getattr(limits, group)
+        vals.update({f"{group}.v": lim.v, f"{group}.a": lim.a, f"{group}.j": lim.j})
+    for name, v in vals.items():
+        try:
+            ok = v > 0 and v < float("inf")
+        except TypeError:
+            ok = False
+        if not ok:
+            raise PlanningError(f"{planner}: limit {name} = {v!r} must be a finite number > 0")
+
+
+def check_workspace(path, machine, step_mm: float = 0.5) -> None:
+    """Raise PlanningError naming the first path point (arc length, xyz, joint, G-code line)
+    that the machine cannot reach, sampling the path every ≤ step_mm."""
+    import numpy as np
+
+    from kins import WorkspaceError
+
+    s, P = path.sample(step_mm)
+    try:
+        machine.ik(P)
+    except WorkspaceError as e:
+        i = e.index
+        where = ""
+        if hasattr(path, "line_at"):
+            ln = int(path.line_at(s[i])[0])
+            where = f" (G-code line {ln})" if ln >= 0 else ""
+        joint = f", joint {e.joint}" if e.joint is not None else ""
+        raise PlanningError(f"{path.source}: point at s = {s[i]:.6g} mm{where}, "
+                            f"[{', '.join(f'{x:.6g}' for x in np.asarray(P[i]))}] mm, is outside the "
+                            f"workspace of {machine.name}{joint}: {e}") from None
