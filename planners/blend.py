@@ -1,0 +1,157 @@
+"""Geometry shared by every planner: G64 corner blending and cutting a curve into G1 lines.
+
+Corner blending follows the idea of LinuxCNC 2.9's tangent-arc blends
+(``src/emc/tp/blendmath.c``: ``blendInit3FromLineLine``, ``blendFindPoints3``, …): the
+corner between two lines is replaced by the circular arc tangent to both, as large as
+the tolerance allows, but using at most half of each adjoining line so that neighbouring
+blends never overlap. The blended path is then tangent-continuous there. What is *not*
+blended (documented limits): corners touching an arc segment (kept as exact stops, as
+LinuxCNC does when a blend arc does not fit), and near-reversals (turn > π − 1e-6 rad).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planners.path import CORNER_ANGLE, Arc, Line, Path, PathError, SegmentPath
+
+REVERSAL_ANGLE = math.pi - 1e-6
+
+
+def line_blend(u1: np.ndarray, u2: np.ndarray, room: float, tolerance: float):
+    """(radius, tangent length d, deviation, turn angle) of the blend arc of a line corner.
+
+    u1, u2: unit directions in and out; ``room``: the longest tangent length allowed
+    (half of the shorter adjoining line); ``tolerance``: the largest distance allowed
+    between the corner point and the arc (inf = no limit but the room).
+    The arc touches the lines at d = R·tan(δ/2) from the corner and passes the corner at
+    R·(1/cos(δ/2) − 1), δ being the turn angle.
+    """
+    delta = math.acos(max(-1.0, min(1.0, float(np.dot(u1, u2)))))
+    half = 0.5 * delta
+    R_room = room / math.tan(half)
+    sec_m1 = 1.0 / math.cos(half) - 1.0
+    R_tol = tolerance / sec_m1 if math.isfinite(tolerance) else math.inf
+    R = min(R_room, R_tol)
+    return R, R * math.tan(half), R * sec_m1, delta
+
+
+def blend_corners(segments, tolerances):
+    """Round the line–line corners whose tolerance is not None.
+
+    ``tolerances[i]`` governs the corner between segments i and i+1: None → exact stop,
+    a number p > 0 → an arc within p mm of the corner, inf → an arc limited only by room.
+    Returns (new segments, list of (corner index, deviation mm) for each blended corner).
+    """
+    segs = list(segments)
+    if len(tolerances) != max(len(segs) - 1, 0):
+        raise PathError(f"blend: {len(tolerances)} corner tolerances for {len(segs)} segments")
+    trim_start = [0.0] * len(segs)
+    trim_end = [0.0] * len(segs)
+    arcs: dict[int, tuple] = {}
+    done = []
+    for i, tol in enumerate(tolerances):
+        a, b = segs[i], segs[i + 1]
+        if tol is None or not (a.kind == "line" and b.kind == "line"):
+            continue
+        if not tol > 0:
+            raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
+        u1, u2 = a.direction, b.direction
+        turn = math.acos(max(-1.0, min(1.0, float(np.dot(u1, u2)))))
+        if turn <= CORNER_ANGLE or turn >= REVERSAL_ANGLE:
+            continue                      # tangent already, or a reversal: nothing to round
+        room = 0.5 * min(a.length, b.length)
+        R, d, dev, delta = line_blend(u1, u2, room, tol)
+        if not (R > 0 and d > 0):
+            continue
+        trim_end[i] = d
+        trim_start[i + 1] = d
+        arcs[i] = (R, d, delta)
+        done.append((i, dev))
+    out = []
+    pos = segs[0].start.copy()
+    for i, g in enumerate(segs):
+        if g.kind == "line":
+            end = g.end - trim_end[i] * g.direction
+            left = np.linalg.norm(end - pos)
+            # A leftover shorter than 1 nm–1 µm between two blend arcs is dropped: its
+            # direction would be rounding noise (a false corner); the next arc starts
+            # where the previous one ended (shifts ≤ 1 µm along the line).
+            if left > (1e-6 if i in arcs else 1e-9):
+                out.append(Line(pos, end, g.line))
+                pos = end
+        else:
+            out.append(g)
+            pos = g.end
+        if i in arcs:
+            R, d, delta = arcs[i]
+            u1, u2 = g.direction, segs[i + 1].direction
+            m = u2 - math.cos(delta) * u1
+            m /= np.linalg.norm(m)
+            n = np.cross(u1, u2)
+            n /= np.linalg.norm(n)
+            arc = Arc(pos, pos + R * m, n, delta, 0.0, segs[i + 1].line)
+            out.append(arc)
+            pos = arc.end
+    return out, done
+
+
+def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.02):
+    """G1 lines through points of ``path`` with chord deviation ≤ chord_tol (as a CAM post).
+
+    Vertices include every corner. Step from the local curvature, ℓ = √(8·ε/κ_max), then
+    each chord is checked at 16 interior points and halved until within tolerance.
+    Returns (SegmentPath of lines, measured largest deviation in mm).
+    """
+    if not chord_tol > 0:
+        raise PathError(f"{path.source}: chord tolerance {chord_tol} must be > 0")
+    L = path.length
+    bounds = np.concatenate([[0.0], path.corners(), [L]])
+    n = max(2, int(math.ceil(L / grid_mm)) + 1)
+    sg = np.linspace(0.0, L, n)
+    kg = path.curvature(sg)
+    verts = [0.0]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        s = a
+        while b - s > 1e-12:
+            k0 = kg[min(np.searchsorted(sg, s), n - 1)]
+            step = math.sqrt(8 * 0.95 * chord_tol / k0) if k0 > 0 else b - s
+            for _ in range(3):          # curvature may rise within the step: re-check
+                lo, hi = np.searchsorted(sg, s) - 1, np.searchsorted(sg, s + step) + 1
+                kmax = kg[max(lo, 0):min(hi + 1, n)].max()
+                step = min(step, math.sqrt(8 * 0.95 * chord_tol / kmax) if kmax > 0 else step)
+            if s + step >= b - 1e-9:
+                s = b
+            elif s + 1.5 * step > b:
+                s = 0.5 * (s + b)         # no sliver before a corner: split the rest evenly
+            else:
+                s += step
+            verts.append(s)
+    sv = np.array(verts)
+    for _ in range(20):
+        dev = _chord_deviation(path, sv)
+        bad = dev > chord_tol
+        if not bad.any():
+            break
+        mids = 0.5 * (sv[:-1] + sv[1:])[bad]
+        sv = np.sort(np.concatenate([sv, mids]))
+    P = path.point(sv)
+    lines = [Line(P[i], P[i + 1], None, f"{path.source}: chord {i}") for i in range(len(P) - 1)]
+    out = SegmentPath(lines, f"{path.source} (G1 lines, chord ≤ {chord_tol:g} mm)")
+    out.vertex_s = sv
+    return out, float(dev.max())
+
+
+def _chord_deviation(path: Path, sv: np.ndarray) -> np.ndarray:
+    """Largest distance of the curve from each chord, from 16 interior points per chord."""
+    t = np.linspace(0.0, 1.0, 18)[1:-1]
+    s = (sv[:-1, None] + (sv[1:] - sv[:-1])[:, None] * t[None, :]).ravel()
+    Q = path.point(s).reshape(len(sv) - 1, len(t), 3)
+    A, B = path.point(sv[:-1]), path.point(sv[1:])
+    u = B - A
+    uu = np.maximum(np.sum(u * u, axis=1), 1e-300)
+    w = Q - A[:, None, :]
+    lam = np.clip(np.sum(w * u[:, None, :], axis=2) / uu[:, None], 0.0, 1.0)
+    d = np.linalg.norm(w - lam[..., None] * u[:, None, :], axis=2)
+    return d.max(axis=1)

@@ -1,0 +1,187 @@
+"""Planner 1: ``trapezoid`` — LinuxCNC 2.9 trajectory planner, type 0 (no jerk limit).
+
+What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of LinuxCNC 2.9):
+
+* Geometry as LinuxCNC gets it: lines and arcs. A NURBS is first cut into G1 lines within
+  the chord tolerance (as a CAM post does; :func:`planners.blend.cut_into_lines`) and its
+  corners are then blended under ``G64 P<tolerance>`` by tangent arcs
+  (:func:`planners.blend.blend_corners`; blendmath.c). A segment path (G-code) is used as
+  read (its corners were already blended per G61/G64 by :mod:`planners.gcode`).
+* Segment limits (tc.c ``tcGetTangentialMaxAccel``, ``tcUpdateArcLimits``; blendmath.c
+  ``pmCircleActualMaxVel``): LinuxCNC limits only the Cartesian axes and the feed. A line's
+  acceleration/velocity is the largest keeping every axis within its limit along the line's
+  direction; an arc's tangential acceleration gets ``BLEND_ACC_RATIO_TANGENTIAL`` = 0.5 of
+  the plane's bound and its speed is capped at √(0.866·a·ρ) (``BLEND_ACC_RATIO_NORMAL``).
+* Look-ahead (tp.c ``tpRunOptimization`` / ``tpComputeOptimalVelocity``): backward pass
+  v_start = √(v_final² + 2·a·L), so every segment can stop where the path demands; a
+  tangent-discontinuous junction (exact stop, or a corner with no blend) ends at rest.
+  Differences from LinuxCNC: the whole path is looked ahead (LinuxCNC stops after
+  TP_LOOKAHEAD_DEPTH segments, which matters only for very short segments), no "kink"
+  velocity at small tangent breaks, and the programmed F is replaced by F_max (all
+  planners of the suite share F_max, so their times compare).
+* Per-cycle update (tp.c ``tpCalculateTrapezoidalAccel``, ``tcUpdateDistFromAccel``,
+  ``tpHandleSplitCycle``): the largest new speed that can still stop at the segment's final
+  speed, v = −a·dt/2 + √(v_f² + a(2·dx − v·dt) + (a·dt/2)²), capped at the segment's
+  velocity, the acceleration clamped to ±a, the distance advanced by the trapezoidal
+  rule; a cycle that passes the segment end carries the rest into the next segment.
+
+The profile lives on the geometry it planned on (``profile.path``: the G1 lines and blend
+arcs); ``profile.info["geometry_deviation_mm"]`` bounds its distance from the original path
+(chord deviation + largest blend deviation).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planners import PlanningError, check_limits, check_workspace
+from planners.blend import blend_corners, cut_into_lines
+from planners.path import NurbsPath, Path, SegmentPath
+from planners.profile import Profile
+
+ACC_RATIO_TANGENTIAL = 0.5                               # blendmath.h
+ACC_RATIO_NORMAL = math.sqrt(1 - ACC_RATIO_TANGENTIAL**2)  # ≈ 0.866
+MAX_CYCLES = 20_000_000
+
+
+def prepare_geometry(path: Path, chord_tol: float, blend_tol: float | None):
+    """(segment path planned on, info) — the path as LinuxCNC would receive it."""
+    if isinstance(path, SegmentPath):
+        return path, {"geometry_deviation_mm": 0.0, "chord_deviation_mm": 0.0,
+                      "blend_deviation_mm": 0.0, "segments": len(path.segments)}
+    if not isinstance(path, NurbsPath):
+        raise PlanningError(f"trapezoid: cannot plan on a {type(path).__name__}")
+    poly, chord_dev = cut_into_lines(path, chord_tol)
+    n = len(poly.segments)
+    tol = [blend_tol] * (n - 1)
+    segs, done = blend_corners(poly.segments, tol)
+    blend_dev = max((d for _, d in done), default=0.0)
+    planned = SegmentPath(segs, f"{path.source} (G1 lines, G64 P{blend_tol:g})" if blend_tol
+                          else f"{path.source} (G1 lines, G61)")
+    return planned, {"geometry_deviation_mm": chord_dev + blend_dev, "chord_deviation_mm": chord_dev,
+                     "blend_deviation_mm": blend_dev, "g1_lines": n, "segments": len(segs),
+                     "blends": len(done)}
+
+
+def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: float):
+    """Per segment: (velocity cap, tangential acceleration limit), mm/s and mm/s²."""
+    vmax, amax = [], []
+    for g in path.segments:
+        if g.kind == "line":
+            worst = float(np.abs(g.direction).max())      # the axis that moves fastest
+            vmax.append(min(feed_max, v_axis / worst))
+            amax.append(a_axis / worst)
+        else:
+            # Bound of any vector in the arc's plane (plus the helix axis if it rises):
+            # axis k sees at most |a|·√(u_k² + v_k² (+ n_k²)).
+            u, v = g.a / g.radius, g.b / g.radius
+            span = u**2 + v**2 + (g.normal**2 if g.rise != 0 else 0.0)
+            scale = float(np.sqrt(span).max())
+            a_plane = a_axis / scale
+            rho = g.radius + (g.rise / g.angle) ** 2 / g.radius   # helix radius of curvature
+            vmax.append(min(feed_max, v_axis / scale, math.sqrt(ACC_RATIO_NORMAL * a_plane * rho)))
+            amax.append(ACC_RATIO_TANGENTIAL * a_plane)
+    return np.array(vmax), np.array(amax)
+
+
+def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
+    """Backward look-ahead: the speed at the end of each segment (0 at corners and the end)."""
+    n = len(path.segments)
+    corner_idx = set(np.searchsorted(path.seg_start, path.corners()).tolist())
+    vf = np.zeros(n)
+    for i in range(n - 2, -1, -1):
+        if i + 1 in corner_idx:
+            continue                                  # exact stop at a tangent break
+        vs_next = math.sqrt(vf[i + 1] ** 2 + 2 * amax[i + 1] * path.segments[i + 1].length)
+        vf[i] = min(vs_next, vmax[i], vmax[i + 1])
+    return vf
+
+
+def simulate(path: SegmentPath, vmax, amax, vf, T: float):
+    """Cycle-by-cycle LinuxCNC update: (s, sd, sdd, excess) at every period.
+
+    A cycle that reaches a segment end is split (tp.c ``tpHandleSplitCycle``): the time τ
+    to the end under the cycle's constant acceleration is solved exactly, the next segment
+    starts at the speed reached there (never above the look-ahead's final speed), and the
+    rest of the period runs on the next segment with its own update.
+    ``excess`` is the largest clipped speed excess at a segment end (mm/s, diagnostics).
+    """
+    L = np.array([g.length for g in path.segments])
+    n = len(L)
+    s_out, v_out = [0.0], [0.0]
+    i, x, v = 0, 0.0, 0.0
+    base = 0.0
+    excess = 0.0
+    for _ in range(MAX_CYCLES):
+        t_left = T
+        while t_left > 0.0:
+            a = amax[i]
+            dx = L[i] - x
+            half = 0.5 * a * t_left
+            disc = vf[i] ** 2 + a * (2 * dx - v * t_left) + half * half
+            v_new = -half + math.sqrt(disc) if disc > 0 else 0.0
+            v_new = min(max(v_new, 0.0), vmax[i])
+            acc = min(max((v_new - v) / t_left, -a), a)
+            v_new = max(v + acc * t_left, 0.0)
+            disp = 0.5 * (v + v_new) * t_left
+            if x + disp < L[i] - 1e-12:
+                x += disp
+                v = v_new
+                break
+            # The end of segment i is reached within this cycle at τ: v·τ + acc·τ²/2 = dx.
+            if abs(acc) * t_left < 1e-12 * max(v, 1.0):
+                tau = dx / v if v > 0 else t_left
+            else:
+                r = v * v + 2 * acc * dx
+                tau = (-v + math.sqrt(max(r, 0.0))) / acc
+            tau = min(max(tau, 0.0), t_left)
+            v_end = v + acc * tau
+            if i == n - 1:
+                s_out.append(path.length)
+                v_out.append(0.0)
+                return np.array(s_out), np.array(v_out), excess
+            excess = max(excess, v_end - vf[i])
+            v = min(v_end, vf[i])
+            base += L[i]
+            x = 0.0
+            i += 1
+            t_left -= tau
+        s_out.append(min(base + x, path.length))
+        v_out.append(v)
+    raise PlanningError(f"trapezoid: no arrival after {MAX_CYCLES} cycles (a limit too small?)")
+
+
+def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None = None,
+         chord_tolerance_mm: float | None = None, check_workspace_step_mm: float = 0.5) -> Profile:
+    """LinuxCNC-style trapezoidal profile.
+
+    ``chord_tolerance_mm`` (default: the machine's chord error) is used to cut a NURBS into
+    G1 lines; ``blend_tolerance_mm`` is its G64 P (default: the same value; 0 → G61, exact
+    stops at every vertex).
+    """
+    limits = limits or machine.limits
+    check_limits(limits, "trapezoid")
+    T = float(machine.servo_period_s)
+    chord = limits.chord_error_mm if chord_tolerance_mm is None else chord_tolerance_mm
+    blend = chord if blend_tolerance_mm is None else blend_tolerance_mm
+    if not chord > 0:
+        raise PlanningError(f"trapezoid: chord tolerance {chord} mm must be > 0")
+    if blend < 0:
+        raise PlanningError(f"trapezoid: blend tolerance {blend} mm must be ≥ 0")
+    check_workspace(path, machine, check_workspace_step_mm)
+    planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
+    vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)
+    vf = final_velocities(planned, vmax, amax)
+    s, sd, excess = simulate(planned, vmax, amax, vf, T)
+    # s̈ as the mean acceleration of each period (the split cycles make it a mix of two
+    # segments' accelerations); s⃛ its difference. Rest at the end: both 0 there.
+    sdd = np.zeros_like(sd)
+    sdd[1:] = np.diff(sd) / T
+    sdd[-1] = 0.0
+    sddd = np.zeros_like(sdd)
+    sddd[1:] = np.diff(sdd) / T
+    info.update({"corners": int(len(planned.corners())), "lookahead": "whole path",
+                 "boundary_speed_excess_mm_s": float(excess),
+                 "acc_ratio_tangential": ACC_RATIO_TANGENTIAL})
+    return Profile("trapezoid", T, s, sd, sdd, sddd, planned, info=info)
