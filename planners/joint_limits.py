@@ -12,6 +12,8 @@ relative on q‴ at 1 mm radius, round-off ~1e-8).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 try:
@@ -104,3 +106,48 @@ def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
     # ρ ≤ ε: any chord is within ε; cap by the diameter per period
     fc = np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)), 2 * rho / T)
     return np.minimum(limits.feed_max, fc)
+
+
+class PathTable:
+    """Derivative tables on a uniform arc-length grid, for fast repeated checks.
+
+    Evaluating a NURBS at arc length needs a Newton inversion per call; planners that check
+    limits thousands of times (s-curve repair, PSO swarms, IPOPT) read these tables instead.
+    x′ and x″ are interpolated by cubic Hermite with the next derivative as slope (O(h⁴)),
+    x‴ linearly (O(h²)), for the Cartesian axes and, with a machine, the joints.
+    """
+
+    def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001):
+        L = float(path.length)
+        n = max(min_points, int(math.ceil(L / ds)) + 1)
+        self.length = L
+        self.s = np.linspace(0.0, L, n)
+        self.h = self.s[1] - self.s[0]
+        self.cart = cartesian_derivs(path, self.s)
+        self.joint = joint_derivs(machine, path, self.s, cart=self.cart) if machine is not None else None
+
+    @staticmethod
+    def _interp(tab, i, w, h):
+        X, X1, X2, X3 = tab
+        w = w[..., None]
+        h00, h10 = 2 * w ** 3 - 3 * w ** 2 + 1, w ** 3 - 2 * w ** 2 + w
+        h01, h11 = -2 * w ** 3 + 3 * w ** 2, w ** 3 - w ** 2
+        d1 = h00 * X1[i] + h10 * h * X2[i] + h01 * X1[i + 1] + h11 * h * X2[i + 1]
+        d2 = h00 * X2[i] + h10 * h * X3[i] + h01 * X2[i + 1] + h11 * h * X3[i + 1]
+        d3 = (1 - w) * X3[i] + w * X3[i + 1]
+        return d1, d2, d3
+
+    def _locate(self, s):
+        x = np.clip(np.asarray(s, float), 0.0, self.length) / self.h
+        i = np.minimum(x.astype(np.int64), len(self.s) - 2)
+        return i, x - i
+
+    def cartesian(self, s):
+        """(P′, P″, P‴) at s; any shape of s, results with a trailing axis of 3."""
+        i, w = self._locate(s)
+        return self._interp(self.cart, i, w, self.h)
+
+    def joints(self, s):
+        """(q′, q″, q‴) at s."""
+        i, w = self._locate(s)
+        return self._interp(self.joint, i, w, self.h)

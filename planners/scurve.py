@@ -33,8 +33,8 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
-from .joint_limits import (PlanningError, cartesian_derivs, check_limits, check_path,
-                           joint_derivs, peak_ratios, time_derivs)
+from .joint_limits import (PathTable, PlanningError, cartesian_derivs, check_limits,
+                           check_path, joint_derivs, peak_ratios, time_derivs)
 from .profile import Profile
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
@@ -47,6 +47,13 @@ def flf(path, limits, T, s, *, joint_machine=None):
     """FLF at arc lengths s (mm/s).  With ``joint_machine`` adds V_joint / max|q′(s)|."""
     s = np.asarray(s, float)
     kappa = np.abs(np.asarray(path.curvature(s), float))
+    q1 = joint_derivs(joint_machine, path, s)[1] if joint_machine is not None else None
+    return flf_of(kappa, q1, limits, T)
+
+
+def flf_of(kappa, q1, limits, T):
+    """FLF from the curvature κ and (optionally) q′ at the same points."""
+    kappa = np.abs(np.asarray(kappa, float))
     A, J = limits.cartesian.a, limits.cartesian.j
     eps = limits.chord_error_mm
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -56,11 +63,10 @@ def flf(path, limits, T, s, *, joint_machine=None):
                       2 * rho / T)
         fa = np.sqrt(A / kappa)
         fj = np.cbrt(J / (kappa * kappa))
-    F = np.minimum.reduce([np.full_like(s, limits.feed_max), fc, fa, fj])
-    if joint_machine is not None:
-        _, q1, _, _ = joint_derivs(joint_machine, path, s)
+    F = np.minimum.reduce([np.full(kappa.shape, limits.feed_max), fc, fa, fj])
+    if q1 is not None:
         with np.errstate(divide="ignore"):
-            F = np.minimum(F, limits.joint.v / np.abs(q1).max(axis=1))
+            F = np.minimum(F, limits.joint.v / np.abs(q1).max(axis=-1))
     return F
 
 
@@ -141,14 +147,17 @@ class _Planner:
         # plan the check against slightly tightened limits: the metrics read jerk as a third
         # difference at T, which can exceed the continuous peak by a fraction of a percent
         self.check = type(lim)(lim.v * (1 - margin), lim.a * (1 - margin), lim.j * (1 - margin))
-        L = path.length
-        n = max(2001, int(math.ceil(L / grid_mm)) + 1)
-        self.grid = np.linspace(0.0, L, n)
-        self.F = flf(path, limits, self.T, self.grid, joint_machine=machine if joint else None)
+        self.table = PathTable(path, machine if joint else None, ds=grid_mm)
+        self.grid = self.table.s
+        self.F = self.F_at(self.grid)
 
     def F_at(self, s):
-        return flf(self.path, self.limits, self.T, np.atleast_1d(s),
-                   joint_machine=self.machine if self.joint else None)
+        """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
+        s = np.atleast_1d(np.asarray(s, float))
+        P1, P2, _ = self.table.cartesian(s)
+        kappa = np.linalg.norm(np.cross(P1, P2), axis=-1)
+        q1 = self.table.joints(s)[0] if self.joint else None
+        return flf_of(kappa, q1, self.limits, self.T)
 
     # -- critical points ----------------------------------------------------------
     def critical_points(self):
@@ -201,33 +210,34 @@ class _Planner:
         jerk), x the checked axes (Cartesian, or the joints through the IK).
         """
         g = self.grid
-        P2 = cartesian_derivs(self.path, g)[2]
+        P2 = self.table.cart[2]
         d = np.linalg.norm(np.diff(P2, axis=0), axis=1)
         base = np.median(d) + 1e-12
         out = []
-        cand = np.nonzero((d > 50 * base) & (d > 1e-3))[0]
+        dn = np.maximum(np.concatenate([[0.0], d[:-1]]), np.concatenate([d[1:], [0.0]]))
+        # a jump stands out from both neighbouring cells; a steep but smooth stretch does not
+        cand = np.nonzero((d > 50 * base) & (d > 1e-3) & (d > 4 * dn))[0]
         if len(corners):
             cand = np.array([i for i in cand if np.min(np.abs(np.asarray(corners) - g[i])) >= 1e-3], int)
+        if len(cand) == 0:
+            return out
         lo, hi = g[cand], g[cand + 1]
-        m = 64
+        m, rows = 64, np.arange(len(cand))
         for _ in range(3):          # three vectorised 64-way refinements: cell / 2.6e5 ≈ 2e-7 mm
             sub = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, m)[None, :]
             Q2 = cartesian_derivs(self.path, sub.ravel())[2].reshape(len(cand), m, 3)
-            step = np.linalg.norm(np.diff(Q2, axis=1), axis=2)
-            k = step.argmax(axis=1)
-            lo, hi = sub[np.arange(len(cand)), k], sub[np.arange(len(cand)), k + 1]
+            k = np.linalg.norm(np.diff(Q2, axis=1), axis=2).argmax(axis=1)
+            lo, hi = sub[rows, k], sub[rows, k + 1]
+        pairs = np.column_stack([lo - 1e-7, hi + 1e-7]).ravel()
+        cart = cartesian_derivs(self.path, pairs)
+        D = joint_derivs(self.machine, self.path, pairs, cart=cart) if self.joint else cart
+        cjump = np.linalg.norm(cart[2][1::2] - cart[2][0::2], axis=1)
+        jump = np.abs(D[2][1::2] - D[2][0::2]).max(axis=1)
         for n, i in enumerate(cand):
-            two = cartesian_derivs(self.path, np.array([lo[n] - 1e-7, hi[n] + 1e-7]))[2]
-            if np.linalg.norm(two[1] - two[0]) < 0.25 * d[i]:
+            if cjump[n] < 0.25 * d[i]:
                 continue                        # steep but continuous: the s-curve check sees it
             sj = 0.5 * (lo[n] + hi[n])
-            lo_n, hi_n = lo[n], hi[n]
-            pair = np.array([lo_n - 1e-7, hi_n + 1e-7])
-            cart = cartesian_derivs(self.path, pair)
-            D = joint_derivs(self.machine, self.path, pair, cart=cart) if self.joint else cart
-            jump = float(np.abs(D[2][1] - D[2][0]).max())
-            lim = self.check.j
-            vj = math.sqrt(0.4 * lim * self.T / jump) if jump > 0 else self.limits.feed_max
+            vj = math.sqrt(0.4 * self.check.j * self.T / jump[n]) if jump[n] > 0 else self.limits.feed_max
             out.append((sj, min(vj, float(np.interp(sj, g, self.F)))))
         return out
 
@@ -275,11 +285,9 @@ class _Planner:
         n = int(min(400, max(32, math.ceil(seg.duration / (2 * self.T)))))
         tt = np.linspace(0, seg.duration, n)
         p, v, a, j = seg.at(tt)
-        s = np.clip(seg.s0 + p, seg.s0, seg.s0 + seg.L)
         # evaluate just inside the segment: at a corner the derivatives are one-sided
-        s = np.clip(s, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
-        cart = cartesian_derivs(self.path, s)
-        D = joint_derivs(self.machine, self.path, s, cart=cart) if self.joint else cart
+        s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
+        D = (None,) + (self.table.joints(s) if self.joint else self.table.cartesian(s))
         xv, xa, xj = time_derivs(D[1], D[2], D[3], v, a, j)
         return peak_ratios(xv, xa, xj, self.check)
 
@@ -290,8 +298,12 @@ class _Planner:
         s_c, v_c = self.critical_points()
         Ls = np.diff(s_c)
         nseg = len(Ls)
-        A = np.full(nseg, self.limits.cartesian.a)
-        J = np.full(nseg, self.limits.cartesian.j)
+        # the s-curve's own A, J: the Cartesian limits, tightened by the margin where those
+        # are the checked limits (an axis-aligned stretch reads s⃛ = J on one axis)
+        c = self.limits.cartesian
+        shrink = 1.0 if self.joint else self.check.a / c.a
+        A = np.full(nseg, c.a * shrink)
+        J = np.full(nseg, c.j * shrink)
         vcap = np.full(nseg, self.limits.feed_max)
         repairs = 0
         cache = {}
@@ -340,7 +352,7 @@ class _Planner:
                 if not self.seg_ok(seg, vcap[i]):
                     # a violation of the feed itself: scale the segment's feeds down
                     r = self.ratios(seg)
-                    f = float(np.clip(0.98 * min(1 / r[0], r[1] ** -0.5, r[2] ** (-1 / 3)), 0.3, 0.98))
+                    f = float(np.clip(0.98 * min(1 / r[0], r[1] ** -0.5, r[2] ** (-1 / 3)), 0.3, 0.95))
                     vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
                     v_c[i] = min(v_c[i], v[i] * f)
                     v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
