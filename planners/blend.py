@@ -69,21 +69,18 @@ def blend_corners(segments, tolerances):
         trim_start[i + 1] = d
         arcs[i] = (R, d, delta)
         done.append((i, dev))
+    # Assemble from exact positions: trimmed lines keep their original direction (so a
+    # short leftover never gets a direction of rounding noise, i.e. a false corner) and each
+    # blend arc runs from C − d·u1 to C + d·u2 of its corner C.
     out = []
-    pos = segs[0].start.copy()
     for i, g in enumerate(segs):
         if g.kind == "line":
-            end = g.end - trim_end[i] * g.direction
-            left = np.linalg.norm(end - pos)
-            # A leftover shorter than 1 nm–1 µm between two blend arcs is dropped: its
-            # direction would be rounding noise (a false corner); the next arc starts
-            # where the previous one ended (shifts ≤ 1 µm along the line).
-            if left > (1e-6 if i in arcs else 1e-9):
-                out.append(Line(pos, end, g.line))
-                pos = end
+            left = g.length - trim_start[i] - trim_end[i]
+            if left > 1e-9:
+                out.append(Line(g.start + trim_start[i] * g.direction,
+                                g.end - trim_end[i] * g.direction, g.line, direction=g.direction))
         else:
             out.append(g)
-            pos = g.end
         if i in arcs:
             R, d, delta = arcs[i]
             u1, u2 = g.direction, segs[i + 1].direction
@@ -91,9 +88,8 @@ def blend_corners(segments, tolerances):
             m /= np.linalg.norm(m)
             n = np.cross(u1, u2)
             n /= np.linalg.norm(n)
-            arc = Arc(pos, pos + R * m, n, delta, 0.0, segs[i + 1].line)
-            out.append(arc)
-            pos = arc.end
+            t1 = g.end - d * u1
+            out.append(Arc(t1, t1 + R * m, n, delta, 0.0, segs[i + 1].line))
     return out, done
 
 

@@ -311,7 +311,7 @@ class NurbsPath(Path):
 class Line:
     kind = "line"
 
-    def __init__(self, start, end, line: int | None = None, where: str = "<segment>"):
+    def __init__(self, start, end, line: int | None = None, where: str = "<segment>", direction=None):
         self.start = _vec3(start, "line start", where)
         self.end = _vec3(end, "line end", where)
         self.line = line
@@ -319,6 +319,13 @@ class Line:
         if not self.length > CONTIG_TOL:
             raise PathError(f"{where}: zero-length line at {self.start.tolist()}")
         self.direction = (self.end - self.start) / self.length
+        if direction is not None:
+            # A known exact direction (e.g. a line trimmed by corner blends): for a very short
+            # line, the direction of end − start would carry the rounding of both ends.
+            d = np.asarray(direction, float) / np.linalg.norm(direction)
+            if np.linalg.norm(self.start + self.length * d - self.end) > END_TOL:
+                raise PathError(f"{where}: line direction {d.tolist()} does not lead from start to end")
+            self.direction = d
 
     def tangent_in(self):
         return self.direction
