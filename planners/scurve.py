@@ -34,7 +34,8 @@ from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
 from .joint_limits import (PathTable, PlanningError, cartesian_derivs, check_limits,
-                           check_path, joint_derivs, peak_ratios, time_derivs)
+                           check_path, joint_derivs, peak_ratios, second_derivative_jumps,
+                           time_derivs)
 from .profile import Profile
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
@@ -202,43 +203,12 @@ class _Planner:
         return s, v
 
     def second_derivative_jumps(self, corners):
-        """Points where the path is tangent-continuous but P″ jumps (a G1 join of two curves).
-
-        Not in the FLF of TII 2022: there the acceleration of a nonzero feed jumps by
-        ΔP″·ṡ², which a drive reads at period T as a jerk ≈ ΔP″·ṡ²/T.  We make such a point
-        critical with the feed √(c·J·T / max|Δx″|) (c = 0.4, the rest left to the s-curve's own
-        jerk), x the checked axes (Cartesian, or the joints through the IK).
-        """
-        g = self.grid
-        P2 = self.table.cart[2]
-        d = np.linalg.norm(np.diff(P2, axis=0), axis=1)
-        base = np.median(d) + 1e-12
+        """G1 joins where P″ jumps: critical points with the feed that keeps the jerk read at
+        T within 0.4 of the checked limit (see joint_limits.second_derivative_jumps)."""
         out = []
-        dn = np.maximum(np.concatenate([[0.0], d[:-1]]), np.concatenate([d[1:], [0.0]]))
-        # a jump stands out from both neighbouring cells; a steep but smooth stretch does not
-        cand = np.nonzero((d > 50 * base) & (d > 1e-3) & (d > 4 * dn))[0]
-        if len(corners):
-            cand = np.array([i for i in cand if np.min(np.abs(np.asarray(corners) - g[i])) >= 1e-3], int)
-        if len(cand) == 0:
-            return out
-        lo, hi = g[cand], g[cand + 1]
-        m, rows = 64, np.arange(len(cand))
-        for _ in range(3):          # three vectorised 64-way refinements: cell / 2.6e5 ≈ 2e-7 mm
-            sub = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, m)[None, :]
-            Q2 = cartesian_derivs(self.path, sub.ravel())[2].reshape(len(cand), m, 3)
-            k = np.linalg.norm(np.diff(Q2, axis=1), axis=2).argmax(axis=1)
-            lo, hi = sub[rows, k], sub[rows, k + 1]
-        pairs = np.column_stack([lo - 1e-7, hi + 1e-7]).ravel()
-        cart = cartesian_derivs(self.path, pairs)
-        D = joint_derivs(self.machine, self.path, pairs, cart=cart) if self.joint else cart
-        cjump = np.linalg.norm(cart[2][1::2] - cart[2][0::2], axis=1)
-        jump = np.abs(D[2][1::2] - D[2][0::2]).max(axis=1)
-        for n, i in enumerate(cand):
-            if cjump[n] < 0.25 * d[i]:
-                continue                        # steep but continuous: the s-curve check sees it
-            sj = 0.5 * (lo[n] + hi[n])
-            vj = math.sqrt(0.4 * self.check.j * self.T / jump[n]) if jump[n] > 0 else self.limits.feed_max
-            out.append((sj, min(vj, float(np.interp(sj, g, self.F)))))
+        for sj, jump in second_derivative_jumps(self.path, self.table, self.machine if self.joint else None, corners):
+            vj = math.sqrt(0.4 * self.check.j * self.T / jump) if jump > 0 else self.limits.feed_max
+            out.append((sj, min(vj, float(np.interp(sj, self.grid, self.F)))))
         return out
 
     # -- segments -----------------------------------------------------------------

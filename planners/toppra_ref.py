@@ -1,0 +1,137 @@
+"""`toppra` — time-optimal path parametrisation by reachability analysis (TOPP-RA).
+
+Pham & Pham, "A new approach to time-optimal path parameterization based on reachability
+analysis", IEEE T-RO 2018; the `toppra` library.  The constraint set shared with `pso` and
+`optimal`: joint velocity and acceleration limits (no jerk limit) and the feed caps
+(F_max and the chord-error cap F_clim of TII 2022).  Without a jerk limit this is a lower
+bound on the execution time of every profile that meets those limits.
+
+The path is split at exact-stop corners (the feed is zero there); each piece is handed to
+toppra as a 4-dof geometric path (q₁, q₂, q₃, s) over arc length: the joints carry the joint
+limits, the fourth coordinate (q₄ = s, q₄′ = 1) carries the varying feed cap as a velocity
+limit.  toppra returns ṡ on a grid; between grid points s̈ is constant (ṡ² linear in s),
+which gives s(t) in closed form for sampling at T.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import toppra
+import toppra.algorithm as algo
+import toppra.constraint as constraint
+
+from .joint_limits import PathTable, PlanningError, check_limits, check_path, feed_cap
+from .profile import Profile
+
+toppra.setup_logging("WARNING")
+
+
+class _PieceGeometry(toppra.interpolator.AbstractGeometricPath):
+    """Joints and arc length of one corner-to-corner piece, read from a PathTable."""
+
+    def __init__(self, table: PathTable, s0: float, s1: float):
+        self.table, self.s0, self.s1 = table, s0, s1
+
+    def __call__(self, ss, order=0):
+        ss = np.asarray(ss, float)
+        scalar = ss.ndim == 0
+        s = np.clip(np.atleast_1d(ss), self.s0 + 1e-9, self.s1 - 1e-9)   # one-sided at corners
+        if order == 0:
+            x = s / self.table.h
+            i = np.minimum(x.astype(np.int64), len(self.table.s) - 2)
+            w = (x - i)[:, None]
+            Q = self.table.joint[0]
+            out = np.column_stack([(1 - w) * Q[i] + w * Q[i + 1], s])
+        else:
+            d = self.table.joints(s)[order - 1]
+            last = np.ones(len(s)) if order == 1 else np.zeros(len(s))
+            out = np.column_stack([d, last])
+        return out[0] if scalar else out
+
+    @property
+    def dof(self):
+        return 4
+
+    @property
+    def path_interval(self):
+        return np.array([self.s0, self.s1])
+
+
+def pieces(path):
+    """[(s0, s1)] between the path ends and its exact-stop corners."""
+    L = path.length
+    cs = [float(c) for c in (path.corners() if hasattr(path, "corners") else []) if 1e-9 < c < L - 1e-9]
+    edges = [0.0] + cs + [L]
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
+    """TOPP-RA on each piece: (s grid, ṡ on it) for the whole path, ṡ = 0 at corners."""
+    T = machine.servo_period_s
+    vj, aj = limits.joint.v, limits.joint.a
+    S, SD = [], []
+    for k, (s0, s1) in enumerate(pieces(path)):
+        n = max(20, int(math.ceil((s1 - s0) / grid_mm)) + 1)
+        grid = np.linspace(s0, s1, n)
+        geo = _PieceGeometry(table, s0, s1)
+        P1, P2, _ = table.cartesian(np.clip(grid, s0 + 1e-9, s1 - 1e-9))
+        kappa = np.linalg.norm(np.cross(P1, P2), axis=1)
+        cap = feed_cap(path, grid, limits, T, kappa=kappa)
+
+        def vlim(s, grid=grid, cap=cap):
+            c = float(np.interp(s, grid, cap))
+            return np.array([[-vj, vj]] * 3 + [[-c, c]])
+
+        cons = [constraint.JointVelocityConstraintVarying(vlim),
+                constraint.JointAccelerationConstraint(
+                    np.array([[-aj, aj]] * 3 + [[-1e12, 1e12]]),
+                    discretization_scheme=constraint.DiscretizationType.Interpolation)]
+        inst = algo.TOPPRA(cons, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+        sdd, sd, _, _ = inst.compute_parameterization(0.0, 0.0, return_data=True)
+        if sd is None or not np.all(np.isfinite(sd)):
+            raise PlanningError(f"toppra: no feasible parametrisation of piece {k} "
+                                f"(s = {s0:.6g}…{s1:.6g} mm)")
+        sd = np.maximum(np.asarray(sd, float), 0.0)
+        sd[0] = sd[-1] = 0.0
+        S.append(grid if k == 0 else grid[1:])
+        SD.append(sd if k == 0 else sd[1:])
+    return np.concatenate(S), np.concatenate(SD)
+
+
+def sample_const_accel(s_grid, sd_grid, T, path, planner, info) -> Profile:
+    """s(t) with constant s̈ between grid points (ṡ² linear in s), sampled at multiples of T."""
+    ds = np.diff(s_grid)
+    v0, v1 = sd_grid[:-1], sd_grid[1:]
+    dt = 2 * ds / np.maximum(v0 + v1, 1e-300)
+    acc = (v1 * v1 - v0 * v0) / (2 * ds)
+    starts = np.concatenate([[0.0], np.cumsum(dt)])
+    total = float(starts[-1])
+    N = max(1, int(math.ceil(total / T - 1e-9)))
+    t = np.arange(N + 1) * T
+    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(dt) - 1)
+    tau = np.clip(t - starts[k], 0.0, dt[k])
+    s = s_grid[k] + v0[k] * tau + acc[k] * tau * tau / 2
+    sd = v0[k] + acc[k] * tau
+    sdd = acc[k].copy()
+    L = path.length
+    s = np.minimum(np.maximum.accumulate(s), L)
+    s[0], s[-1] = 0.0, L
+    sd[-1] = sdd[-1] = 0.0
+    info = dict(info, continuous_time_s=total)
+    return Profile(planner, T, s, sd, sdd, np.zeros_like(s), path, info=info)
+
+
+def plan(path, machine, limits=None, *, grid_mm: float = 0.25) -> Profile:
+    """TOPP-RA reference: joint v, a limits and the feed caps (a lower bound on time)."""
+    t0 = time.perf_counter()
+    limits = machine.limits if limits is None else limits
+    check_limits(limits, "toppra")
+    check_path(path, "toppra")
+    table = PathTable(path, machine)
+    s_grid, sd_grid = solve_grid(path, machine, limits, table, grid_mm)
+    prof = sample_const_accel(s_grid, sd_grid, machine.servo_period_s, path, "toppra",
+                              {"grid_points": int(len(s_grid)), "pieces": len(pieces(path))})
+    prof.planning_time_s = time.perf_counter() - t0
+    return prof
