@@ -188,3 +188,23 @@ def test_report_tables_ratio_failures_and_plots(tmp_path, capsys):
     assert "<table>" in (tmp_path / "s/report/report.html").read_text()
     assert cli(["report", str(tmp_path / "nothing")]) == 2
     assert "not a sweep folder" in capsys.readouterr().err
+
+
+def fmu_size_task(task, out_dir):
+    """Reads the FMU files the sweep shipped to this worker (a test task function)."""
+    folder = Path(task["fmu_dir"])
+    return {"execution_time_s": float((folder / "Fake.fmu").stat().st_size),
+            "feasible": str(folder) != ""}
+
+
+def test_fmus_reach_dask_workers_as_files(tmp_path, monkeypatch):
+    fmus = tmp_path / "fmus"
+    fmus.mkdir()
+    (fmus / "Fake.fmu").write_bytes(b"PK" + bytes(1234))
+    monkeypatch.setattr("harness.sweep.FMU_DIR", fmus)
+    tasks = tasks_from_suite_file(write_suite(tmp_path, planners=["quintic"]))
+    r = run_sweep(tasks, tmp_path / "o", task_fn=f"{__name__}:fmu_size_task", workers=1, progress=False)
+    assert (r.ok, r.failed) == (1, 0), r.failures
+    row, = SweepStore(tmp_path / "o/results.sqlite").to_rows()
+    assert row["metrics"]["execution_time_s"] == 1236.0
+    assert row["worker"].rsplit(":", 1)[1] != str(__import__("os").getpid())   # another process
