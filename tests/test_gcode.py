@@ -1,0 +1,169 @@
+"""planners.gcode: every supported word, modal state, arcs, blending modes and every error."""
+import math
+
+import numpy as np
+import pytest
+
+from planners.gcode import GCodeError, parse_gcode, program_path, read_gcode
+from planners.path import PathError, load_path
+
+START = "G90 G21 G17\nG0 X0 Y0 Z0\n"
+
+
+def prog(body, start=START):
+    return parse_gcode(start + body, "t.ngc")
+
+
+def ends(p):
+    return np.array([m.segment.end for m in p.moves])
+
+
+def test_g0_g1_modal_absolute_incremental_and_feed():
+    p = prog("G1 X10 F600\nY5\nG91 X-2 Y-1 Z3\nG90 G0 X1\n")
+    assert np.allclose(ends(p), [[10, 0, 0], [10, 5, 0], [8, 4, 3], [1, 4, 3]])
+    assert [m.line for m in p.moves] == [3, 4, 5, 6]                  # file line numbers
+    assert [m.rapid for m in p.moves] == [False, False, False, True]
+    assert p.moves[0].feed_mm_s == pytest.approx(10.0) and p.moves[3].feed_mm_s is None
+    assert np.allclose(p.start, [0, 0, 0])
+    assert p.notes[0][0] == 2 and "start point" in p.notes[0][1]
+
+
+def test_inches_n_numbers_comments_percent():
+    text = "%\nN5 G20 G90 (inch) ; trailing\nN10 G0 X0 Y0 Z0\nN20 G1 X1 F10 (ten ipm)\n%\n"
+    p = parse_gcode(text, "t.ngc")
+    assert np.allclose(p.moves[0].segment.end, [25.4, 0, 0])
+    assert p.moves[0].feed_mm_s == pytest.approx(10 * 25.4 / 60)
+    assert p.moves[0].line == 4
+
+
+def test_ignored_words_give_notes_and_m2_ends():
+    p = prog("S1000 T1 M3 G40 G80\nG1 X1 F60\nM30\nG1 X5\n")
+    text = " ".join(n for _, n in p.notes)
+    for w in ("S1000", "T1", "M3", "G40", "G80", "M30", "after M2/M30"):
+        assert w in text
+    assert len(p.moves) == 1
+
+
+def test_arc_ij_quarter_and_full_circle_and_helix():
+    p = prog("G1 X10 F600\nG3 X0 Y10 I-10 J0\nG2 X0 Y10 I0 J-10 Z5\n")
+    q = p.moves[1].segment
+    assert q.angle == pytest.approx(math.pi / 2) and np.allclose(q.normal, [0, 0, 1])
+    assert np.allclose(q.center, [0, 0, 0]) and q.radius == pytest.approx(10)
+    full = p.moves[2].segment                                          # G2 full turn rising 5
+    assert full.angle == pytest.approx(2 * math.pi) and np.allclose(full.normal, [0, 0, -1])
+    assert full.rise == pytest.approx(-5.0)                            # rise along n = −z
+    assert np.allclose(full.end, [0, 10, 5])
+    assert full.length == pytest.approx(math.hypot(2 * math.pi * 10, 5))
+
+
+def test_arc_r_form_short_and_long_way_and_turns():
+    p = prog("G1 X10 F600\nG2 X0 Y-10 R10\nG2 X10 Y0 R-10\nG3 X10 Y0 I-10 J0 P2\n")
+    a1, a2, a3 = (m.segment for m in p.moves[1:])
+    assert a1.angle == pytest.approx(math.pi / 2) and np.allclose(a1.center, [0, 0, 0], atol=1e-12)
+    assert a2.angle == pytest.approx(3 * math.pi / 2)                 # R < 0: the long way
+    assert np.allclose(a2.center, [0, 0, 0], atol=1e-12)
+    assert a3.angle == pytest.approx(4 * math.pi)                     # P2: two full turns
+
+
+@pytest.mark.parametrize("plane, words, normal, center", [
+    ("G18", "G3 X0 Z-10 I-10 K0", [0, 1, 0], [0, 0, 0]),   # ZX plane, ccw about +Y: +X → −Z
+    ("G19", "G3 Y0 Z10 J-10 K0", [1, 0, 0], [0, 0, 0]),    # YZ plane, ccw about +X
+])
+def test_planes(plane, words, normal, center):
+    first = "G1 X10 F600" if plane == "G18" else "G1 Y10 F600"
+    p = prog(f"{first}\n{plane} {words}\n")
+    a = p.moves[1].segment
+    assert np.allclose(a.normal, normal) and np.allclose(a.center, center)
+    assert a.angle == pytest.approx(math.pi / 2)
+    mid = a.eval(np.array([a.length / 2]), 0)[0][0]
+    r = 10 / math.sqrt(2)
+    assert np.allclose(mid, [r, 0, -r] if plane == "G18" else [0, r, r])
+
+
+def test_small_radius_mismatch_is_absorbed_exactly():
+    p = prog("G1 X10 F600\nG3 X0 Y10.001 I-10 J0\n")
+    a = p.moves[1].segment
+    assert np.allclose(a.end, [0, 10.001, 0], atol=1e-9)
+
+
+def test_blending_modes():
+    body = "G1 X10 F600\nY10\nG61\nX0\nY0\n"
+    p = prog("G64 P0.1\n" + body)
+    assert [m.blend_mm for m in p.moves] == [0.1, 0.1, None, None]
+    path = program_path(p)
+    # the first corner (10,0) is blended within 0.1 mm; (10,10) was programmed under G64 P0.1
+    # too; the G61 corner (0,10) stays an exact stop.
+    assert len(path.corners()) == 1
+    assert np.allclose(path.point(path.corners()), [[0, 10, 0]])
+    d = np.linalg.norm(path.sample(0.001)[1] - [10, 0, 0], axis=1).min()
+    assert d == pytest.approx(0.1, abs=1e-6)
+    assert math.isinf(prog("G64\n" + body).moves[0].blend_mm)
+    assert math.isinf(prog("G64 P0\n" + body).moves[0].blend_mm)
+    assert prog("G61.1\n" + body).moves[0].blend_mm is None
+
+
+def test_start_option_and_file(tmp_path):
+    p = parse_gcode("G1 X1 F60\n", "s.ngc", start=[0, 0, -200])
+    assert np.allclose(p.moves[0].segment.start, [0, 0, -200])
+    f = tmp_path / "a.ngc"
+    f.write_text(START + "G1 X5 F60\nG1 Y5\n")
+    path = load_path(f)
+    assert path.length == pytest.approx(10 - 2 * 2.5 + 2.5 * math.pi / 2)   # G64 default: room-limited blend
+    assert list(path.line_at([0.1, path.length])) == [3, 4]
+
+
+@pytest.mark.parametrize("body, line, words", [
+    ("G1 X1 F60\nG4 P1\n", 4, "unsupported G code G4"),
+    ("G1 X1 F60\nA5\n", 4, "unsupported word A5"),
+    ("G1 X1 X2 F60\n", 3, "X word given twice"),
+    ("G0 G1 X1 F60\n", 3, "same modal group (motion)"),
+    ("G17 G18\n", 3, "same modal group (plane)"),
+    ("G20 G21\n", 3, "same modal group (units)"),
+    ("G90 G91\n", 3, "same modal group (distance)"),
+    ("G61 G64\n", 3, "same modal group (path)"),
+    ("G1 X1\n", 3, "no feed rate"),
+    ("G2 X1 Y1 I1\n", 3, "no feed rate"),
+    ("G1 X1 F0\n", 3, "feed rate F0 must be > 0"),
+    ("G1 X0 F60\n", 3, "zero-length move"),
+    ("G1 X1 I1 F60\n", 3, "I word on a G1"),
+    ("G2 X2 Y0 I1 R1 F60\n", 3, "R and I/J/K"),
+    ("G2 X2 Y0 F60\n", 3, "needs I/J/K"),
+    ("G2 X2 Y0 K1 F60\n", 3, "K offset is not in the G17 plane"),
+    ("G2 X10 Y0 I1 J0 F60\n", 3, "radius to end"),
+    ("G2 X10 Y0 R2 F60\n", 3, "too small"),
+    ("G2 X0 Y0 R2 F60\n", 3, "full circle needs I/J/K"),
+    ("G2 X0 Y0 I1 P1.5 F60\n", 3, "P (turns)"),
+    ("G1 X1 F60 P2\n", 3, "nothing to apply to"),
+    ("G64 P-1\n", 3, "G64 P must be"),
+    ("G1 X1 F60 (open\n", 3, "unclosed comment"),
+    ("G1 X1 F60 (a (b) c)\n", 3, "nested comment"),
+    ("G1 X1 F60 )\n", 3, "')' without '('"),
+    ("G1 X1 F60 #1\n", 3, "cannot read '#1'"),
+    ("I5\n", 3, "without an axis word"),
+    ("G1 X1 N7 F60\n", 3, "must come first"),
+])
+def test_errors_name_file_and_line(body, line, words):
+    with pytest.raises(GCodeError) as e:
+        prog(body)
+    assert e.value.file == "t.ngc" and e.value.line == line
+    assert words in e.value.message and str(e.value).startswith(f"t.ngc:{line}: ")
+
+
+def test_start_errors_and_empty_program(tmp_path):
+    with pytest.raises(GCodeError, match="first move must be an absolute"):
+        parse_gcode("G1 X1 Y1 F60\n", "a.ngc")
+    with pytest.raises(GCodeError, match="no motion mode"):
+        parse_gcode("X1 Y2 Z3\n", "a.ngc")
+    with pytest.raises(GCodeError, match="empty path"):
+        parse_gcode("G21\nG0 X0 Y0 Z0\nM2\n", "a.ngc")
+    with pytest.raises(GCodeError, match="cannot read G-code file"):
+        read_gcode(tmp_path / "missing.ngc")
+    assert issubclass(GCodeError, PathError)
+
+
+def test_standard_test_part():
+    p = read_gcode(__import__("planners.path").path.PATH_DIR / "test_part.ngc")
+    kinds = [m.segment.kind for m in p.moves]
+    assert kinds.count("arc") == 2 and len(p.moves) == 25
+    circ = [m.segment for m in p.moves if m.segment.kind == "arc"]
+    assert all(c.radius == pytest.approx(12.5) and c.angle == pytest.approx(2 * math.pi) for c in circ)
