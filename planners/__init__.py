@@ -68,22 +68,18 @@ def check_limits(limits, planner: str = "planner") -> None:
 
 
 def check_workspace(path, machine, step_mm: float = 0.5) -> None:
-    """Raise PlanningError naming the first path point (arc length, xyz, joint, G-code line)
-    that the machine cannot reach, sampling the path every ≤ step_mm."""
-    import numpy as np
-
-    from kins import WorkspaceError
-
+    """Raise PlanningError naming the first path point (arc length, G-code line, xyz and the
+    joint or box side) that ``machine.check`` flags — out of reach, beyond a joint stroke,
+    outside the workspace box or near a singularity — sampling the path every ≤ step_mm."""
     s, P = path.sample(step_mm)
-    try:
-        machine.ik(P)
-    except WorkspaceError as e:
-        i = e.index
-        where = ""
-        if hasattr(path, "line_at"):
-            ln = int(path.line_at(s[i])[0])
-            where = f" (G-code line {ln})" if ln >= 0 else ""
-        joint = f", joint {e.joint}" if e.joint is not None else ""
-        raise PlanningError(f"{path.source}: point at s = {s[i]:.6g} mm{where}, "
-                            f"[{', '.join(f'{x:.6g}' for x in np.asarray(P[i]))}] mm, is outside the "
-                            f"workspace of {machine.name}{joint}: {e}") from None
+    findings = machine.check(P)
+    if not findings:
+        return
+    f = findings[0]
+    where = ""
+    if hasattr(path, "line_at"):
+        ln = int(path.line_at(s[f.index])[0])
+        where = f" (G-code line {ln})" if ln >= 0 else ""
+    joint = f" [joint {f.joint}]" if f.joint is not None else ""
+    raise PlanningError(f"{path.source}: the path leaves the workspace of {machine.name} at "
+                        f"s = {s[f.index]:.6g} mm{where}{joint}: {f.message}")

@@ -28,7 +28,7 @@ BIRD = [  # (point, tangent direction or None for a sharp corner)
     ((-78.0, 46.0), None),           # upper tail tip
     ((-56.0, 4.0), None),            # tail notch
     ((-78.0, -42.0), None),          # lower tail tip
-    ((-12.0, -62.0), (1.0, 0.0)),    # belly
+    ((-12.0, -78.0), (1.0, 0.0)),    # belly
     ((44.0, -30.0), (0.7, 1.0)),     # breast
     ((52.0, 6.0), None),             # throat (beak root)
     ((78.0, 18.0), None),            # back to the beak tip
@@ -98,8 +98,9 @@ def write(name, d):
 
 
 if __name__ == "__main__":
-    write("bird.json", bezier_chain(BIRD, BULGE, WEIGHTS, 1.0, (0.0, 0.0), -400.0))
-    # kossel: ±40 mm fits its ±50 mm box; z = −250 keeps the joints below their 25 mm top.
-    write("bird_kossel.json", bezier_chain(BIRD, BULGE, WEIGHTS, 0.5, (0.0, 0.0), -250.0))
+    # anchors span ±78 mm: scale to the 160 × 160 mm square (keops) / 80 × 80 mm (kossel)
+    write("bird.json", bezier_chain(BIRD, BULGE, WEIGHTS, 80.0 / 78.0, (0.0, 0.0), -400.0))
+    # kossel (below): ±40 mm fits its ±50 mm box; z = −250 keeps the joints below their 25 mm top.
+    write("bird_kossel.json", bezier_chain(BIRD, BULGE, WEIGHTS, 40.0 / 78.0, (0.0, 0.0), -250.0))
     write("flower.json", flower())
     write("helix.json", helix())

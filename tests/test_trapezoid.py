@@ -1,0 +1,111 @@
+"""planners.trapezoid (LinuxCNC type 0) against closed forms and the independent metrics."""
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from harness.metrics import command_metrics
+from kins import load_machine
+from planners import PlanningError, get_planner, plan
+from planners.path import Arc, Line, SegmentPath, resolve_path
+
+
+@pytest.fixture(scope="module")
+def keops():
+    return load_machine("keops")
+
+
+def x_line(D, z=-400.0):
+    return SegmentPath([Line([-D / 2, 0, z], [D / 2, 0, z])])
+
+
+@pytest.mark.parametrize("D", [200.0, 100.0, 50.0, 3.0])
+def test_straight_line_closed_form(keops, D):
+    v, a = keops.limits.cartesian.v, keops.limits.cartesian.a
+    t_exact = D / v + v / a if D >= v * v / a else 2 * math.sqrt(D / a)
+    pr = plan("trapezoid", x_line(D), keops)
+    assert abs(pr.execution_time_s - t_exact) <= pr.T
+    assert pr.s[0] == 0 and pr.s[-1] == D
+    assert pr.sd[0] == pr.sd[-1] == 0 and pr.sdd[0] == pr.sdd[-1] == 0
+    assert pr.sd.max() <= v * (1 + 1e-12)
+    assert np.abs(pr.sdd).max() <= a * (1 + 1e-9)
+
+
+def test_profile_integrals_consistent(keops):
+    pr = plan("trapezoid", resolve_path("helix"), keops)
+    # LinuxCNC advances by the trapezoidal rule: Δs = (v_k + v_{k+1})·T/2 except on the last step
+    ds = np.diff(pr.s)[:-1]
+    assert np.abs(ds - 0.5 * (pr.sd[:-2] + pr.sd[1:-1]) * pr.T).max() < 1e-9
+    assert np.allclose(np.diff(pr.sd)[:-1] / pr.T, pr.sdd[1:-1])
+    assert np.allclose(np.diff(pr.sdd) / pr.T, pr.sddd[1:])
+    assert (np.diff(pr.s) >= 0).all()
+
+
+def test_helix_speed_capped_by_normal_acceleration(keops):
+    pr = plan("trapezoid", resolve_path("helix"), keops)
+    arc = pr.path.segments[0]
+    rho = arc.radius + (arc.rise / arc.angle) ** 2 / arc.radius
+    # a in the helix plane+axis: the axis bound is a / max_k √(u_k²+v_k²+n_k²) = a/1 here
+    cap = math.sqrt(0.866025403784 * keops.limits.cartesian.a * rho)
+    assert pr.sd.max() == pytest.approx(cap, rel=1e-6)
+    assert np.abs(pr.sdd).max() <= 0.5 * keops.limits.cartesian.a * (1 + 1e-9)
+
+
+def test_bird_cartesian_limits_and_geometry(keops):
+    bird = resolve_path("bird")
+    pr = plan("trapezoid", bird, keops)
+    m = command_metrics(keops, pr.path.point(pr.s), pr.T, pr.s)
+    c = m["cartesian_peak_ratio"]
+    # LinuxCNC limits Cartesian velocity/acceleration only: no jerk limit (it breaks it)
+    assert c["velocity"] <= 1 + 1e-6 and c["feed"] <= 1 + 1e-6
+    assert c["acceleration"] <= 1 + 1e-6
+    assert c["jerk"] > 1
+    info = pr.info
+    assert info["chord_deviation_mm"] <= keops.limits.chord_error_mm
+    assert info["blend_deviation_mm"] <= keops.limits.chord_error_mm * (1 + 1e-9)
+    # the planned geometry stays within the claimed deviation of the NURBS
+    s, P = pr.path.sample(0.01)
+    # nearest NURBS point of each planned point: start at the same arc length, then project
+    # (Newton on the foot point: σ ← σ + (P − C(σ))·C′(σ))
+    sig = np.clip(s * bird.length / pr.path.length, 0, bird.length)
+    for _ in range(4):
+        C, d1 = bird.derivs(sig)[:2]
+        sig = np.clip(sig + np.sum((P - C) * d1, axis=1), 0, bird.length)
+    dist = np.linalg.norm(P - bird.point(sig), axis=1)
+    assert dist.max() <= info["geometry_deviation_mm"] * (1 + 1e-6)
+    assert dist.max() > 0.5 * keops.limits.chord_error_mm        # the bound is not slack
+    assert pr.path.length == pytest.approx(bird.length, abs=0.05)
+    assert 1.0 < pr.execution_time_s < 3.0
+
+
+def test_exact_stop_corner_and_gcode_program(keops):
+    # two G61 lines with a right angle: the profile passes the corner at rest
+    p = SegmentPath([Line([0, 0, -400], [50, 0, -400]), Line([50, 0, -400], [50, 50, -400])])
+    pr = plan("trapezoid", p, keops)
+    k = int(np.argmin(np.abs(pr.s - 50.0)))
+    assert pr.sd[k] <= keops.limits.cartesian.a * pr.T * 1.01
+    m = command_metrics(keops, pr.path.point(pr.s), pr.T, pr.s)
+    assert m["cartesian_peak_ratio"]["acceleration"] <= 1.0 + 1e-6
+
+
+def test_registry_and_bad_input(keops):
+    assert get_planner("trapezoid").__module__ == "planners.trapezoid"
+    with pytest.raises(PlanningError, match="valid planners: trapezoid, scurve"):
+        get_planner("nope")
+    bad = replace(keops.limits, cartesian=replace(keops.limits.cartesian, a=0.0))
+    with pytest.raises(PlanningError, match="cartesian.a = 0.0 must be"):
+        plan("trapezoid", x_line(10.0), keops, bad)
+    with pytest.raises(PlanningError, match="feed_max"):
+        plan("trapezoid", x_line(10.0), keops, replace(keops.limits, feed_max=-1.0))
+    # kossel: inside its box, but joint 2 passes its 25 mm top near z = −153 at x = y = −45
+    kossel = load_machine("kossel")
+    high = SegmentPath([Line([-45, -45, -200], [-45, -45, -130])], "high.json")
+    with pytest.raises(PlanningError) as e:
+        plan("trapezoid", high, kossel)
+    msg = str(e.value)
+    assert msg.startswith("high.json: the path leaves the workspace of kossel at s = 47")
+    assert "[joint 2]" in msg and "(-45, -45, -153)" in msg and "stroke limit 25 mm" in msg
+    wide = SegmentPath([Line([0, 0, -400], [150, 0, -400])], "wide.json")
+    with pytest.raises(PlanningError, match=r"s = 100\.5 mm: point #201 \(100\.5, 0, -400\): outside the workspace box"):
+        plan("trapezoid", wide, keops)
