@@ -109,27 +109,44 @@ def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
 
 
 class PathTable:
-    """Derivative tables on a uniform arc-length grid, for fast repeated checks.
+    """Derivative tables on an arc-length grid, for fast repeated checks.
 
     Evaluating a NURBS at arc length needs a Newton inversion per call; planners that check
     limits thousands of times (s-curve repair, PSO swarms, IPOPT) read these tables instead.
-    x′ and x″ are interpolated by cubic Hermite with the next derivative as slope (O(h⁴)),
-    x‴ linearly (O(h²)), for the Cartesian axes and, with a machine, the joints.
+    The grid is uniform within each piece between exact-stop corners, and holds each corner
+    twice (its value from the left and from the right), so no interpolation blends the two
+    sides of a corner.  x′ and x″ are interpolated by cubic Hermite with the next derivative
+    as slope (O(h⁴)), x‴ linearly (O(h²)), for the Cartesian axes and, with a machine, the
+    joints (`joint` is None without one).
     """
 
     def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001):
         L = float(path.length)
-        n = max(min_points, int(math.ceil(L / ds)) + 1)
         self.length = L
-        self.s = np.linspace(0.0, L, n)
-        self.h = self.s[1] - self.s[0]
-        self.cart = cartesian_derivs(path, self.s)
-        self.joint = joint_derivs(machine, path, self.s, cart=self.cart) if machine is not None else None
+        self.edges = np.array([0.0] + corner_list(path) + [L])
+        per_mm = max(1.0 / ds, (min_points - 1) / L)
+        grids, self.offset, self.hs = [], [], []
+        n0 = 0
+        for a, b in zip(self.edges[:-1], self.edges[1:]):
+            n = max(8, int(math.ceil((b - a) * per_mm)) + 1)
+            g = np.linspace(a, b, n)
+            grids.append(g)
+            self.offset.append(n0)
+            self.hs.append(g[1] - g[0])
+            n0 += n
+        self.offset, self.hs = np.array(self.offset), np.array(self.hs)
+        self.counts = np.array([len(g) for g in grids])
+        self.s = np.concatenate(grids)
+        # evaluate one-sidedly: the end points of each piece a hair inside it
+        inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
+                                zip(grids, self.edges[:-1], self.edges[1:])])
+        self.cart = cartesian_derivs(path, inner)
+        self.joint = joint_derivs(machine, path, inner, cart=self.cart) if machine is not None else None
 
     @staticmethod
     def _interp(tab, i, w, h):
         X, X1, X2, X3 = tab
-        w = w[..., None]
+        w, h = w[..., None], h[..., None]
         h00, h10 = 2 * w ** 3 - 3 * w ** 2 + 1, w ** 3 - 2 * w ** 2 + w
         h01, h11 = -2 * w ** 3 + 3 * w ** 2, w ** 3 - w ** 2
         d1 = h00 * X1[i] + h10 * h * X2[i] + h01 * X1[i + 1] + h11 * h * X2[i + 1]
@@ -138,19 +155,30 @@ class PathTable:
         return d1, d2, d3
 
     def _locate(self, s):
-        x = np.clip(np.asarray(s, float), 0.0, self.length) / self.h
-        i = np.minimum(x.astype(np.int64), len(self.s) - 2)
-        return i, x - i
+        """(row i, weight w, spacing h): s lies between rows i and i+1 of its piece.
+        A corner itself counts to the piece after it (callers stay inside pieces)."""
+        s = np.clip(np.asarray(s, float), 0.0, self.length)
+        p = np.clip(np.searchsorted(self.edges, s, side="right") - 1, 0, len(self.hs) - 1)
+        h = self.hs[p]
+        x = (s - self.edges[p]) / h
+        k = np.clip(x.astype(np.int64), 0, self.counts[p] - 2)
+        return self.offset[p] + k, x - k, h
 
     def cartesian(self, s):
         """(P′, P″, P‴) at s; any shape of s, results with a trailing axis of 3."""
-        i, w = self._locate(s)
-        return self._interp(self.cart, i, w, self.h)
+        i, w, h = self._locate(s)
+        return self._interp(self.cart, i, w, h)
 
     def joints(self, s):
         """(q′, q″, q‴) at s."""
-        i, w = self._locate(s)
-        return self._interp(self.joint, i, w, self.h)
+        i, w, h = self._locate(s)
+        return self._interp(self.joint, i, w, h)
+
+    def joint_positions(self, s):
+        """q(s) by linear interpolation (for plotting and toppra's order-0 calls only)."""
+        i, w, h = self._locate(s)
+        Q = self.joint[0]
+        return (1 - w)[..., None] * Q[i] + w[..., None] * Q[i + 1]
 
 
 def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):

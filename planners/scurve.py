@@ -174,7 +174,7 @@ class _Planner:
         is_min = np.ones(n, bool)
         for k in range(1, m + 1):
             is_min &= (F < Fp[m - k:m - k + n]) & (F < Fp[m + k:m + k + n])
-        h = g[1] - g[0]
+        h = float(self.table.hs.max())
         cs = np.array(sorted(pts))
         for i in np.nonzero(is_min)[0]:
             if np.min(np.abs(cs - g[i])) < 2 * m * h:      # a corner's own dip: it stops there

@@ -39,11 +39,7 @@ class _PieceGeometry(toppra.interpolator.AbstractGeometricPath):
         scalar = ss.ndim == 0
         s = np.clip(np.atleast_1d(ss), self.s0 + 1e-9, self.s1 - 1e-9)   # one-sided at corners
         if order == 0:
-            x = s / self.table.h
-            i = np.minimum(x.astype(np.int64), len(self.table.s) - 2)
-            w = (x - i)[:, None]
-            Q = self.table.joint[0]
-            out = np.column_stack([(1 - w) * Q[i] + w * Q[i + 1], s])
+            out = np.column_stack([self.table.joint_positions(s), s])
         else:
             d = self.table.joints(s)[order - 1]
             last = np.ones(len(s)) if order == 1 else np.zeros(len(s))

@@ -1,0 +1,249 @@
+"""`optimal` — minimum time with joint velocity, acceleration and jerk limits (CasADi + IPOPT).
+
+The jerk-limited reference: no profile that meets the shared constraint set (joint v, a, j;
+F_max; the chord-error feed cap) can be faster, within solver tolerance and the resolution
+of the grid.  Formulation (direct multiple shooting, exact integration):
+
+* the path is split at exact-stop corners; each piece is a rest-to-rest problem of its own
+  (at a corner ṡ = s̈ = 0, so the pieces do not interact);
+* per piece N intervals of one common duration h (a variable): states s, ṡ, s̈ at the nodes,
+  constant jerk s⃛ on each interval, so s(t) is a cubic spline and the dynamics are exact;
+* at every node: |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A, |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J (the jerk of both
+  intervals that meet there), ṡ ≤ feed cap(s); q′, q″, q‴ and the cap are B-spline
+  interpolants of the PathTable over s, so IPOPT sees exact derivatives;
+* the feed cap also holds the G1-join caps (joint_limits.second_derivative_jumps);
+* objective N·h, warm start from the `toppra` solution slowed down by 15 %.
+
+The solution is sampled at T exactly and checked with the independent metrics; if a
+discretisation effect pushes a joint ratio above 1, the margin on the limits is doubled and
+the problem re-solved from the last solution.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import casadi as ca
+import numpy as np
+
+from .joint_limits import (PathTable, PlanningError, check_limits, check_path,
+                           second_derivative_jumps, feed_cap, corner_list, joint_derivs)
+from .profile import Profile
+from . import toppra_ref
+
+# A jump Δq″ of the joint acceleration at speed ṡ reads, as a third difference at T, as at
+# most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
+# difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
+JUMP_READ_FACTOR = 0.75
+
+
+def cap_table(path, table: PathTable, limits, T):
+    """min(F_max, F_clim) on the table grid."""
+    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
+    return feed_cap(path, table.s, limits, T, kappa=kappa)
+
+
+def join_jumps(path, table: PathTable, machine):
+    """[(s, Δq″ per joint)] at the G1 joins where q″ jumps (joint_limits.second_derivative_jumps)."""
+    out = []
+    for sj, jump in second_derivative_jumps(path, table, machine, corner_list(path)):
+        q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))[2]
+        out.append((sj, np.abs(q2[1] - q2[0])))
+    return out
+
+
+class _Piece:
+    """One rest-to-rest problem between s0 and s1."""
+
+    def __init__(self, table, cap, s0, s1, limits, margin, joins=(), T=1e-3):
+        self.s0, self.s1 = s0, s1
+        self.joins = [(sj, dq2) for sj, dq2 in joins if s0 + 1e-6 < sj < s1 - 1e-6]
+        self.T = T
+        inside = (table.s > s0) & (table.s < s1)
+        g = np.concatenate([[s0], table.s[inside], [s1]])
+        e = np.clip(g, s0 + 1e-9, s1 - 1e-9)
+        d1, d2, d3 = table.joints(e)
+        c = np.interp(g, table.s, cap)
+        grid = [g.tolist()]
+        mk = lambda name, y: ca.interpolant(name, "bspline", grid, np.ascontiguousarray(y).tolist())
+        self.q1 = [mk(f"q1_{i}", d1[:, i]) for i in range(3)]
+        self.q2 = [mk(f"q2_{i}", d2[:, i]) for i in range(3)]
+        self.q3 = [mk(f"q3_{i}", d3[:, i]) for i in range(3)]
+        self.cap = mk("cap", c)
+        self.table = table
+        self.lim = limits.joint
+        self.margin = margin
+
+    def solve(self, Ns, h0s, S0, V0, A0, U0, max_iter=600):
+        """Ns, h0s: intervals and initial interval duration of each phase (the phases are
+        separated by the G1 joins, where the node lies exactly on the join)."""
+        L = self.s1 - self.s0
+        lim, m = self.lim, 1 - self.margin
+        Vs, As, Js = lim.v, lim.a, lim.j
+        N = int(sum(Ns))
+        opti = ca.Opti()
+        # normalised variables (IPOPT likes O(1) numbers)
+        eta = opti.variable(len(Ns))        # h_k / h0_k of each phase
+        sig = opti.variable(N + 1)          # (s − s0) / L
+        nu = opti.variable(N + 1)           # ṡ / V
+        al = opti.variable(N + 1)           # s̈ / A
+        mu = opti.variable(N)               # s⃛ / J
+        phase = np.repeat(np.arange(len(Ns)), Ns)
+        sel = ca.DM(np.eye(len(Ns))[phase])             # (N × phases) picks each interval's phase
+        h = sel @ (eta * ca.DM(h0s))
+        s = self.s0 + L * sig
+        v, a, u = Vs * nu, As * al, Js * mu
+        bounds = np.cumsum(Ns)[:-1]
+        for (sj, dq2), k in zip(self.joins, bounds):
+            k = int(k)
+            opti.subject_to(sig[k] == (sj - self.s0) / L)
+            d1, d2, d3 = (np.asarray(x)[0] for x in self.table.joints(np.array([sj + 1e-9])))
+            for i in range(3):
+                read = JUMP_READ_FACTOR * float(dq2[i]) * v[k] ** 2 / self.T
+                for uu in (u[k - 1], u[k]):
+                    cont = d3[i] * v[k] ** 3 + 3 * d2[i] * v[k] * a[k] + d1[i] * uu
+                    opti.subject_to((cont + read) / Js <= m)
+                    opti.subject_to((read - cont) / Js <= m)
+        # exact constant-jerk integration over each interval
+        opti.subject_to(s[1:] == s[:-1] + v[:-1] * h + a[:-1] * h ** 2 / 2 + u * h ** 3 / 6)
+        opti.subject_to(v[1:] == v[:-1] + a[:-1] * h + u * h ** 2 / 2)
+        opti.subject_to(a[1:] == a[:-1] + u * h)
+        opti.subject_to(sig[1:] >= sig[:-1])
+        opti.subject_to([sig[0] == 0, sig[N] == 1, nu[0] == 0, nu[N] == 0, al[0] == 0, al[N] == 0])
+        opti.subject_to(opti.bounded(0.05, eta, 20.0))
+        opti.subject_to(nu >= 0)
+        sm = ca.fmin(ca.fmax(s, self.s0), self.s1)
+        ST = sm.T
+        capv = self.cap.map(N + 1)(ST).T
+        opti.subject_to(v <= capv * m)
+        uL = ca.vertcat(u, u[N - 1])        # jerk of the interval after each node …
+        uR = ca.vertcat(u[0], u)            # … and before it
+        for i in range(3):
+            d1 = self.q1[i].map(N + 1)(ST).T
+            d2 = self.q2[i].map(N + 1)(ST).T
+            d3 = self.q3[i].map(N + 1)(ST).T
+            opti.subject_to(opti.bounded(-m, d1 * v / Vs, m))
+            opti.subject_to(opti.bounded(-m, (d2 * v ** 2 + d1 * a) / As, m))
+            base = d3 * v ** 3 + 3 * d2 * v * a
+            opti.subject_to(opti.bounded(-m, (base + d1 * uL) / Js, m))
+            opti.subject_to(opti.bounded(-m, (base + d1 * uR) / Js, m))
+        opti.minimize(ca.dot(ca.DM(np.asarray(Ns, float) * np.asarray(h0s)), eta) / float(np.sum(np.asarray(Ns) * np.asarray(h0s))))
+        opti.set_initial(eta, np.ones(len(Ns)))
+        opti.set_initial(sig, (S0 - self.s0) / L)
+        opti.set_initial(nu, V0 / Vs)
+        opti.set_initial(al, A0 / As)
+        opti.set_initial(mu, U0 / Js)
+        opti.solver("ipopt", {"print_time": False},
+                    {"print_level": 0, "max_iter": max_iter, "tol": 1e-8, "acceptable_tol": 1e-6,
+                     "sb": "yes", "mu_strategy": "adaptive"})
+        try:
+            sol = opti.solve()
+            stats = sol.stats()
+            val = sol.value
+        except RuntimeError as e:
+            stats = opti.stats()
+            if stats.get("return_status") not in ("Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded"):
+                raise PlanningError(f"optimal: IPOPT failed on piece s = {self.s0:.6g}…{self.s1:.6g} mm: "
+                                    f"{stats.get('return_status', e)}") from None
+            val = opti.debug.value
+        hh = np.asarray(val(h)).ravel()
+        out = (hh, np.asarray(val(s)).ravel(), np.asarray(val(v)).ravel(),
+               np.asarray(val(a)).ravel(), np.asarray(val(u)).ravel())
+        return out, stats.get("return_status", "?"), int(stats.get("iter_count", -1))
+
+
+def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15):
+    """Phase sizes, interval durations and nodes from the toppra profile on one piece,
+    slowed down by `stretch`.  ``bounds`` = [s0, joins…, s1]."""
+    t = prof.t
+    sgrid, idx = np.unique(prof.s, return_index=True)
+    tb = np.interp(bounds, sgrid, t[idx])
+    D = np.maximum(np.diff(tb), 4 * prof.T)
+    Ns = np.clip(np.ceil(D * stretch / node_period_s).astype(int), 6, None)
+    if Ns.sum() > max_nodes:
+        Ns = np.maximum(6, (Ns * max_nodes / Ns.sum()).astype(int))
+    tt = np.concatenate([np.linspace(tb[k], tb[k] + D[k], Ns[k] + 1)[:-1] for k in range(len(Ns))]
+                        + [[tb[-1]]])
+    S = np.interp(tt, t, prof.s)
+    S[0], S[-1] = bounds[0], bounds[-1]
+    V = np.interp(tt, t, prof.sd) / stretch
+    V[0] = V[-1] = 0.0
+    hs = D * stretch / Ns
+    H = np.repeat(hs, Ns)
+    A = np.zeros_like(V)
+    A[1:-1] = (V[2:] - V[:-2]) / (H[1:] + H[:-1])
+    U = np.diff(A) / H
+    return Ns, hs, S, V, A, U
+
+
+def sample_cubic(pieces_sol, T, path, info) -> Profile:
+    """Join the piecewise-cubic solutions and sample at exact multiples of T."""
+    knots_t, S, V, A, U = [], [], [], [], []
+    t0 = 0.0
+    for (h, s, v, a, u) in pieces_sol:
+        knots_t.append(t0 + np.concatenate([[0.0], np.cumsum(h)[:-1]]))
+        S.append(s[:-1]); V.append(v[:-1]); A.append(a[:-1]); U.append(u)
+        t0 += float(np.sum(h))
+    kt = np.concatenate(knots_t)
+    S, V, A, U = (np.concatenate(x) for x in (S, V, A, U))
+    total = t0
+    N = max(1, int(math.ceil(total / T - 1e-9)))
+    t = np.arange(N + 1) * T
+    k = np.clip(np.searchsorted(kt, t, side="right") - 1, 0, len(kt) - 1)
+    tau = t - kt[k]
+    s = S[k] + V[k] * tau + A[k] * tau ** 2 / 2 + U[k] * tau ** 3 / 6
+    sd = V[k] + A[k] * tau + U[k] * tau ** 2 / 2
+    sdd = A[k] + U[k] * tau
+    sddd = U[k].copy()
+    L = path.length
+    s = np.minimum(np.maximum.accumulate(np.maximum(s, 0.0)), L)
+    s[0], s[-1] = 0.0, L
+    sd[0] = sdd[0] = 0.0
+    sd[-1] = sdd[-1] = sddd[-1] = 0.0
+    sd = np.maximum(sd, 0.0)
+    return Profile("optimal", T, s, sd, sdd, sddd, path, info=dict(info, continuous_time_s=total))
+
+
+def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: float = 1e-3,
+         max_nodes_per_piece: int = 600, warm=None, retries: int = 3) -> Profile:
+    """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from toppra."""
+    from harness.metrics import command_metrics
+
+    t0 = time.perf_counter()
+    limits = machine.limits if limits is None else limits
+    check_limits(limits, "optimal")
+    check_path(path, "optimal")
+    T = machine.servo_period_s
+    table = PathTable(path, machine)
+    cap = cap_table(path, table, limits, T)
+    joins = join_jumps(path, table, machine)
+    warm = toppra_ref.plan(path, machine, limits) if warm is None else warm
+    pcs = toppra_ref.pieces(path)
+    problems, starts = [], []
+    for s0, s1 in pcs:
+        piece = _Piece(table, cap, s0, s1, limits, margin, joins, T)
+        bounds = [s0] + [sj for sj, _ in piece.joins] + [s1]
+        problems.append(piece)
+        starts.append(_warm_start(warm, bounds, node_period_s, max_nodes_per_piece))
+    for attempt in range(retries + 1):
+        sols, statuses, nxt = [], [], []
+        for piece, (Ns, hs, S, V, A, U) in zip(problems, starts):
+            piece.margin = margin
+            sol, status, iters = piece.solve(Ns, hs, S, V, A, U)
+            sols.append(sol)
+            statuses.append(f"{status} ({iters} it)")
+            hh = sol[0]
+            nxt.append((Ns, hh[np.cumsum(Ns) - 1], sol[1], sol[2], sol[3], sol[4]))
+        prof = sample_cubic(sols, T, path, {"pieces": len(pcs), "margin": margin, "ipopt": statuses,
+                                            "nodes": [int(np.sum(x[0])) for x in starts],
+                                            "g1_joins": len(joins)})
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
+            break
+        if attempt == retries:
+            raise PlanningError(f"optimal: solution breaks a joint limit at T even with margin "
+                                f"{margin:g}: peak ratios {r['joint_peak_ratio']}")
+        margin *= 2
+        starts = nxt
+    prof.planning_time_s = time.perf_counter() - t0
+    return prof
