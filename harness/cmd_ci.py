@@ -50,7 +50,7 @@ def _load_baseline(file: Path) -> dict:
 
 def main(args) -> int:
     from harness.sweep import (DEFAULT_TASK, SuiteError, SweepError, SweepStore, code_version,
-                               expand, load_suite, run_sweep)
+                               expand, load_suite, resolve_task_fn, run_sweep)
     from harness.sweep import ci
     from harness.sweep.history import History
     from harness.sweep.suite import REPO
@@ -59,6 +59,10 @@ def main(args) -> int:
     out = Path(args.out)
     baseline_file = Path(args.baseline)
     baseline = None if args.update_baseline else _load_baseline(baseline_file)
+    try:
+        resolve_task_fn(task_fn)
+    except SweepError as e:
+        raise CliError(str(e)) from None
     try:
         suite = load_suite(args.suite)
         tasks = expand(suite, src=args.suite, base=Path.cwd())
@@ -71,7 +75,8 @@ def main(args) -> int:
     run_dir = out / "run"
     shutil.rmtree(run_dir, ignore_errors=True)            # CI measures afresh: nothing skipped
     try:
-        res = run_sweep(tasks, run_dir, task_fn=task_fn, workers=args.workers,
+        tasks = [t | {"ci_inner_task": task_fn} for t in tasks]
+        res = run_sweep(tasks, run_dir, task_fn="harness.sweep.ci:reference_timed_task", workers=args.workers,
                         scheduler=args.scheduler, force=True, progress=sys.stderr.isatty())
     except SweepError as e:
         raise CliError(str(e)) from None

@@ -132,3 +132,23 @@ def test_committed_baseline_matches_the_nightly_suite():
     for name, e in b["entries"].items():
         assert isinstance(e["feasible"], bool) and e["execution_time_s"] > 0, name
         assert all(v == v for v in e.values() if isinstance(v, float)), name     # no NaN
+
+
+def test_ci_passes_on_the_committed_baseline(tmp_path, capsys):
+    """`pkmbench ci` on the nightly suite passes against results/baseline.json.
+
+    Only meaningful on the code the baseline was made with (any change to kins/, planners/,
+    harness/ or the FMUs may move the numbers, which is what CI is for): skipped otherwise.
+    """
+    from harness.sweep import code_version
+    bfile = REPO / "results/baseline.json"
+    if not bfile.exists():
+        pytest.skip("no committed baseline yet")
+    b = json.loads(bfile.read_text())
+    if b["code_version"] != code_version():
+        pytest.skip("the baseline was made on other code; `pkmbench ci` decides, not this test")
+    code = cli(["ci", "--suite", str(REPO / "benchmarks/suites/nightly.toml"), "--baseline", str(bfile),
+                "--out", str(tmp_path / "ci"), "--task", b["task_fn"]])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "PASS" in out and "0 regressions" in out
