@@ -30,7 +30,7 @@ CONTIG_TOL = 1e-9       # mm: consecutive segments must join this closely (file 
 END_TOL = 1e-6          # mm: an arc's redundant "end" must agree this closely
 CORNER_ANGLE = 1e-6     # rad: a tangent turn larger than this is a corner (exact stop)
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
-_SUBDIV = 8             # Gauss–Legendre sub-intervals per knot span of a NURBS
+_SUBDIV = 64            # Gauss–Legendre sub-intervals per knot span (Hermite first guess → 2 Newton steps)
 
 
 class PathError(ValueError):
@@ -231,6 +231,11 @@ class NurbsPath(Path):
             raise PathError(f"{self.source}: the NURBS has (nearly) zero parametric speed near "
                             f"u = {nodes[i]:.6g} (coincident control points?): not a regular curve")
         seg = 0.5 * (b - a) * (sp @ _GL_WEIGHTS)
+        # du/ds = 1/σ at both ends of each sub-interval (taken just inside it, so a corner
+        # knot gives the one-sided value) for the cubic Hermite first guess of u(s).
+        eps = 1e-9 * (b - a)
+        self._dus_a = 1.0 / self._speed(a + eps)
+        self._dus_b = 1.0 / self._speed(b - eps)
         self._u_edges = edges
         self._s_edges = np.concatenate([[0.0], np.cumsum(seg)])
         self.length = float(self._s_edges[-1])
@@ -250,14 +255,18 @@ class NurbsPath(Path):
         j = np.clip(np.searchsorted(self._s_edges, s, side="right") - 1, 0, len(self._u_edges) - 2)
         ua, ub = self._u_edges[j], self._u_edges[j + 1]
         sa, sb = self._s_edges[j], self._s_edges[j + 1]
-        u = ua + (ub - ua) * np.clip((s - sa) / (sb - sa), 0.0, 1.0)
+        h = sb - sa
+        x = np.clip((s - sa) / h, 0.0, 1.0)
+        x2, x3 = x * x, x * x * x
+        u = ((2 * x3 - 3 * x2 + 1) * ua + (x3 - 2 * x2 + x) * h * self._dus_a[j]
+             + (-2 * x3 + 3 * x2) * ub + (x3 - x2) * h * self._dus_b[j])
+        u = np.clip(u, ua, ub)
+        tol = 1e-11 + 8 * np.finfo(float).eps * self.length    # mm, ≪ the 1e-9 contract
         for _ in range(12):
             f = sa + self._arc(ua, u) - s
-            u_new = np.clip(u - f / self._speed(u), ua, ub)
-            step = np.abs(u_new - u)
-            u = u_new
-            if step.max(initial=0.0) <= 1e-15 * max(1.0, abs(self.knots[-1])):
+            if np.abs(f).max(initial=0.0) <= tol:
                 break
+            u = np.clip(u - f / self._speed(u), ua, ub)
         return u
 
     def _derivs(self, s: np.ndarray, order: int) -> list[np.ndarray]:
