@@ -114,9 +114,9 @@ def test_tolerance_rules():
     assert [(c.metric, c.ok) for c in cs] == [("entry", False)]
 
 
-def test_reference_workload_is_positive_and_stable():
-    a, b = ci.reference_workload_s(3), ci.reference_workload_s(3)
-    assert 0 < a < 5 and 0.5 < a / b < 2
+def test_reference_workload_is_a_positive_time():
+    # (its speed is measured in benchmarks, never asserted here: the machine may be busy)
+    assert 0 < ci.reference_workload_s(1) < 60
 
 
 def test_committed_baseline_matches_the_nightly_suite():
