@@ -97,7 +97,7 @@ def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.02):
     """G1 lines through points of ``path`` with chord deviation ≤ chord_tol (as a CAM post).
 
     Vertices include every corner. Step from the local curvature, ℓ = √(8·ε/κ_max), then
-    each chord is checked at 16 interior points and halved until within tolerance.
+    each chord is checked at 17 interior points (midpoint included) and halved until within tolerance.
     Returns (SegmentPath of lines, measured largest deviation in mm).
     """
     if not chord_tol > 0:
@@ -140,8 +140,8 @@ def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.02):
 
 
 def _chord_deviation(path: Path, sv: np.ndarray) -> np.ndarray:
-    """Largest distance of the curve from each chord, from 16 interior points per chord."""
-    t = np.linspace(0.0, 1.0, 18)[1:-1]
+    """Largest distance of the curve from each chord, from 17 interior points per chord."""
+    t = np.linspace(0.0, 1.0, 19)[1:-1]          # 17 points, the midpoint among them
     s = (sv[:-1, None] + (sv[1:] - sv[:-1])[:, None] * t[None, :]).ravel()
     Q = path.point(s).reshape(len(sv) - 1, len(t), 3)
     A, B = path.point(sv[:-1]), path.point(sv[1:])
