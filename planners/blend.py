@@ -93,7 +93,7 @@ def blend_corners(segments, tolerances):
     return out, done
 
 
-def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.02):
+def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.05):
     """G1 lines through points of ``path`` with chord deviation ≤ chord_tol (as a CAM post).
 
     Vertices include every corner. Step from the local curvature, ℓ = √(8·ε/κ_max), then
