@@ -78,3 +78,39 @@ def test_cut_circle_into_lines():
     # the vertices are on the circle
     V = np.array([g.start for g in poly.segments])
     assert np.abs(np.linalg.norm(V[:, :2], axis=1) - R).max() < 1e-9
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-20, 20)),
+                min_size=3, max_size=12),
+       st.sampled_from([0.001, 0.05, 1.0, math.inf]))
+def test_blended_polylines_are_contiguous_g1_and_within_tolerance(pts, tol):
+    P = [np.array(pts[0], float)]
+    for q in pts[1:]:
+        if np.linalg.norm(np.array(q) - P[-1]) > 0.01:
+            P.append(np.array(q, float))
+    if len(P) < 3:
+        return
+    lines = [Line(a, b) for a, b in zip(P[:-1], P[1:])]
+    segs, done = blend_corners(lines, [tol] * (len(lines) - 1))
+    path = SegmentPath(segs)                                   # contiguity is checked here
+    original = SegmentPath(lines)
+    assert path.length <= original.length + 1e-9              # an arc is shorter than its corner
+    arcs = [g for g in segs if g.kind == "arc"]
+    assert len(arcs) == len(done)
+    for arc, (i, dev) in zip(arcs, done):                      # each blend within its tolerance
+        assert dev <= tol * (1 + 1e-9)
+        # the arc's middle is R(sec(θ/2) − 1) from the corner it replaces
+        mid = arc.eval(np.array([arc.length / 2]), 0)[0][0]
+        assert np.linalg.norm(mid - lines[i].end) == pytest.approx(dev, rel=1e-6, abs=1e-9)
+        # tangent to both lines
+        assert np.allclose(arc.tangent_in(), lines[i].direction, atol=1e-9)
+        assert np.allclose(arc.tangent_out(), lines[i + 1].direction, atol=1e-9)
+    # every remaining corner is one that could not be blended (reversal)
+    turns = [math.acos(np.clip(lines[i].direction @ lines[i + 1].direction, -1, 1))
+             for i in range(len(lines) - 1)]
+    kept = sum(1 for t in turns if t >= math.pi - 1e-6)
+    assert len(path.corners()) == kept

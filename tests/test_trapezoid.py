@@ -65,7 +65,7 @@ def test_bird_cartesian_limits_and_geometry(keops):
     assert info["chord_deviation_mm"] <= keops.limits.chord_error_mm
     assert info["blend_deviation_mm"] <= keops.limits.chord_error_mm * (1 + 1e-9)
     # the planned geometry stays within the claimed deviation of the NURBS
-    s, P = pr.path.sample(0.01)
+    s, P = pr.path.sample(0.05)
     # nearest NURBS point of each planned point: start at the same arc length, then project
     # (Newton on the foot point: σ ← σ + (P − C(σ))·C′(σ))
     sig = np.clip(s * bird.length / pr.path.length, 0, bird.length)
@@ -109,3 +109,20 @@ def test_registry_and_bad_input(keops):
     wide = SegmentPath([Line([0, 0, -400], [150, 0, -400])], "wide.json")
     with pytest.raises(PlanningError, match=r"s = 100\.5 mm: point #201 \(100\.5, 0, -400\): outside the workspace box"):
         plan("trapezoid", wide, keops)
+
+
+def test_deterministic_and_gcode_part_on_kossel(tmp_path):
+    kossel = load_machine("kossel")
+    part = resolve_path("test_part.ngc")
+    a = plan("trapezoid", part, kossel)
+    b = plan("trapezoid", part, kossel)
+    fa, fb = tmp_path / "a.csv", tmp_path / "b.csv"
+    a.save_csv(fa)
+    b.save_csv(fb)
+    assert fa.read_bytes() == fb.read_bytes()
+    # 4 exact stops (line ↔ full circle), the feed never above F_max = 20 mm/s
+    assert a.info["corners"] == 4
+    assert a.sd.max() <= kossel.limits.feed_max * (1 + 1e-12)
+    # lower bound: length at F_max; upper: plus a full stop-and-go per corner and per blend
+    L = part.length
+    assert L / 20.0 < a.execution_time_s < L / 20.0 + 45 * 2 * 20.0 / 500.0
