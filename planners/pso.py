@@ -1,0 +1,280 @@
+"""`pso` — feed profile optimised by particle swarm (Erwinski, Szczepanski, Tarczewski,
+IOP Conf. Ser. MSE 1140, 2021; extended to a delta's joints as planned in Erwinski et al.,
+NU·ROBOTI·FTS 2022, shared/SOURCES.md §A).
+
+Shared constraint set with `toppra` and `optimal`: joint v, a, j limits, F_max and the
+chord-error feed cap (plus the jerk a G1 join's jump of q″ causes when read at T).
+
+Parametrisation.  The path is split at exact-stop corners; on each piece the feed is a cubic
+B-spline ṡ(τ) = Σ cₖBₖ(τ) over normalised time τ ∈ [0, 1], with c₀ = c₁ = c_{K−2} = c_{K−1} = 0 so
+the piece starts and ends at rest with s̈ = 0, and s(τ) = L·∫ṡ/∫₀¹ṡ (exact antiderivative), so
+every particle reaches the end of the piece.  (A B-spline over arc length cannot leave rest
+with finite jerk — near rest ṡ ∝ s^{2/3} — hence normalised time; the knots still fall
+densest where the feed is low, i.e. near the FLF minima.)
+
+Objective.  Stretching time by λ divides joint velocity by λ, acceleration by λ², jerk by
+λ³ and the feed by λ.  So each particle's shape is scaled to the smallest λ at which every
+limit holds (the exact penalty for violations: time grows with the violation), and the
+objective is the execution time λ.  Every evaluated particle is thus feasible on its
+samples; the swarm only searches shapes.  The whole swarm is evaluated at once (particles ×
+samples arrays).  After the search the best profile is sampled at T and checked with the
+independent metrics; a discretisation excess is removed by a further small stretch.
+
+Seeded: the swarm starts around the `scurve_joint` profile (its feed fitted by least
+squares), ``seed`` drives all random numbers, the iteration count bounds the search (the
+time budget is only a safety stop, documented in ``info`` when it ends the search).
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.interpolate import BSpline
+
+from .joint_limits import (PathTable, PlanningError, check_limits, check_path, corner_list,
+                           feed_cap, joint_derivs, second_derivative_jumps)
+from .profile import Profile
+from . import toppra_ref
+
+DEGREE = 2                   # ṡ quadratic per knot span ⇒ s⃛ piecewise constant, as in an s-curve
+JUMP_READ_FACTOR = 0.75      # see optimal.py: a jump Δq″ reads as ≤ 0.75·Δq″·ṡ²/T at T
+
+
+class _Shape:
+    """Cubic B-spline basis over τ ∈ [0, 1] sampled at M points (and its antiderivative)."""
+
+    def __init__(self, K: int, M: int, density=None, degree: int = DEGREE):
+        """``density``: (τ grid, weights) — knots and samples at its quantiles (uniform if None)."""
+        self.K, self.M = K, M
+        if density is None:
+            inner, self.tau = np.linspace(0, 1, K - 2), np.linspace(0, 1, M)
+        else:
+            g, wts = density
+            cum = np.concatenate([[0.0], np.cumsum(0.5 * (wts[1:] + wts[:-1]) * np.diff(g))])
+            cum /= cum[-1]
+            inner = np.interp(np.linspace(0, 1, K - 2), cum, g)
+            inner[0], inner[-1] = 0.0, 1.0
+            self.tau = np.unique(np.concatenate([np.interp(np.linspace(0, 1, M // 2), cum, g),
+                                                 np.linspace(0, 1, M - M // 2)]))
+        self.degree = p = degree
+        inner = np.interp(np.linspace(0, 1, K - p + 1), np.linspace(0, 1, len(inner)), inner)
+        self.knots = np.concatenate([[0] * p, inner, [1] * p])
+        eye = np.eye(K)
+        basis = [BSpline(self.knots, eye[k], self.degree) for k in range(K)]
+        self.B = np.stack([b(self.tau) for b in basis], 1)               # (M, K)
+        self.B1 = np.stack([b.derivative(1)(self.tau) for b in basis], 1)
+        self.B2 = np.stack([b.derivative(2)(self.tau) for b in basis], 1)
+        anti = [b.antiderivative(1) for b in basis]
+        self.I = np.stack([a(self.tau) - a(0.0) for a in anti], 1)        # ∫₀^τ Bₖ
+        self.free = np.arange(2, K - 2)
+
+    def full(self, X):
+        """Control points (P, K) from free coefficients (P, K−4), ends pinned at rest."""
+        C = np.zeros((X.shape[0], self.K))
+        C[:, self.free] = np.maximum(X, 0.0)
+        return C
+
+    def fit(self, tau, v):
+        """Least-squares free coefficients of a sampled feed v(τ)."""
+        eye = np.eye(self.K)
+        B = np.stack([BSpline(self.knots, eye[k], self.degree)(tau) for k in range(self.K)], 1)
+        x, *_ = np.linalg.lstsq(B[:, self.free], v, rcond=None)
+        return np.maximum(x, 1e-6 * max(v.max(), 1e-9))
+
+
+class _PieceProblem:
+    def __init__(self, table, s0, s1, limits, T, joins, K, M, cap_grid, cap_vals, density=None):
+        self.table, self.s0, self.s1, self.L = table, s0, s1, s1 - s0
+        self.lim, self.T = limits.joint, T
+        self.shape = _Shape(K, M, density)
+        self.joins = [(sj, d) for sj, d in joins if s0 + 1e-6 < sj < s1 - 1e-6]
+        self.cap_grid, self.cap_vals = cap_grid, cap_vals
+
+    def scale(self, X, margin):
+        """(λ, profile arrays at λ = 1) for each particle: λ = the smallest time stretch at
+        which the particle meets every limit (tightened by ``margin``)."""
+        sh = self.shape
+        C = sh.full(X)
+        area = C @ sh.I[-1]                                  # ∫₀¹ ṡ dτ per particle
+        bad = area <= 1e-12
+        area = np.where(bad, 1.0, area)
+        k = (self.L / area)[:, None]
+        s = self.s0 + k * (C @ sh.I.T)                       # (P, M), exact
+        v, a, j = k * (C @ sh.B.T), k * (C @ sh.B1.T), k * (C @ sh.B2.T)
+        s = np.clip(s, self.s0 + 1e-9, self.s1 - 1e-9)
+        d1, d2, d3 = self.table.joints(s)                    # (P, M, 3) each
+        v3, a3, j3 = v[..., None], a[..., None], j[..., None]
+        qv = np.abs(d1 * v3).max(axis=(1, 2))
+        qa = np.abs(d2 * v3 ** 2 + d1 * a3).max(axis=(1, 2))
+        qj = np.abs(d3 * v3 ** 3 + 3 * d2 * v3 * a3 + d1 * j3).max(axis=(1, 2))
+        m = 1 - margin
+        cap = np.interp(s, self.cap_grid, self.cap_vals)
+        lam = np.maximum.reduce([qv / (self.lim.v * m), np.sqrt(qa / (self.lim.a * m)),
+                                 np.cbrt(qj / (self.lim.j * m)), (v / (cap * m)).max(axis=1)])
+        for sj, dq2 in self.joins:
+            # feed at the join: its T-reading 0.75·Δq″·ṡ²/T takes at most half the jerk limit
+            i = np.argmax(s >= sj, axis=1)
+            vj = v[np.arange(len(v)), i]
+            lam = np.maximum(lam, vj * np.sqrt(JUMP_READ_FACTOR * dq2.max() / (self.T * 0.5 * self.lim.j * m)))
+        lam = np.where(bad | ~np.isfinite(lam), np.inf, lam)
+        return lam, (s, v, a, j)
+
+
+def _seed_window(prof, s0, s1):
+    """(τ, ṡ, s⃛, duration) of a profile on piece [s0, s1], τ normalised to [0, 1]."""
+    t = prof.t
+    idx = np.nonzero((prof.s >= s0 - 1e-9) & (prof.s <= s1 + 1e-9))[0]
+    i0, i1 = max(idx[0] - 1, 0), min(idx[-1] + 1, len(t) - 1)
+    tt = t[i0:i1 + 1]
+    D = tt[-1] - tt[0]
+    return (tt - tt[0]) / D, prof.sd[i0:i1 + 1], prof.sddd[i0:i1 + 1], D
+
+
+def knot_density(tau, jerk):
+    """Half the knots uniform in time, half where the seed's jerk is busy (its transitions:
+    the feed dips at the FLF minima and G1 joins need the resolution)."""
+    aj = np.abs(jerk)
+    w = np.convolve(aj, np.ones(9) / 9, mode="same")
+    area = np.trapezoid(w, tau) if hasattr(np, "trapezoid") else np.trapz(w, tau)
+    return tau, 1.0 + (w / area if area > 0 else 0.0)
+
+
+def _sample(pieces, T, path, info) -> Profile:
+    """Evaluate each piece's B-spline exactly at multiples of T and join them."""
+    starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
+    total = float(starts[-1])
+    N = max(1, int(math.ceil(total / T - 1e-9)))
+    t = np.arange(N + 1) * T
+    s = np.empty(N + 1)
+    sd, sdd, sddd = np.zeros(N + 1), np.zeros(N + 1), np.zeros(N + 1)
+    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(pieces) - 1)
+    for i, p in enumerate(pieces):
+        mk = k == i
+        if not mk.any():
+            continue
+        lam, C, knots, s0, L = p["lam"], p["C"], p["knots"], p["s0"], p["L"]
+        spl = BSpline(knots, C, p["degree"])
+        anti = spl.antiderivative(1)
+        area = anti(1.0) - anti(0.0)
+        tau = np.clip((t[mk] - starts[i]) / lam, 0.0, 1.0)
+        kk = L / area
+        s[mk] = s0 + kk * (anti(tau) - anti(0.0))
+        sd[mk] = kk * spl(tau) / lam
+        sdd[mk] = kk * spl.derivative(1)(tau) / lam ** 2
+        sddd[mk] = kk * spl.derivative(2)(tau) / lam ** 3
+    L = path.length
+    s = np.minimum(np.maximum.accumulate(s), L)
+    s[0], s[-1] = 0.0, L
+    sd[-1] = sdd[-1] = sddd[-1] = 0.0
+    return Profile("pso", T, s, sd, sdd, sddd, path, info=dict(info, continuous_time_s=total))
+
+
+def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iterations: int = 150,
+         control_points: int = 60, samples: int = 400, margin: float = 0.005,
+         time_budget_s: float = 120.0, seed_profile=None, target_time_s: float | None = None) -> Profile:
+    """PSO-optimised feed.  ``control_points``: total over the pieces (≥ 8 each, shared in
+    proportion to the seed's time on each); ``target_time_s``: record when the swarm's
+    best total first reaches it (``info['time_to_target_s']``), for the benchmark."""
+    from harness.metrics import command_metrics
+    from .scurve import plan_joint
+
+    t0 = time.perf_counter()
+    limits = machine.limits if limits is None else limits
+    check_limits(limits, "pso")
+    check_path(path, "pso")
+    if particles < 2 or iterations < 0:
+        raise PlanningError(f"pso: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
+    T = machine.servo_period_s
+    rng = np.random.default_rng(seed)
+    table = PathTable(path, machine)
+    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
+    cap = feed_cap(path, table.s, limits, T, kappa=kappa)
+    joins = []
+    for sj, _ in second_derivative_jumps(path, table, machine, corner_list(path)):
+        q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))[2]
+        joins.append((sj, np.abs(q2[1] - q2[0])))
+    seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
+    pcs = toppra_ref.pieces(path)
+    # control points in proportion to the seed's time on each piece
+    tp = np.array([max(np.count_nonzero((seed_prof.s > a) & (seed_prof.s < b)), 1) for a, b in pcs], float)
+    Ks = np.maximum(8, np.round(control_points * tp / tp.sum()).astype(int))
+
+    probs, X0, seed_times = [], [], []
+    for (s0, s1), K in zip(pcs, Ks):
+        tau, vv, jj, D = _seed_window(seed_prof, s0, s1)
+        pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K), samples, table.s, cap,
+                           knot_density(tau, jj))
+        probs.append(pr)
+        X0.append(pr.shape.fit(tau, vv))
+        seed_times.append(D)
+
+    # one swarm per piece, all advanced together so the total best is known at every iteration
+    w, c1, c2 = 0.7298, 1.49618, 1.49618        # Clerc–Kennedy constriction coefficients
+    swarm = []
+    for pr, x0 in zip(probs, X0):
+        lam0, _ = pr.scale(x0[None, :], margin)
+        x0 = x0 / lam0[0]                          # the seed, stretched to meet every limit
+        n = len(x0)
+        X = x0[None, :] * (1 + 0.15 * rng.standard_normal((particles, n)))
+        X[0] = x0
+        X = np.maximum(X, 0.0)
+        span = np.maximum(x0, 1e-3 * x0.max())
+        Vel = 0.05 * span[None, :] * rng.standard_normal((particles, n))
+        f, _ = pr.scale(X, margin)
+        best = int(np.argmin(f))
+        swarm.append({"X": X, "V": Vel, "P": X.copy(), "fP": f.copy(), "g": X[best].copy(),
+                      "fg": float(f[best]), "vmax": 0.2 * span})
+    if not all(np.isfinite(sw["fg"]) for sw in swarm):
+        bad = [i for i, sw in enumerate(swarm) if not np.isfinite(sw["fg"])]
+        raise PlanningError(f"pso: no feasible particle on piece(s) {bad} (s = "
+                            f"{', '.join(f'{pcs[i][0]:.6g}…{pcs[i][1]:.6g}' for i in bad)} mm)")
+    history = [(time.perf_counter() - t0, sum(sw["fg"] for sw in swarm))]
+    time_to_target = history[0][0] if target_time_s and history[0][1] <= target_time_s else None
+    stopped_by = "iterations"
+    for it in range(iterations):
+        if time.perf_counter() - t0 > time_budget_s:
+            stopped_by = "time budget"
+            break
+        for pr, sw in zip(probs, swarm):
+            X, V = sw["X"], sw["V"]
+            r1, r2 = rng.random(X.shape), rng.random(X.shape)
+            V = w * V + c1 * r1 * (sw["P"] - X) + c2 * r2 * (sw["g"][None, :] - X)
+            V = np.clip(V, -sw["vmax"], sw["vmax"])
+            X = np.maximum(X + V, 0.0)
+            f, _ = pr.scale(X, margin)
+            imp = f < sw["fP"]
+            sw["P"][imp], sw["fP"][imp] = X[imp], f[imp]
+            b = int(np.argmin(sw["fP"]))
+            if sw["fP"][b] < sw["fg"]:
+                sw["g"], sw["fg"] = sw["P"][b].copy(), float(sw["fP"][b])
+            sw["X"], sw["V"] = X, V
+        total = sum(sw["fg"] for sw in swarm)
+        history.append((time.perf_counter() - t0, total))
+        if target_time_s and time_to_target is None and total <= target_time_s:
+            time_to_target = history[-1][0]
+
+    pieces = []
+    for pr, sw, (s0, s1) in zip(probs, swarm, pcs):
+        pieces.append({"lam": sw["fg"], "C": pr.shape.full(sw["g"][None, :])[0],
+                       "knots": pr.shape.knots, "degree": pr.shape.degree, "s0": s0, "L": s1 - s0})
+    info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
+            "stopped_by": stopped_by, "control_points": [int(k) for k in Ks],
+            "seed_time_s": float(seed_prof.execution_time_s),
+            "history": [[round(a, 4), float(b)] for a, b in history[:: max(1, len(history) // 50)]],
+            "time_to_target_s": time_to_target}
+    # check at T with the independent metrics; stretch away a discretisation excess
+    for _ in range(6):
+        prof = _sample(pieces, T, path, info)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        jr = r["joint_peak_ratio"]
+        worst = max(jr["velocity"], math.sqrt(jr["acceleration"]), jr["jerk"] ** (1 / 3),
+                    r["cartesian_peak_ratio"]["feed"])
+        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
+            break
+        for p in pieces:
+            p["lam"] *= worst * 1.0005
+    else:
+        raise PlanningError(f"pso: best particle breaks a joint limit at T: {r['joint_peak_ratio']}")
+    prof.planning_time_s = time.perf_counter() - t0
+    return prof
