@@ -152,13 +152,23 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
     raise PlanningError(f"trapezoid: no arrival after {MAX_CYCLES} cycles (a limit too small?)")
 
 
+def programmed_feeds(path: SegmentPath, feed_max: float) -> np.ndarray:
+    """The F of the G-code move each segment came from (mm/s; rapids and unknown: F_max)."""
+    prog = getattr(path, "program", None)
+    by_line = {m.line: m.feed_mm_s for m in prog.moves} if prog is not None else {}
+    return np.array([min(feed_max, by_line.get(g.line) or feed_max) for g in path.segments])
+
+
 def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None = None,
-         chord_tolerance_mm: float | None = None, check_workspace_step_mm: float = 0.5) -> Profile:
+         chord_tolerance_mm: float | None = None, programmed_feed: bool = False,
+         check_workspace_step_mm: float = 0.5) -> Profile:
     """LinuxCNC-style trapezoidal profile.
 
     ``chord_tolerance_mm`` (default: the machine's chord error) is used to cut a NURBS into
     G1 lines; ``blend_tolerance_mm`` is its G64 P (default: the same value; 0 → G61, exact
-    stops at every vertex).
+    stops at every vertex). ``programmed_feed``: for a G-code path, cap each move at its
+    programmed F as LinuxCNC does (default off: every planner of the suite runs at F_max so
+    that their times compare).
     """
     limits = limits or machine.limits
     check_limits(limits, "trapezoid")
@@ -172,6 +182,8 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     check_workspace(path, machine, check_workspace_step_mm)
     planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
     vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)
+    if programmed_feed:
+        vmax = np.minimum(vmax, programmed_feeds(planned, limits.feed_max))
     vf = final_velocities(planned, vmax, amax)
     s, sd, excess = simulate(planned, vmax, amax, vf, T)
     # s̈ as the mean acceleration of each period (the split cycles make it a mix of two
@@ -182,6 +194,7 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     sddd = np.zeros_like(sdd)
     sddd[1:] = np.diff(sdd) / T
     info.update({"corners": int(len(planned.corners())), "lookahead": "whole path",
+                 "programmed_feed": bool(programmed_feed),
                  "boundary_speed_excess_mm_s": float(excess),
                  "acc_ratio_tangential": ACC_RATIO_TANGENTIAL})
     return Profile("trapezoid", T, s, sd, sdd, sddd, planned, info=info)

@@ -126,3 +126,22 @@ def test_deterministic_and_gcode_part_on_kossel(tmp_path):
     # lower bound: length at F_max; upper: plus a full stop-and-go per corner and per blend
     L = part.length
     assert L / 20.0 < a.execution_time_s < L / 20.0 + 45 * 2 * 20.0 / 500.0
+
+
+def test_programmed_feed_option(keops, tmp_path):
+    f = tmp_path / "f.ngc"
+    f.write_text("G21 G90 G61\nG0 X-50 Y0 Z-400\nG1 X0 F6000\nG1 X50 F30000\n")
+    path = resolve_path(str(f))
+    fast = plan("trapezoid", path, keops)
+    slow = plan("trapezoid", path, keops, programmed_feed=True)
+    assert fast.sd.max() == pytest.approx(1000.0)
+    # first move capped at F6000 = 100 mm/s, the second at F30000 = 500 mm/s (< F_max)
+    first = slow.s <= 50.0
+    assert slow.sd[first].max() == pytest.approx(100.0)
+    assert slow.sd.max() == pytest.approx(500.0)
+    # collinear moves: no stop between them (G61 stops only at tangent breaks). Closed form:
+    # 0→100 in 100/a, cruise, 100→500 on the second move, cruise, 500→0.
+    a = keops.limits.cartesian.a
+    d_up1, d_up2, d_down = 100**2 / (2 * a), (500**2 - 100**2) / (2 * a), 500**2 / (2 * a)
+    t = (100 / a + (50 - d_up1) / 100 + 400 / a + (50 - d_up2 - d_down) / 500 + 500 / a)
+    assert abs(slow.execution_time_s - t) <= 2 * slow.T
