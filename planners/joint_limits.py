@@ -47,6 +47,15 @@ def check_path(path, who: str) -> None:
         raise PlanningError(f"{who}: path has length {L!r}; need a non-empty path")
 
 
+def check_workspace(machine, s, P) -> np.ndarray:
+    """IK of path points P at arc lengths s; PlanningError naming the arc length, the point and
+    the joint (the kins message) if one leaves the workspace."""
+    try:
+        return machine.ik(P)
+    except WorkspaceError as e:
+        raise PlanningError(f"path point at s = {s[e.index]:.6g} mm leaves the workspace: {e}") from None
+
+
 def cartesian_derivs(path, s):
     """(P, P′, P″, P‴) at arc lengths s, each (N, 3)."""
     P, P1, P2, P3 = path.derivs(np.asarray(s, float))
@@ -59,10 +68,7 @@ def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
     workspace (the kins message names the point and the joint)."""
     s = np.asarray(s, float)
     P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
-    try:
-        Q0 = machine.ik(P)
-    except WorkspaceError as e:
-        raise PlanningError(f"path point at s = {s[e.index]:.6g} mm leaves the workspace: {e}") from None
+    Q0 = check_workspace(machine, s, P)
     Q = {0: Q0}
     for k in (-2, -1, 1, 2):
         d = k * h

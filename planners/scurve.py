@@ -33,7 +33,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
-from .joint_limits import (PathTable, PlanningError, cartesian_derivs, check_limits,
+from .joint_limits import (PathTable, PlanningError, cartesian_derivs, check_limits, check_workspace,
                            check_path, joint_derivs, peak_ratios, second_derivative_jumps,
                            time_derivs)
 from .profile import Profile
@@ -149,6 +149,8 @@ class _Planner:
         # difference at T, which can exceed the continuous peak by a fraction of a percent
         self.check = type(lim)(lim.v * (1 - margin), lim.a * (1 - margin), lim.j * (1 - margin))
         self.table = PathTable(path, machine if joint else None, ds=grid_mm)
+        if not joint:      # the Cartesian planner does not need the IK, but the path must be reachable
+            check_workspace(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s
         self.F = self.F_at(self.grid)
 

@@ -1,0 +1,131 @@
+"""scurve / scurve_joint: closed forms on a line, the FLF formula, segment maths, errors."""
+import math
+
+import numpy as np
+import pytest
+
+from harness.metrics import command_metrics
+from kins import Limits, MachineLimits, load_machine
+from planners import PlanningError, plan
+from planners import scurve
+from planners.path import Arc, Line, SegmentPath
+
+KEOPS = load_machine("keops")
+
+
+def line_x(L=160.0):
+    return SegmentPath([Line([-L / 2, 0, -400], [L / 2, 0, -400])])
+
+
+def test_line_time_is_the_closed_form_s_curve():
+    """Rest to rest on a line along x: the Cartesian axis x is the feed, so with margin 0
+    the time is L/F + F/A + A/J (full seven-phase s-curve, TII 2022 / ruckig)."""
+    L, F, A, J = 160.0, 1000.0, 1e4, 5e5          # accel distance F(F/A + A/J)/2 = 60 mm < L/2
+    p = scurve.plan(line_x(L), KEOPS, margin=0.0)
+    exact = L / F + F / A + A / J                 # 0.28 s
+    assert p.info["continuous_time_s"] == pytest.approx(exact, rel=1e-9)
+    assert exact <= p.execution_time_s < exact + KEOPS.servo_period_s
+    assert p.sd.max() == pytest.approx(F, rel=1e-9)
+    assert np.abs(p.sdd).max() == pytest.approx(A, rel=1e-9)
+    assert np.abs(p.sddd).max() == pytest.approx(J, rel=1e-9)
+
+
+def test_short_line_never_reaches_the_feed_and_matches_min_distance():
+    """On a line shorter than the two ramps, the peak feed v satisfies 2·d(0, v) = L."""
+    L = 40.0
+    p = scurve.plan(line_x(L), KEOPS, margin=0.0)
+    vpk = p.sd.max()
+    assert vpk < 1000.0
+    A, J = 1e4, 5e5
+    assert 2 * scurve.min_distance(0.0, vpk, A, J) == pytest.approx(L, rel=1e-6)
+
+
+def test_min_distance_and_reachable_closed_forms():
+    A, J = 1e4, 5e5
+    # no constant-acceleration phase: Δv ≤ A²/J = 200 → d = (v0 + v1)√(Δv/J)
+    assert scurve.min_distance(100, 250, A, J) == pytest.approx(350 * math.sqrt(150 / J))
+    # with one: d = (v0 + v1)/2 · (Δv/A + A/J)
+    assert scurve.min_distance(0, 1000, A, J) == pytest.approx(500 * (0.1 + 0.02))
+    v1 = scurve.reachable(100.0, 30.0, A, J, 1e4)
+    assert scurve.min_distance(100.0, v1, A, J) == pytest.approx(30.0, rel=1e-9)
+
+
+def test_flf_on_a_circle_is_the_published_formula():
+    """FLF = min(F_max, (2/T)√(ρ² − (ρ − ε)²), √(A/κ), ∛(J/κ²)) on circles of several radii."""
+    lim = KEOPS.limits
+    T = KEOPS.servo_period_s
+    for r in (0.5, 2.0, 10.0, 50.0, 400.0):
+        path = SegmentPath([Arc([r, 0, -400], [0, 0, -400], [0, 0, 1], np.pi / 4)])
+        got = scurve.flf(path, lim, T, np.array([0.1 * path.length]))[0]
+        want = min(lim.feed_max, 2 / T * math.sqrt(r * r - (r - lim.chord_error_mm) ** 2),
+                   math.sqrt(lim.cartesian.a * r), (lim.cartesian.j * r * r) ** (1 / 3))
+        assert got == pytest.approx(want, rel=1e-6)
+
+
+def test_profile_integrals_rest_and_limits_on_a_path_with_corner_and_g1_join():
+    z = -400.0
+    path = SegmentPath([Line([-40, -20, z], [0, -20, z]), Arc([0, -20, z], [0, 0, z], [0, 0, 1], np.pi / 2),
+                        Line([20, 0, z], [20, 30, z]), Line([20, 30, z], [-10, 30, z + 20])])
+    p = plan("scurve", path, KEOPS)
+    T = p.T
+    # integrals: s from ṡ, ṡ from s̈ (trapezoid rule, exact up to the jerk term)
+    np.testing.assert_allclose(np.diff(p.s), T * (p.sd[1:] + p.sd[:-1]) / 2,
+                               atol=p.sddd.__abs__().max() * T ** 3 / 6)
+    np.testing.assert_allclose(np.diff(p.sd), T * (p.sdd[1:] + p.sdd[:-1]) / 2,
+                               atol=np.abs(p.sddd).max() * T ** 2)
+    assert p.s[0] == 0 and p.s[-1] == path.length and p.sd[0] == 0 and p.sd[-1] == 0
+    # feed 0 at the exact-stop corner
+    c = path.corners()[0]
+    assert np.interp(c, p.s, p.sd) < 5.0
+    r = command_metrics(KEOPS, path.point(p.s), T, p.s)
+    assert max(r["cartesian_peak_ratio"].values()) <= 1 + 1e-6        # what scurve claims
+    pj = plan("scurve_joint", path, KEOPS)
+    rj = command_metrics(KEOPS, path.point(pj.s), T, pj.s)
+    assert rj["feasible"]                                            # what scurve_joint claims
+
+
+def test_scurve_breaks_a_joint_limit_where_the_joints_move_faster_than_the_axes():
+    """Near the top of the keops workspace a joint moves |∂q/∂p| > 1 times the Cartesian
+    speed along its own direction: a Cartesian-limited plan breaks the joint velocity
+    limit there (the point of TII 2022 / NU·ROBOTI·FTS 2022); scurve_joint does not."""
+    P0 = np.array([[0.0, 0.0, -310.0]])
+    row = KEOPS.jacobian(P0)[0][0]
+    d = row / np.linalg.norm(row)
+    a, b = P0[0] - 90 * d, P0[0] + 90 * d
+    path = SegmentPath([Line(a, b)])
+    p = scurve.plan(path, KEOPS)
+    r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)
+    assert max(r["cartesian_peak_ratio"].values()) <= 1 + 1e-6
+    assert r["joint_peak_ratio"]["velocity"] > 1.0
+    pj = scurve.plan_joint(path, KEOPS)
+    assert command_metrics(KEOPS, path.point(pj.s), pj.T, pj.s)["feasible"]
+    assert pj.execution_time_s > p.execution_time_s
+
+
+def test_same_input_same_profile():
+    a = scurve.plan(line_x(), KEOPS)
+    b = scurve.plan(line_x(), KEOPS)
+    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
+
+
+@pytest.mark.parametrize("field", ["v", "a", "j"])
+def test_a_limit_not_positive_is_a_clear_error(field):
+    lim = KEOPS.limits
+    bad = Limits(**{**{"v": lim.cartesian.v, "a": lim.cartesian.a, "j": lim.cartesian.j}, field: 0.0})
+    limits = MachineLimits(lim.joint, bad, lim.feed_max, lim.chord_error_mm)
+    with pytest.raises(PlanningError, match=f"cartesian limit {field} = 0"):
+        scurve.plan(line_x(), KEOPS, limits)
+
+
+def test_point_outside_the_workspace_names_point_and_joint():
+    path = SegmentPath([Line([0, 0, -400], [0, 0, -900])])
+    for fn in (scurve.plan, scurve.plan_joint):
+        with pytest.raises(PlanningError, match=r"s = .* mm leaves the workspace.*\(0, 0, -7\d\d.*joint 1"):
+            fn(path, KEOPS)
+
+
+def test_empty_path_is_a_clear_error():
+    class Empty:
+        length = 0.0
+    with pytest.raises(PlanningError, match="non-empty"):
+        scurve.plan(Empty(), KEOPS)
