@@ -5,7 +5,7 @@ import pytest
 from kins import load_machine
 from planners.path import resolve_path
 
-FITS = [("bird", "keops"), ("flower", "keops"), ("helix", "keops"),
+FITS = [("bird", "keops"), ("bird_high", "keops"), ("flower", "keops"), ("helix", "keops"),
         ("bird_kossel", "kossel"), ("test_part.ngc", "kossel")]
 
 

@@ -101,6 +101,10 @@ if __name__ == "__main__":
     # anchors span ±78 mm: scale to the 160 × 160 mm square (keops) / 80 × 80 mm (kossel)
     write("bird.json", bezier_chain(BIRD, BULGE, WEIGHTS, 80.0 / 78.0, (0.0, 0.0), -400.0))
     # kossel (below): ±40 mm fits its ±50 mm box; z = −250 keeps the joints below their 25 mm top.
+    # the same bird 80 mm higher: near the top of the keops box the Jacobian's xy gain
+    # exceeds 1 (row norm up to 1.19 at z = −300, ≤ 0.985 at z = −400), where Cartesian
+    # limits equal to the joint limits no longer protect the joints.
+    write("bird_high.json", bezier_chain(BIRD, BULGE, WEIGHTS, 80.0 / 78.0, (0.0, 0.0), -320.0))
     write("bird_kossel.json", bezier_chain(BIRD, BULGE, WEIGHTS, 40.0 / 78.0, (0.0, 0.0), -250.0))
     write("flower.json", flower())
     write("helix.json", helix())
