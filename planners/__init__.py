@@ -43,8 +43,14 @@ def get_planner(name: str):
 
 
 def plan(name: str, path, machine, limits=None, **options):
-    """Run planner ``name``; the profile's ``planning_time_s`` is the wall time of the call."""
+    """Run planner ``name``; the profile's ``planning_time_s`` is the wall time of the call.
+
+    ``path`` may be a Path or a file / standard path name (resolved first, not timed).
+    """
     fn = get_planner(name)
+    if not hasattr(path, "point"):
+        from planners.path import resolve_path
+        path = resolve_path(path)
     t0 = time.perf_counter()
     profile = fn(path, machine, limits, **options)
     profile.planning_time_s = time.perf_counter() - t0

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from planners.gcode import GCodeError, parse_gcode, program_path, read_gcode
-from planners.path import PathError, load_path
+from planners.path import Arc, Line, PathError, load_path
 
 START = "G90 G21 G17\nG0 X0 Y0 Z0\n"
 
@@ -167,3 +167,32 @@ def test_standard_test_part():
     assert kinds.count("arc") == 2 and len(p.moves) == 25
     circ = [m.segment for m in p.moves if m.segment.kind == "arc"]
     assert all(c.radius == pytest.approx(12.5) and c.angle == pytest.approx(2 * math.pi) for c in circ)
+
+
+def test_write_read_round_trip(tmp_path):
+    from planners.gcode import write_gcode
+    from planners.path import resolve_path
+    from planners.path import PATH_DIR, SegmentPath
+    # the part's programmed moves, unblended (its blend arcs lie in tilted planes: G-code
+    # cannot express those), written under G61 and read back
+    part = SegmentPath(read_gcode(PATH_DIR / "test_part.ngc").segments())
+    f = tmp_path / "rt.ngc"
+    write_gcode(part, f, 20.0, blend_mm=None, comment="round trip (G61)")
+    back = load_path(f)
+    assert len(back.segments) == len(part.segments)
+    assert back.length == pytest.approx(part.length, abs=1e-4)
+    s = np.linspace(0, part.length, 2001)
+    assert np.abs(back.point(s * back.length / part.length) - part.point(s)).max() < 1e-4
+    assert np.allclose(back.corners(), part.corners(), atol=1e-4)
+    vertical = SegmentPath([Line([0, 0, 0], [10, 0, 0]),
+                            Arc([10, 0, 0], [10, 0, 5], [0, 1, 0], math.pi / 2)])   # G18 arc
+    write_gcode(vertical, f, 10.0)
+    v = load_path(f)
+    assert np.allclose(v.segments[-1].end, vertical.segments[-1].end, atol=1e-6)
+    tilted = SegmentPath([Arc([1, 0, 0], [0, 0, 0], [0, 0.6, 0.8], 1.0)])
+    with pytest.raises(GCodeError, match="not a coordinate axis"):
+        write_gcode(tilted, f, 10.0)
+    helix = resolve_path("helix")                        # 3 turns: written with P3
+    write_gcode(helix, f, 100.0)
+    h = load_path(f)
+    assert h.segments[0].angle == pytest.approx(6 * math.pi) and h.length == pytest.approx(helix.length, rel=1e-9)
