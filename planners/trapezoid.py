@@ -173,6 +173,8 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     limits = limits or machine.limits
     check_limits(limits, "trapezoid")
     T = float(machine.servo_period_s)
+    if not (T > 0 and math.isfinite(T)):
+        raise PlanningError(f"trapezoid: servo period {machine.servo_period_s!r} s of {machine.name} must be > 0")
     chord = limits.chord_error_mm if chord_tolerance_mm is None else chord_tolerance_mm
     blend = chord if blend_tolerance_mm is None else blend_tolerance_mm
     if not chord > 0:

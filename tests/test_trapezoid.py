@@ -98,6 +98,13 @@ def test_registry_and_bad_input(keops):
         plan("trapezoid", x_line(10.0), keops, bad)
     with pytest.raises(PlanningError, match="feed_max"):
         plan("trapezoid", x_line(10.0), keops, replace(keops.limits, feed_max=-1.0))
+    import copy
+    zero_T = copy.copy(keops)
+    zero_T.servo_period_s = 0.0
+    with pytest.raises(PlanningError, match="servo period 0.0 s of keops must be > 0"):
+        plan("trapezoid", x_line(10.0), zero_T)
+    with pytest.raises(PlanningError, match="chord tolerance"):
+        plan("trapezoid", resolve_path("bird"), keops, chord_tolerance_mm=0.0)
     # kossel: inside its box, but joint 2 passes its 25 mm top near z = −153 at x = y = −45
     kossel = load_machine("kossel")
     high = SegmentPath([Line([-45, -45, -200], [-45, -45, -130])], "high.json")
