@@ -27,28 +27,34 @@ from .profile import Profile
 
 toppra.setup_logging("WARNING")
 
+# The fourth coordinate q₄ = s needs an acceleration bound too (toppra applies one to every
+# coordinate); 100·A never binds while some joint has |q′| > 0.01, and a finite bound keeps
+# the reachability LPs well conditioned (1e12 made them fail).
+S_ACC_FACTOR = 100.0
+
 
 class _PieceGeometry(toppra.interpolator.AbstractGeometricPath):
     """Joints and arc length of one corner-to-corner piece, read from a PathTable."""
 
-    def __init__(self, table: PathTable, s0: float, s1: float):
+    def __init__(self, table: PathTable, s0: float, s1: float, joints=(0, 1, 2)):
         self.table, self.s0, self.s1 = table, s0, s1
+        self.cols = list(joints)
 
     def __call__(self, ss, order=0):
         ss = np.asarray(ss, float)
         scalar = ss.ndim == 0
         s = np.clip(np.atleast_1d(ss), self.s0 + 1e-9, self.s1 - 1e-9)   # one-sided at corners
         if order == 0:
-            out = np.column_stack([self.table.joint_positions(s), s])
+            out = np.column_stack([self.table.joint_positions(s)[:, self.cols], s])
         else:
             d = self.table.joints(s)[order - 1]
             last = np.ones(len(s)) if order == 1 else np.zeros(len(s))
-            out = np.column_stack([d, last])
+            out = np.column_stack([d[:, self.cols], last])
         return out[0] if scalar else out
 
     @property
     def dof(self):
-        return 4
+        return len(self.cols) + 1
 
     @property
     def path_interval(self):
@@ -71,18 +77,36 @@ def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
     for k, (s0, s1) in enumerate(pieces(path)):
         n = max(20, int(math.ceil((s1 - s0) / grid_mm)) + 1)
         grid = np.linspace(s0, s1, n)
-        geo = _PieceGeometry(table, s0, s1)
-        P1, P2, _ = table.cartesian(np.clip(grid, s0 + 1e-9, s1 - 1e-9))
-        kappa = np.linalg.norm(np.cross(P1, P2), axis=1)
-        cap = feed_cap(path, grid, limits, T, kappa=kappa)
+        # joints that move identically on this piece (e.g. a vertical move of a linear delta)
+        # give identical constraint rows, which toppra's LP solver cannot handle: keep one
+        e = np.clip(grid, s0 + 1e-9, s1 - 1e-9)
+        P1, P2, _ = table.cartesian(e)
+        cap = feed_cap(path, grid, limits, T, kappa=np.linalg.norm(np.cross(P1, P2), axis=1))
+        d1, d2, _ = table.joints(e)
+        keep = []
+        for i in range(3):
+            if not any(np.allclose(d1[:, i], d1[:, j], rtol=0, atol=1e-9) and
+                       np.allclose(d2[:, i], d2[:, j], rtol=0, atol=1e-9) for j in keep):
+                keep.append(i)
+        # a joint that moves exactly like s (|q′| = 1, q″ = 0) duplicates the s coordinate:
+        # fold its limits into that coordinate's
+        s_acc = S_ACC_FACTOR * aj
+        like_s = [i for i in keep if np.allclose(np.abs(d1[:, i]), 1, rtol=0, atol=1e-9)
+                  and np.allclose(d2[:, i], 0, rtol=0, atol=1e-9)]
+        if like_s:
+            keep = [i for i in keep if i not in like_s]
+            cap = np.minimum(cap, vj)
+            s_acc = aj
+        geo = _PieceGeometry(table, s0, s1, keep)
+        nj = len(keep)
 
         def vlim(s, grid=grid, cap=cap):
             c = float(np.interp(s, grid, cap))
-            return np.array([[-vj, vj]] * 3 + [[-c, c]])
+            return np.array([[-vj, vj]] * nj + [[-c, c]])
 
         cons = [constraint.JointVelocityConstraintVarying(vlim),
                 constraint.JointAccelerationConstraint(
-                    np.array([[-aj, aj]] * 3 + [[-1e12, 1e12]]),
+                    np.array([[-aj, aj]] * nj + [[-s_acc, s_acc]]),
                     discretization_scheme=constraint.DiscretizationType.Interpolation)]
         inst = algo.TOPPRA(cons, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel")
         sdd, sd, _, _ = inst.compute_parameterization(0.0, 0.0, return_data=True)

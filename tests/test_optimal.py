@@ -1,0 +1,51 @@
+"""optimal (CasADi + IPOPT): the jerk-limited closed form on a line that drives the joints
+1:1, agreement with the s-curve there, order against toppra, errors."""
+import numpy as np
+import pytest
+
+from harness.metrics import command_metrics
+from kins import Limits, MachineLimits, load_machine
+from planners import PlanningError, optimal, plan
+from planners.path import Line, SegmentPath
+
+KOSSEL = load_machine("kossel")
+
+
+def vertical(L=30.0):
+    return SegmentPath([Line([0, 0, -300], [0, 0, -300 + L])])
+
+
+def test_vertical_line_on_a_linear_delta_is_the_seven_phase_closed_form():
+    """q = z + const on every joint for a vertical move: minimum time with v, a, j limits is the
+    full s-curve L/V + V/A + A/J; the planner tightens every limit by its margin m, which
+    scales that to L/(mV) + V/A + A/J."""
+    L = 30.0
+    p = plan("optimal", vertical(L), KOSSEL, margin=0.005)
+    lim = KOSSEL.limits.joint
+    m = 1 - 0.005
+    exact = L / (m * lim.v) + lim.v / lim.a + lim.a / lim.j
+    assert p.info["continuous_time_s"] == pytest.approx(exact, rel=5e-3)
+    r = command_metrics(KOSSEL, vertical(L).point(p.s), p.T, p.s)
+    assert r["feasible"]
+    s = plan("scurve_joint", vertical(L), KOSSEL, margin=0.0)
+    assert p.execution_time_s == pytest.approx(s.execution_time_s, rel=6e-3)
+
+
+def test_optimal_is_not_faster_than_toppra():
+    t_opt = plan("optimal", vertical(), KOSSEL).info["continuous_time_s"]
+    t_top = plan("toppra", vertical(), KOSSEL).info["continuous_time_s"]
+    assert t_top <= t_opt
+
+
+def test_limit_not_positive():
+    lim = KOSSEL.limits
+    bad = MachineLimits(Limits(lim.joint.v, lim.joint.a, 0.0), lim.cartesian, lim.feed_max, lim.chord_error_mm)
+    with pytest.raises(PlanningError, match="joint limit j = 0"):
+        plan("optimal", vertical(), KOSSEL, bad)
+
+
+def test_empty_path():
+    class Empty:
+        length = 0.0
+    with pytest.raises(PlanningError, match="non-empty"):
+        optimal.plan(Empty(), KOSSEL)

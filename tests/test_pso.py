@@ -1,0 +1,65 @@
+"""pso: seeded determinism, beats its scurve_joint seed, feasible at T, clear errors."""
+import numpy as np
+import pytest
+
+from harness.metrics import command_metrics
+from kins import load_machine
+from planners import PlanningError, plan
+from planners import pso
+from planners.path import Arc, Line, SegmentPath
+
+KEOPS = load_machine("keops")
+Z = -400.0
+PATH = SegmentPath([Line([-40, -20, Z], [0, -20, Z]), Arc([0, -20, Z], [0, 0, Z], [0, 0, 1], np.pi / 2),
+                    Line([20, 0, Z], [20, 30, Z])])
+FAST = {"iterations": 20, "particles": 16, "control_points": 30}
+
+
+def test_same_seed_same_profile_other_seed_other_search():
+    a = plan("pso", PATH, KEOPS, seed=3, **FAST)
+    b = plan("pso", PATH, KEOPS, seed=3, **FAST)
+    c = plan("pso", PATH, KEOPS, seed=4, **FAST)
+    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
+    assert a.info["history"] == b.info["history"] or [h[1] for h in a.info["history"]] == [h[1] for h in b.info["history"]]
+    assert not np.array_equal(a.s, c.s)
+
+
+def test_beats_its_seed_and_is_feasible():
+    seed = plan("scurve_joint", PATH, KEOPS)
+    p = plan("pso", PATH, KEOPS, seed_profile=seed, **FAST)
+    assert p.execution_time_s < seed.execution_time_s
+    r = command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)
+    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
+    # the swarm's best never gets worse
+    best = [h[1] for h in p.info["history"]]
+    assert all(x >= y for x, y in zip(best, best[1:]))
+
+
+def test_time_scaling_law():
+    """Stretching time by λ divides joint v, a, j by λ, λ², λ³: the λ a particle gets makes its
+    worst ratio exactly 1 (margin 0)."""
+    m = KEOPS
+    from planners.joint_limits import PathTable
+    table = PathTable(PATH, m)
+    pr = pso._PieceProblem(table, 0.0, PATH.length, m.limits, m.servo_period_s, [], 12, 300,
+                           table.s, np.full(len(table.s), 1e9))
+    X = np.linspace(1, 3, 8)[None, :] * np.array([[1.0], [2.0]])
+    lam, (s, v, a, j) = pr.scale(X, 0.0)
+    d1, d2, d3 = table.joints(np.clip(s, 1e-9, PATH.length - 1e-9))
+    v3, a3, j3 = (x[..., None] / lam[:, None, None] ** k for x, k in ((v, 1), (a, 2), (j, 3)))
+    qv = np.abs(d1 * v3).max(axis=(1, 2)) / m.limits.joint.v
+    qa = np.abs(d2 * v3 ** 2 + d1 * a3).max(axis=(1, 2)) / m.limits.joint.a
+    qj = np.abs(d3 * v3 ** 3 + 3 * d2 * v3 * a3 + d1 * j3).max(axis=(1, 2)) / m.limits.joint.j
+    np.testing.assert_allclose(np.maximum.reduce([qv, qa, qj]), 1.0, rtol=1e-9)
+
+
+def test_no_feasible_particle_is_a_clear_error(monkeypatch):
+    monkeypatch.setattr(pso._PieceProblem, "scale",
+                        lambda self, X, margin: (np.full(len(X), np.inf), None))
+    with pytest.raises(PlanningError, match=r"pso: no feasible particle on piece\(s\) \[0\]"):
+        plan("pso", PATH, KEOPS, **FAST)
+
+
+def test_bad_options():
+    with pytest.raises(PlanningError, match="≥ 2 particles"):
+        plan("pso", PATH, KEOPS, particles=1)
