@@ -113,7 +113,7 @@ def main(args) -> int:
         base_entries = baseline["entries"]
 
     md = ci.markdown_summary(checks, reference_s=reference_s, baseline_file=str(baseline_file),
-                             suite_file=args.suite, wall_s=wall_s)
+                             suite_file=args.suite, wall_s=wall_s, tolerances=tolerances)
     junit = Path(args.junit or out / "junit.xml")
     mdfile = Path(args.markdown or out / "summary.md")
     for f, text in ((junit, ci.junit_xml(checks, wall_s)), (mdfile, md)):

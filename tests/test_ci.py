@@ -110,6 +110,11 @@ def test_tolerance_rules():
     assert fails(planning_time_ratio=0.31) == {"planning_time_ratio"}                # > 1.5× and > +0.1
     tiny = {"entries": {"e": {"planning_time_ratio": 0.001}}}
     assert not [c for c in ci.compare(tiny, {"e": {"planning_time_ratio": 0.01}}, {}) if not c.ok]  # noise floor
+    # a suite's own rule for one run goes first (entry-glob:metric-glob)
+    tol = ci.tolerances_from_suite({"ci": {"tolerances": {"e*:planning_time_ratio": {"max_factor": 2.0}}}})
+    cur = dict(base["entries"]["e"]) | {"planning_time_ratio": 0.39}
+    assert all(c.ok for c in ci.compare(base, {"e": cur}, {}, tol))
+    assert not all(c.ok for c in ci.compare({"entries": {"x": base["entries"]["e"]}}, {"x": cur}, {}, tol))
     cs = ci.compare(base, {}, {})
     assert [(c.metric, c.ok) for c in cs] == [("entry", False)]
 

@@ -187,7 +187,7 @@ def _connect(scheduler: str | None, workers: int, processes: bool):
             raise SweepError(f"cannot reach the dask scheduler at {scheduler}: {e}") from None
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
                            host="127.0.0.1", dashboard_address=None,
-                           silence_logs=logging.ERROR)
+                           silence_logs=logging.CRITICAL)   # worker heartbeats racing the shutdown
     return Client(cluster), cluster
 
 

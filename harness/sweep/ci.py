@@ -41,9 +41,11 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
 ]
 
 
-def rule_for(metric: str, tolerances=DEFAULT_TOLERANCES) -> dict:
+def rule_for(metric: str, tolerances=DEFAULT_TOLERANCES, entry: str = "") -> dict:
+    """The first rule whose pattern matches: ``metric-glob`` or ``entry-glob:metric-glob``."""
     for pattern, rule in tolerances:
-        if fnmatch.fnmatchcase(metric, pattern):
+        ep, sep, mp = pattern.rpartition(":")
+        if fnmatch.fnmatchcase(metric, mp) and (not sep or fnmatch.fnmatchcase(entry, ep)):
             return rule
     return {"exact": True}
 
@@ -65,8 +67,8 @@ def describe(rule: dict) -> str:
 
 
 # -- the reference workload ----------------------------------------------------------------
-def reference_workload_s(repeat: int = 5) -> float:
-    """Best-of-``repeat`` wall time of a fixed numpy computation (≈ 50 ms on a 2020 laptop core).
+def reference_workload_s(repeat: int = 5, stat: str = "min") -> float:
+    """Best-of-``repeat`` (``stat="min"``) or mean (``"mean"``) wall time of a fixed numpy computation (≈ 50 ms on a 2020 laptop core).
 
     Planning times are divided by it: a computer twice as fast halves both, so the ratio
     holds across machines. The work resembles planning: vectorised kinematics and
@@ -78,14 +80,14 @@ def reference_workload_s(repeat: int = 5) -> float:
     P = m.home + rng.uniform(-50, 50, (400_000, 3))
     A = rng.standard_normal((200, 200)) + 200 * np.eye(200)
     b = rng.standard_normal(200)
-    best = math.inf
+    times = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         Q = m.ik(P)
         np.diff(Q, 3, axis=0)
         np.linalg.solve(A, b)
-        best = min(best, time.perf_counter() - t0)
-    return best
+        times.append(time.perf_counter() - t0)
+    return min(times) if stat == "min" else sum(times) / len(times)
 
 
 def host_info() -> dict:
@@ -95,45 +97,53 @@ def host_info() -> dict:
 
 
 # -- the CI task wrapper (runs on the workers) ---------------------------------------------
-CI_REPEAT = 2
+CI_REPEAT = 3
 
 
 def _strip_times(flat: dict) -> dict:
-    return {k: v for k, v in flat.items() if k not in ("planning_time_s", "reference_s")}
+    return {k: v for k, v in flat.items()
+            if k not in ("planning_time_s", "reference_s", "planning_time_ratio")}
 
 
 def reference_timed_task(task: dict, out_dir) -> dict:
-    """The task function ``task["ci_inner_task"]`` run CI_REPEAT times on this worker.
+    """The task function ``task["ci_inner_task"]`` run CI_REPEAT times on this worker,
+    interleaved with the reference workload: ref, run, ref, run, ref, run, ref.
 
-    Planning time is the best of the repeats (the first call in a fresh worker pays for lazy
-    imports and caches; which task comes first depends on scheduling) and the reference
-    workload is timed on the same worker just before and after, so contention from other
-    processes on the machine hits both sides of the ratio. The other metrics must agree
-    exactly between the repeats: a planner that is not deterministic fails here, by name.
+    Each run's planning time is divided by the mean of the reference timings just before
+    and after it (a mean, not a best-of: a busy machine slows a long planning run on
+    average, and the reference must see the same average), and ``planning_time_ratio`` is
+    the median over the runs — the first call in a fresh worker, which pays for lazy
+    imports, and a burst of load from other processes both fall out. The other metrics
+    must agree exactly between the runs: a planner that is not deterministic fails here,
+    by name.
     """
+    import shutil
+    import statistics
     from pathlib import Path
 
     from . import flatten, resolve_task_fn
     inner = resolve_task_fn(task["ci_inner_task"])
-    ref_before = reference_workload_s(3)
-    runs = []
+    refs, runs = [reference_workload_s(3, "mean")], []
     for i in range(CI_REPEAT):
-        folder = Path(out_dir) if i == CI_REPEAT - 1 else Path(out_dir) / f".repeat{i}"
+        last = i == CI_REPEAT - 1
+        folder = Path(out_dir) if last else Path(out_dir) / f".repeat{i}"
         folder.mkdir(parents=True, exist_ok=True)
         runs.append(inner(task, folder))
-        if i < CI_REPEAT - 1:
-            import shutil
+        refs.append(reference_workload_s(3, "mean"))
+        if not last:
             shutil.rmtree(folder, ignore_errors=True)
-    ref_after = reference_workload_s(3)
-    first, last = _strip_times(flatten(runs[0])), _strip_times(flatten(runs[-1]))
-    differ = sorted(k for k in set(first) | set(last) if first.get(k) != last.get(k))
+    first, final = _strip_times(flatten(runs[0])), _strip_times(flatten(runs[-1]))
+    differ = sorted(k for k in set(first) | set(final) if first.get(k) != final.get(k))
     if differ:
         raise RuntimeError(f"not deterministic: {', '.join(differ[:5])} differ between two runs "
-                           f"of the same task ({first.get(differ[0])} vs {last.get(differ[0])})")
+                           f"of the same task ({first.get(differ[0])} vs {final.get(differ[0])})")
     metrics = runs[-1]
+    metrics["reference_s"] = statistics.fmean(refs)
     if "planning_time_s" in metrics:
-        metrics["planning_time_s"] = min(r["planning_time_s"] for r in runs)
-    metrics["reference_s"] = 0.5 * (ref_before + ref_after)
+        times = [r["planning_time_s"] for r in runs]
+        metrics["planning_time_s"] = statistics.median(times)
+        metrics["planning_time_ratio"] = statistics.median(
+            t / (0.5 * (refs[i] + refs[i + 1])) for i, t in enumerate(times))
     return metrics
 
 
@@ -159,9 +169,9 @@ def entries_from_rows(rows: list[dict], reference_s: float) -> tuple[dict, dict]
             errors[label] = row["error"]
             continue
         flat = flatten(row["metrics"])
-        if "planning_time_s" in flat:
-            # the worker's own reference timing when the task ran under reference_timed_task
-            flat["planning_time_ratio"] = flat["planning_time_s"] / flat.get("reference_s", reference_s)
+        if "planning_time_s" in flat and "planning_time_ratio" not in flat:
+            # (reference_timed_task computes it on the worker; this is for other task functions)
+            flat["planning_time_ratio"] = flat["planning_time_s"] / reference_s
         entries[label] = flat
     return entries, errors
 
@@ -203,7 +213,7 @@ def compare(baseline: dict, entries: dict, errors: dict, tolerances=DEFAULT_TOLE
             continue
         b, v = base_entries[label], entries[label]
         for metric in sorted(set(b) | set(v)):
-            rule = rule_for(metric, tolerances)
+            rule = rule_for(metric, tolerances, label)
             if rule.get("ignore"):
                 continue
             tol = describe(rule)
@@ -218,7 +228,8 @@ def compare(baseline: dict, entries: dict, errors: dict, tolerances=DEFAULT_TOLE
 
 
 def tolerances_from_suite(suite: dict) -> list[tuple[str, dict]]:
-    """``[ci.tolerances]`` of a suite (pattern = {rel, abs, exact, max_factor, …}) go first."""
+    """``[ci.tolerances]`` of a suite go first: ``"PATTERN" = {rel, abs, exact, max_factor,
+    min_excess, ignore}``, PATTERN a metric glob or ``entry-glob:metric-glob``."""
     extra = suite.get("ci", {}).get("tolerances", {})
     return [(k, dict(v)) for k, v in extra.items()] + DEFAULT_TOLERANCES
 
@@ -248,7 +259,7 @@ def junit_xml(checks: list[Check], time_s: float, suite_name: str = "pkmbench ci
 
 
 def markdown_summary(checks: list[Check], *, reference_s: float, baseline_file: str,
-                     suite_file: str, wall_s: float) -> str:
+                     suite_file: str, wall_s: float, tolerances=DEFAULT_TOLERANCES) -> str:
     fails = [c for c in checks if not c.ok]
     entries = sorted({c.entry for c in checks})
     lines = [f"# pkmbench ci — {'FAIL' if fails else 'PASS'}", "",
@@ -262,7 +273,7 @@ def markdown_summary(checks: list[Check], *, reference_s: float, baseline_file: 
                   for c in fails]
         lines.append("")
     lines += ["## Tolerances", ""]
-    for pattern, rule in DEFAULT_TOLERANCES:
+    for pattern, rule in tolerances:
         lines.append(f"- `{pattern}`: {describe(rule)}")
     lines += ["", "## Every run", "", "| run | execution_time_s | feasible | worst joint ratio | planning_time_ratio | status |",
               "|---|---|---|---|---|---|"]
