@@ -75,6 +75,8 @@ def _plot(group: dict, file: Path) -> None:
     a1.set_ylabel("execution time, s")
     a2.bar(p["planner"], p["worst"], color=["tab:red" if w > 1 + 1e-6 else "tab:green" for w in p["worst"]])
     a2.axhline(1.0, color="k", lw=0.8, ls="--")
+    if p["worst"] and min(p["worst"]) > 0 and max(p["worst"]) / min(p["worst"]) > 20:
+        a2.set_yscale("log")                 # a jerk ratio of 600 would flatten the feasible ones
     a2.set_ylabel("worst joint peak ratio")
     for a in (a1, a2):
         a.tick_params(axis="x", labelrotation=30, labelsize=7)
