@@ -351,7 +351,11 @@ def sample(segs, path, T, planner, info) -> Profile:
     s = np.minimum(np.maximum.accumulate(s), L)
     s[0] = 0.0
     s[-1], sd[-1], sdd[-1], sddd[-1] = L, 0.0, 0.0, 0.0
-    info = dict(info, continuous_time_s=total)
+    # times where the jerk changes (phase ends), for planners that start from this profile (pso)
+    sw = [float(starts[i] + c) for i, g in enumerate(segs)
+          for c, dt in zip(g.tcum[1:], np.diff(g.tcum)) if dt > 1e-12]
+    rest = [float(starts[i]) for i, g in enumerate(segs) if g.v0 == 0.0] + [total]
+    info = dict(info, continuous_time_s=total, jerk_switch_times_s=[0.0] + sw, rest_times_s=rest)
     return Profile(planner, T, s, sd, sdd, sddd, path, info=info)
 
 

@@ -18,10 +18,13 @@ FAST = {"iterations": 20, "particles": 16, "control_points": 30}
 def test_same_seed_same_profile_other_seed_other_search():
     a = plan("pso", PATH, KEOPS, seed=3, **FAST)
     b = plan("pso", PATH, KEOPS, seed=3, **FAST)
-    c = plan("pso", PATH, KEOPS, seed=4, **FAST)
     assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
-    assert a.info["history"] == b.info["history"] or [h[1] for h in a.info["history"]] == [h[1] for h in b.info["history"]]
-    assert not np.array_equal(a.s, c.s)
+    assert [h[1] for h in a.info["history"]] == [h[1] for h in b.info["history"]]
+    # knots at quantiles (not at the seed's switch times): the swarm moves off its start,
+    # and where it goes depends on the seed
+    c = plan("pso", PATH, KEOPS, seed=3, exact_knots=False, **FAST)
+    d = plan("pso", PATH, KEOPS, seed=4, exact_knots=False, **FAST)
+    assert not np.array_equal(c.s, d.s)
 
 
 def test_beats_its_seed_and_is_feasible():
