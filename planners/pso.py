@@ -5,12 +5,15 @@ NU·ROBOTI·FTS 2022, shared/SOURCES.md §A).
 Shared constraint set with `toppra` and `optimal`: joint v, a, j limits, F_max and the
 chord-error feed cap (plus the jerk a G1 join's jump of q″ causes when read at T).
 
-Parametrisation.  The path is split at exact-stop corners; on each piece the feed is a cubic
-B-spline ṡ(τ) = Σ cₖBₖ(τ) over normalised time τ ∈ [0, 1], with c₀ = c₁ = c_{K−2} = c_{K−1} = 0 so
-the piece starts and ends at rest with s̈ = 0, and s(τ) = L·∫ṡ/∫₀¹ṡ (exact antiderivative), so
-every particle reaches the end of the piece.  (A B-spline over arc length cannot leave rest
-with finite jerk — near rest ṡ ∝ s^{2/3} — hence normalised time; the knots still fall
-densest where the feed is low, i.e. near the FLF minima.)
+Parametrisation.  The path is split at exact-stop corners; on each piece the feed is a
+quadratic B-spline ṡ(τ) = Σ cₖBₖ(τ) over normalised time τ ∈ [0, 1] (so s⃛ is piecewise constant,
+the class of the s-curve), with c₀ = c₁ = c_{K−2} = c_{K−1} = 0 so the piece starts and ends at
+rest with s̈ = 0, and s(τ) = L·∫ṡ/∫₀¹ṡ (exact antiderivative), so every particle reaches the end
+of the piece.  Knots: the seed's jerk switch times (then the seed is represented exactly and
+the swarm starts from it) plus, with ``extra_knots``, knots at quantiles of the seed's jerk
+activity (dense at the FLF minima and G1 joins); ``exact_knots=False`` uses the quantile
+knots only.  (A B-spline over arc length, as in the 2021 paper for a Cartesian machine,
+cannot leave rest with finite jerk — near rest ṡ ∝ s^{2/3} — hence normalised time.)
 
 Objective.  Stretching time by λ divides joint velocity by λ, acceleration by λ², jerk by
 λ³ and the feed by λ.  So each particle's shape is scaled to the smallest λ at which every
@@ -42,7 +45,7 @@ JUMP_READ_FACTOR = 0.75      # see optimal.py: a jump Δq″ reads as ≤ 0.75·
 
 
 class _Shape:
-    """Cubic B-spline basis over τ ∈ [0, 1] sampled at M points (and its antiderivative)."""
+    """B-spline basis over τ ∈ [0, 1] sampled at M points (and its antiderivative)."""
 
     def __init__(self, K: int, M: int, density=None, degree: int = DEGREE, inner=None):
         """``density``: (τ grid, weights) — knots and samples at its quantiles (uniform if
@@ -206,7 +209,7 @@ def _sample(pieces, T, path, info) -> Profile:
 def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iterations: int = 150,
          control_points: int = 60, samples: int = 400, margin: float = 0.005,
          time_budget_s: float = 120.0, seed_profile=None, target_time_s: float | None = None,
-         exact_knots: bool = True, extra_knots: float = 0.5) -> Profile:
+         exact_knots: bool = True, extra_knots: float = 0.5, spread: float = 0.05) -> Profile:
     """PSO-optimised feed.  ``control_points``: total over the pieces (≥ 8 each, shared in
     proportion to the seed's time on each); ``target_time_s``: record when the swarm's
     best total first reaches it (``info['time_to_target_s']``), for the benchmark."""
@@ -252,7 +255,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         lam0, _ = pr.scale(x0[None, :], margin)
         x0 = x0 / lam0[0]                          # the seed, stretched to meet every limit
         n = len(x0)
-        X = x0[None, :] * (1 + 0.15 * rng.standard_normal((particles, n)))
+        X = x0[None, :] * (1 + spread * rng.standard_normal((particles, n)))
         X[0] = x0
         X = np.maximum(X, 0.0)
         span = np.maximum(x0, 1e-3 * x0.max())
