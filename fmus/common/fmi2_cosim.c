@@ -11,10 +11,19 @@
 
 /* ---- logging ------------------------------------------------------------------------ */
 static void vlog(ModelInstance *comp, fmi2Status status, const char *category, const char *fmt, va_list ap) {
-    char msg[2048];
+    char msg[2048], esc[4096];
+    size_t k = 0;
     if (!comp || !comp->functions || !comp->functions->logger) return;
     vsnprintf(msg, sizeof msg, fmt, ap);
-    comp->functions->logger(comp->functions->componentEnvironment, comp->instance_name, status, category, "%s", msg);
+    /* The formatted text is passed as the format itself (as the Reference-FMUs do), so an
+     * importer that does not expand variadic arguments (fmpy) still shows the message; '%'
+     * is doubled for importers that do. */
+    for (const char *p = msg; *p && k + 2 < sizeof esc; p++) {
+        if (*p == '%') esc[k++] = '%';
+        esc[k++] = *p;
+    }
+    esc[k] = 0;
+    comp->functions->logger(comp->functions->componentEnvironment, comp->instance_name, status, category, esc);
 }
 
 void model_log(ModelInstance *comp, const char *category, const char *fmt, ...) {
