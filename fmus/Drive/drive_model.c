@@ -16,6 +16,7 @@
 #include "drive_model.h"
 
 #define N_AUG 5
+#define DRIVE_PI 3.14159265358979323846  /* M_PI is not strict C11 */
 
 static void mat_mul(int n, const double *a, const double *b, double *c)
 {
@@ -56,33 +57,33 @@ static void expm_small(int n, const double *m, double *out)
 const char *drive_check_params(const DriveParams *p)
 {
     if (p->ideal) return 0;  /* an ideal drive needs no physics */
-    if (p->motor != MOTOR_LINEAR && p->motor != MOTOR_STEPPER_BELT) return "unknown motor";
-    if (!(p->mass_kg > 0)) return "mass_kg must be > 0";
-    if (p->motor == MOTOR_LINEAR && !(p->force_constant > 0)) return "force_constant must be > 0";
+    if (p->motor != MOTOR_LINEAR && p->motor != MOTOR_STEPPER_BELT) return "parameter motor is unknown (linear | stepper_belt)";
+    if (!(p->mass_kg > 0)) return "parameter mass_kg must be > 0";
+    if (p->motor == MOTOR_LINEAR && !(p->force_constant > 0)) return "parameter force_constant_N_per_A must be > 0";
     if (p->motor == MOTOR_STEPPER_BELT) {
-        if (!(p->torque_constant > 0)) return "torque_constant must be > 0";
-        if (!(p->rotor_inertia >= 0)) return "rotor_inertia must be >= 0";
-        if (!(p->pulley_m_per_rev > 0)) return "pulley_mm_per_rev must be > 0";
+        if (!(p->torque_constant > 0)) return "parameter torque_constant_Nm_per_A must be > 0";
+        if (!(p->rotor_inertia >= 0)) return "parameter rotor_inertia_kgm2 must be >= 0";
+        if (!(p->pulley_m_per_rev > 0)) return "parameter pulley_mm_per_rev must be > 0";
     }
-    if (!(p->resistance_ohm > 0)) return "resistance must be > 0";
-    if (!(p->inductance_h > 0)) return "inductance must be > 0";
-    if (!(p->viscous_n_s_per_m >= 0)) return "viscous friction must be >= 0";
-    if (!(p->coulomb_n >= 0)) return "coulomb friction must be >= 0";
-    if (!(p->current_max_a > 0)) return "current_max must be > 0";
-    if (!(p->voltage_max_v > 0)) return "voltage_max must be > 0";
-    if (!(p->encoder_res_m >= 0)) return "encoder resolution must be >= 0";
-    if (!(p->kp_pos > 0)) return "position gain kp_pos must be > 0";
-    if (!(p->kp_vel > 0)) return "velocity gain kp_vel must be > 0";
-    if (!(p->ki_vel >= 0)) return "velocity integral gain ki_vel must be >= 0";
-    if (!(p->kp_cur > 0)) return "current gain kp_cur must be > 0";
-    if (!(p->ki_cur >= 0)) return "current integral gain ki_cur must be >= 0";
-    if (!(p->vff >= 0 && p->vff <= 2)) return "velocity feed-forward must be within 0..2";
-    if (!(p->aff >= 0 && p->aff <= 2)) return "acceleration feed-forward must be within 0..2";
-    if (!(p->vel_filter_tau_s >= 0)) return "velocity filter time constant must be >= 0";
-    if (!(p->inner_period_s > 0)) return "inner loop period must be > 0";
+    if (!(p->resistance_ohm > 0)) return "parameter resistance_ohm must be > 0";
+    if (!(p->inductance_h > 0)) return "parameter inductance_H must be > 0";
+    if (!(p->viscous_n_s_per_m >= 0)) return "parameter viscous_N_s_per_m must be >= 0";
+    if (!(p->coulomb_n >= 0)) return "parameter coulomb_N must be >= 0";
+    if (!(p->current_max_a > 0)) return "parameter current_max_A must be > 0";
+    if (!(p->voltage_max_v > 0)) return "parameter voltage_max_V must be > 0";
+    if (!(p->encoder_res_m >= 0)) return "parameter encoder_resolution_mm (or encoder_increments_per_rev) must be >= 0";
+    if (!(p->kp_pos > 0)) return "parameter kp_pos (position gain) must be > 0";
+    if (!(p->kp_vel > 0)) return "parameter kp_vel (velocity gain) must be > 0";
+    if (!(p->ki_vel >= 0)) return "parameter ki_vel (velocity integral gain) must be >= 0";
+    if (!(p->kp_cur > 0)) return "parameter kp_cur (current gain) must be > 0";
+    if (!(p->ki_cur >= 0)) return "parameter ki_cur (current integral gain) must be >= 0";
+    if (!(p->vff >= 0 && p->vff <= 2)) return "parameter vff (velocity feed-forward) must be within 0..2";
+    if (!(p->aff >= 0 && p->aff <= 2)) return "parameter aff (acceleration feed-forward) must be within 0..2";
+    if (!(p->vel_filter_tau_s >= 0)) return "parameter vel_filter_tau_s must be >= 0";
+    if (!(p->inner_period_s > 0)) return "parameter inner_period_s (inner loop period) must be > 0";
     if (p->interpolation != INTERP_LINEAR && p->interpolation != INTERP_CUBIC)
-        return "unknown interpolation (linear | cubic)";
-    if (!(p->quickstop_decel > 0)) return "quick-stop deceleration must be > 0";
+        return "parameter interpolation is unknown (linear | cubic)";
+    if (!(p->quickstop_decel > 0)) return "parameter quickstop_decel_mm_s2 must be > 0";
     return 0;
 }
 
@@ -92,7 +93,7 @@ void drive_init(DriveState *s, const DriveParams *p, double x0)
     s->p = *p;
     if (p->motor == MOTOR_STEPPER_BELT) {
         /* reflect the rotor to the belt: r = feed / 2 pi; F = kt i / r; J/r^2 adds to mass */
-        double r = p->pulley_m_per_rev / (2.0 * M_PI);
+        double r = p->pulley_m_per_rev / (2.0 * DRIVE_PI);
         s->kf = p->torque_constant / r;
         s->m_eff = p->mass_kg + p->rotor_inertia / (r * r);
     } else {
@@ -148,7 +149,10 @@ static void enter_fault_reaction(DriveState *s, int cause)
     if (s->state == CIA_FAULT_REACTION_ACTIVE || s->state == CIA_FAULT) { s->fault_cause |= cause; return; }
     s->fault_cause |= cause;
     s->state = CIA_FAULT_REACTION_ACTIVE;
-    s->qs_v = s->v_ff;  /* ramp down from the demand velocity */
+    /* quick stop from where the axis is and how fast it moves (not from a demand that may
+     * have run away, e.g. after a following error) */
+    s->demand = s->x_meas;
+    s->qs_v = s->v_filt;
 }
 
 const char *drive_cycle(DriveState *s, double target, int sync_ok, double T)
@@ -164,7 +168,7 @@ const char *drive_cycle(DriveState *s, double target, int sync_ok, double T)
     }
     int n = (int)floor(T / p->inner_period_s + 0.5);
     if (n < 1 || fabs(n * p->inner_period_s - T) > 1e-9 * T)
-        return "the communication step must be a whole multiple of the inner loop period";
+        return "the communication step must be a whole multiple of inner_period_s";
     s->cycle_s = T;
     s->substeps = n;
     if (!sync_ok) enter_fault_reaction(s, DRIVE_FAULT_SYNC);
