@@ -69,3 +69,33 @@ def chord_error_mm(P: np.ndarray, path, s: np.ndarray) -> float:
     mid = 0.5 * (P[1:] + P[:-1])
     on_path = path.point(0.5 * (s[1:] + s[:-1]))
     return float(np.linalg.norm(mid - on_path, axis=1).max()) if len(mid) else 0.0
+
+
+def following_error_um(targets: np.ndarray, actual: np.ndarray) -> float:
+    """Largest |joint target − actual joint position| over joints and samples, in µm."""
+    d = np.abs(np.asarray(targets, float) - np.asarray(actual, float))
+    return float(d.max() * 1e3) if d.size else 0.0
+
+
+def contour_error_um(P_act: np.ndarray, P_cmd: np.ndarray, window: int = 50) -> float:
+    """Largest distance of the actual tool points from the commanded path, in µm.
+
+    The commanded path is the polyline of the commanded samples (its own chord error is
+    reported separately); each actual point is measured against the segments within
+    ``window`` samples behind and ahead of its own index, which covers any realistic lag.
+    """
+    P_act = np.asarray(P_act, float)
+    A, B = np.asarray(P_cmd[:-1], float), np.asarray(P_cmd[1:], float)
+    if len(A) == 0:
+        return float(np.linalg.norm(P_act - P_cmd, axis=1).max() * 1e3)
+    n = len(P_act)
+    best = np.full(n, np.inf)
+    idx = np.arange(n)
+    for off in range(-window, window + 1):
+        j = np.clip(idx + off, 0, len(A) - 1)
+        a, ab = A[j], B[j] - A[j]
+        L2 = np.einsum("ij,ij->i", ab, ab)
+        u = np.where(L2 > 0, np.einsum("ij,ij->i", P_act - a, ab) / np.where(L2 > 0, L2, 1.0), 0.0)
+        d = np.linalg.norm(P_act - (a + np.clip(u, 0, 1)[:, None] * ab), axis=1)
+        np.minimum(best, d, out=best)
+    return float(best.max() * 1e3)

@@ -1,0 +1,188 @@
+"""One run: a machine × a toolpath × planners, each profile through the full FMU chain.
+
+    from harness.run import run_case
+    summary = run_case("keops", "bird", ["scurve", "pso"], "results/keops_bird")
+
+Per planner: plan (offline) → ``NAME/path.json`` + ``NAME/profile.csv`` → the system as SSP
+(``NAME/SystemStructure.ssd/.ssv``) → co-simulation of what that file describes → metrics →
+``NAME/command.csv``, ``NAME/run.mcap``, ``NAME/run.rrd``. Then ``summary.json`` (metrics;
+deterministic: same inputs and seed ⇒ same bytes) and ``timing.json`` (wall times).
+A planner or co-simulation that fails is recorded with its reason; the others go on.
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from harness import metrics as M
+from harness.master import CoSimError, simulate
+from harness.record import atomic_write_bytes, write_command_csv, write_mcap, write_rrd
+from harness.system import SystemError_, chain, read_ssp, write_ssp
+
+# Interpolator output → command; Kinematics → joints; EtherCAT → delivered targets; drives
+RECORD = (["interpolator.x", "interpolator.y", "interpolator.z", "interpolator.s", "interpolator.feed",
+           "interpolator.done", "kinematics.q1_cmd", "kinematics.q2_cmd", "kinematics.q3_cmd",
+           "kinematics.workspace_ok", "ethercat.lateness", "ethercat.lost_frames"]
+          + [f"ethercat.q{k}_target" for k in (1, 2, 3)]
+          + [f"drive{k}.{v}" for k in (1, 2, 3) for v in ("position", "velocity", "current", "following_error", "fault")])
+
+TAIL_S = 0.02   # co-simulate a little past the profile's end, so the drives settle
+
+
+class RunError(Exception):
+    """A run cannot start (unknown machine/path/planner, unwritable output…)."""
+
+
+def _clean(obj):
+    """JSON-safe and NaN-free: a non-finite number becomes null (DESIGN: no NaN in results)."""
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def write_json(path: Path, obj) -> None:
+    atomic_write_bytes(path, (json.dumps(_clean(obj), indent=2, sort_keys=True, allow_nan=False) + "\n").encode())
+
+
+def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None = None, ideal: bool = False,
+               engine: str = "native", jacobi: bool = False):
+    """Write the profile's files and system, run it, return the master's Result."""
+    path_file, profile_file = out / "path.json", out / "profile.csv"
+    profile.path.to_file(path_file)
+    profile.save_csv(profile_file)
+    system = chain(machine, path_file, profile_file, profile.execution_time_s + TAIL_S,
+                   seed=seed, jitter=jitter, ideal=ideal, histogram_out=str(out / "lateness.csv"))
+    # round the duration to whole periods so every step is exactly T
+    n = int(math.ceil(system.stop_time / system.step_size - 1e-9))
+    system.stop_time = n * system.step_size
+    ssd = write_ssp(system, out)
+    return simulate(read_ssp(ssd), RECORD, engine=engine, jacobi=jacobi)
+
+
+def measure(machine, profile, res) -> dict:
+    """DESIGN.md metrics of one co-simulated profile."""
+    T = machine.servo_period_s
+    n = len(profile.s)                      # the commanded motion: rows 0 … n-1
+    P = np.column_stack([res[f"interpolator.{a}"] for a in "xyz"])
+    s = res["interpolator.s"]
+    out = M.command_metrics(machine, P[:n], T, s[:n])
+    Q_act = np.column_stack([res[f"drive{k}.position"] for k in (1, 2, 3)])
+    Q_tgt = np.column_stack([res[f"ethercat.q{k}_target"] for k in (1, 2, 3)])
+    out["max_following_error_um"] = M.following_error_um(Q_tgt, Q_act)
+    try:
+        P_act = machine.fk(Q_act)
+        out["max_contour_error_um"] = M.contour_error_um(P_act, P)
+    except Exception as e:   # an actual joint vector with no assembly: say so, no NaN
+        out["max_contour_error_um"] = None
+        out["contour_error_note"] = f"FK of the actual joints failed: {e}"
+    geom = float(profile.info.get("geometry_deviation_mm", 0.0))
+    out["max_chord_error_um"] = (M.chord_error_mm(P[:n], profile.path, s[:n]) + geom) * 1e3
+    out["lost_frames"] = int(res["ethercat.lost_frames"][-1])
+    out["faulted_drives"] = int(sum(res[f"drive{k}.fault"].max() > 0 for k in (1, 2, 3)))
+    return out
+
+
+def run_case(machine_name: str, path_name: str, planner_names: list[str], out_dir, *, seed: int = 0,
+             jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
+             planner_options: dict | None = None, recordings: bool = True, progress=None) -> dict:
+    from kins import load_machine
+    from kins.machine import MachineFileError
+    import planners
+    from planners.path import PathError, resolve_path
+
+    try:
+        machine = load_machine(machine_name)
+    except MachineFileError as e:
+        raise RunError(str(e)) from None
+    try:
+        path = resolve_path(path_name)
+    except PathError as e:
+        raise RunError(str(e)) from None
+    unknown = [p for p in planner_names if p not in planners.PLANNERS]
+    if unknown:
+        raise RunError(f"unknown planner(s) {', '.join(unknown)}; valid: {', '.join(planners.PLANNERS)}")
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / ".write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise RunError(f"cannot write to output folder {out_dir}: {e.strerror}") from None
+    for stale in ("summary.json", "timing.json"):
+        (out_dir / stale).unlink(missing_ok=True)   # no old result may look like this run's
+
+    summary = {"machine": machine.name, "path": path_name, "servo_period_s": machine.servo_period_s,
+               "seed": seed, "jitter": jitter or "machine default", "ideal_chain": ideal, "planners": {}}
+    timing = {}
+    for k, name in enumerate(planner_names):
+        if progress:
+            progress(k, len(planner_names), name)
+        pdir = out_dir / name
+        shutil.rmtree(pdir, ignore_errors=True)
+        pdir.mkdir(parents=True)
+        try:
+            profile = planners.plan(name, path, machine, **(planner_options or {}).get(name, {}))
+        except Exception as e:   # PlanningError and anything a planner raised: record, go on
+            summary["planners"][name] = {"error": f"planning failed: {type(e).__name__}: {e}"}
+            continue
+        t1 = time.perf_counter()
+        try:
+            res = cosimulate(machine, profile, pdir, seed=seed, jitter=jitter, ideal=ideal, engine=engine, jacobi=jacobi)
+        except (CoSimError, SystemError_) as e:
+            summary["planners"][name] = {"error": f"co-simulation failed: {e}",
+                                         "execution_time_s": profile.execution_time_s}
+            timing[name] = {"planning_time_s": profile.planning_time_s}
+            continue
+        t2 = time.perf_counter()
+        m = measure(machine, profile, res)
+        summary["planners"][name] = m
+        timing[name] = {"planning_time_s": profile.planning_time_s, "cosimulation_wall_s": t2 - t1,
+                        "simulated_s": float(res.t[-1]), "real_time_factor": float(res.t[-1]) / max(t2 - t1, 1e-9)}
+        n = len(profile.s)
+        P = np.column_stack([res[f"interpolator.{a}"] for a in "xyz"])[:n]
+        Q = np.column_stack([res[f"kinematics.q{k}_cmd"] for k in (1, 2, 3)])[:n]
+        write_command_csv(pdir / "command.csv", res.t[:n], P, Q)
+        if recordings:
+            _recordings(pdir, machine, res, P, Q)
+        timing[name]["recording_wall_s"] = time.perf_counter() - t2
+    write_json(out_dir / "timing.json", timing)
+    write_json(out_dir / "summary.json", summary)   # last: its presence means the run finished
+    return summary
+
+
+def _recordings(pdir: Path, machine, res, P, Q) -> None:
+    t = res.t
+    ch = {
+        "/command": {"t": t, "s": res["interpolator.s"], "feed": res["interpolator.feed"],
+                     "x": res["interpolator.x"], "y": res["interpolator.y"], "z": res["interpolator.z"]},
+        "/joints/command": {"t": t, **{f"q{k}": res[f"kinematics.q{k}_cmd"] for k in (1, 2, 3)}},
+        "/joints/target": {"t": t, **{f"q{k}": res[f"ethercat.q{k}_target"] for k in (1, 2, 3)}},
+        "/drives/actual": {"t": t, **{f"q{k}": res[f"drive{k}.position"] for k in (1, 2, 3)},
+                           **{f"v{k}": res[f"drive{k}.velocity"] for k in (1, 2, 3)},
+                           **{f"i{k}": res[f"drive{k}.current"] for k in (1, 2, 3)}},
+        "/drives/following_error": {"t": t, **{f"e{k}": res[f"drive{k}.following_error"] for k in (1, 2, 3)}},
+        "/bus": {"t": t, "lateness": res["ethercat.lateness"], "lost_frames": res["ethercat.lost_frames"]},
+    }
+    write_mcap(pdir / "run.mcap", ch)
+    T = machine.servo_period_s
+    d = M.differences(Q, T)
+    lim = machine.limits.joint
+    ratio = np.zeros(len(Q))
+    for order, L in (("velocity", lim.v), ("acceleration", lim.a), ("jerk", lim.j)):
+        r = np.abs(d[order]).max(axis=1) / L
+        ratio[-len(r):] = np.maximum(ratio[-len(r):], r) if len(r) else ratio[-len(r):]
+    write_rrd(pdir / "run.rrd", machine, t[: len(Q)], P, Q, ratio, d)
