@@ -20,6 +20,8 @@
 #include <string.h>
 #include "ethercat_bus.h"
 
+#define ECAT_PI 3.14159265358979323846  /* M_PI is not strict C11 */
+
 /* splitmix64 (Steele, Lea, Flood 2014) expands the seed; xoshiro256** (Blackman,
  * Vigna 2018) draws. Both are pure 64-bit integer arithmetic: identical on every platform. */
 static uint64_t splitmix64(uint64_t *x)
@@ -59,32 +61,32 @@ double ecat_rng_normal(EcatRng *r)
     double u1 = 1.0 - ecat_rng_uniform(r);  /* (0, 1]: log is finite */
     double u2 = ecat_rng_uniform(r);
     double rad = sqrt(-2.0 * log(u1));
-    r->spare = rad * sin(2.0 * M_PI * u2);
+    r->spare = rad * sin(2.0 * ECAT_PI * u2);
     r->has_spare = 1;
-    return rad * cos(2.0 * M_PI * u2);
+    return rad * cos(2.0 * ECAT_PI * u2);
 }
 
 const char *ecat_check_params(const EcatParams *p)
 {
-    if (!(p->cycle_s > 0)) return "cycle_s (T) must be > 0";
-    if (p->dist < DIST_NONE || p->dist > DIST_HISTOGRAM) return "unknown distribution";
-    if (!(p->sigma_s >= 0)) return "sigma_s must be >= 0";
+    if (!(p->cycle_s > 0)) return "parameter cycle_s (T) must be > 0";
+    if (p->dist < DIST_NONE || p->dist > DIST_HISTOGRAM) return "parameter distribution is unknown (none | normal | mixture | histogram)";
+    if (!(p->sigma_s >= 0)) return "parameter sigma_s must be >= 0";
     if (p->dist == DIST_MIXTURE) {
-        if (!(p->tail_probability >= 0 && p->tail_probability <= 1)) return "tail_probability must be within 0..1";
-        if (!(p->tail_scale_s > 0)) return "tail_scale_s must be > 0";
-        if (!(p->tail_shape > 0)) return "tail_shape must be > 0";
+        if (!(p->tail_probability >= 0 && p->tail_probability <= 1)) return "parameter tail_probability must be within 0..1";
+        if (!(p->tail_scale_s > 0)) return "parameter tail_scale_s must be > 0";
+        if (!(p->tail_shape > 0)) return "parameter tail_shape must be > 0";
     }
-    if (p->dist == DIST_HISTOGRAM && p->hist_n <= 0) return "distribution histogram needs histogram_file";
-    if (!(p->cap_s > 0)) return "cap_s must be > 0";
-    if (!(p->sync0_shift_s >= 0 && p->sync0_shift_s < p->cycle_s)) return "sync0_shift_s must be within 0..T";
-    if (p->frame_bytes < 0) return "frame_bytes must be >= 0";
-    if (p->slaves < 0) return "slaves must be >= 0";
-    if (!(p->forward_delay_s >= 0)) return "forward_delay_s must be >= 0";
-    if (p->on_lost != LOST_HOLD && p->on_lost != LOST_EXTRAPOLATE) return "on_lost must be hold or extrapolate";
-    if (p->extrapolate_cycles < 0) return "extrapolate_cycles must be >= 0";
-    if (!(p->loss_probability >= 0 && p->loss_probability <= 1)) return "loss_probability must be within 0..1";
-    if (p->delay_cycles < 0 || p->delay_cycles > ECAT_MAX_DELAY) return "delay_cycles must be within 0..64";
-    if (p->sync_error_limit < 0) return "sync_error_limit must be >= 0";
+    if (p->dist == DIST_HISTOGRAM && p->hist_n <= 0) return "distribution histogram needs parameter histogram_file";
+    if (!(p->cap_s > 0)) return "parameter cap_s must be > 0";
+    if (!(p->sync0_shift_s >= 0 && p->sync0_shift_s < p->cycle_s)) return "parameter sync0_shift_s must be within 0..cycle_s";
+    if (p->frame_bytes < 0) return "parameter frame_bytes must be >= 0";
+    if (p->slaves < 0) return "parameter slaves must be >= 0";
+    if (!(p->forward_delay_s >= 0)) return "parameter forward_delay_s must be >= 0";
+    if (p->on_lost != LOST_HOLD && p->on_lost != LOST_EXTRAPOLATE) return "parameter on_lost must be hold or extrapolate";
+    if (p->extrapolate_cycles < 0) return "parameter extrapolate_cycles must be >= 0";
+    if (!(p->loss_probability >= 0 && p->loss_probability <= 1)) return "parameter loss_probability must be within 0..1";
+    if (p->delay_cycles < 0 || p->delay_cycles > ECAT_MAX_DELAY) return "parameter delay_cycles must be within 0..64";
+    if (p->sync_error_limit < 0) return "parameter sync_error_limit must be >= 0";
     return 0;
 }
 
@@ -232,8 +234,7 @@ int ecat_init(EcatState *s, const EcatParams *p, const double q0[ECAT_DRIVES], d
     s->out_bin_s = out_bin_s > 0 ? out_bin_s : 1e-6;
     s->out_range_s = fmax(p->cycle_s, p->cap_s);
     s->out_n = (int)ceil(2 * s->out_range_s / s->out_bin_s);
-    s->out_counts = calloc(s->out_n, sizeof *s->out_counts);
-    return s->out_counts ? 0 : -1;
+    return s->out_n <= ECAT_HIST_BINS ? 0 : -1;
 }
 
 double ecat_draw_lateness(EcatState *s)
@@ -283,6 +284,7 @@ void ecat_cycle(EcatState *s, const double q_cmd[ECAT_DRIVES])
     if (k == 0 && p->startup_lateness_s != 0.0) l = p->startup_lateness_s;
     if (is_forced(p, k)) l = p->cycle_s;  /* woke a whole cycle late */
     s->lateness = l;
+    if (fabs(l) > s->lateness_max_abs) s->lateness_max_abs = fabs(l);
     /* histogram of the draws, out-of-range values folded into the edge bins */
     int bin = (int)floor((l + s->out_range_s) / s->out_bin_s);
     if (bin < 0) bin = 0;
@@ -346,6 +348,4 @@ void ecat_free_params(EcatParams *p)
 void ecat_free(EcatState *s)
 {
     ecat_free_params(&s->p);
-    free(s->out_counts);
-    s->out_counts = 0;
 }

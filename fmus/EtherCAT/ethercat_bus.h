@@ -8,6 +8,7 @@
 #define ECAT_DRIVES 3
 #define ECAT_MAX_DELAY 64
 #define ECAT_MAX_FORCED 256
+#define ECAT_HIST_BINS 8192   /* output histogram bins (kept inside the state: FMU state copies stay flat) */
 
 enum EcatDist { DIST_NONE = 0, DIST_NORMAL = 1, DIST_MIXTURE = 2, DIST_HISTOGRAM = 3 };
 enum EcatOnLost { LOST_HOLD = 0, LOST_EXTRAPOLATE = 1 };
@@ -53,10 +54,11 @@ typedef struct {
     long lost_frames;
     int lost_now;
     double lateness;
+    double lateness_max_abs;   /* max |lateness| so far */
     /* lateness histogram for the output file */
     double out_bin_s, out_range_s;
     int out_n;
-    long *out_counts;
+    long out_counts[ECAT_HIST_BINS];
 } EcatState;
 
 void ecat_rng_seed(EcatRng *r, uint64_t seed);
@@ -72,14 +74,15 @@ int ecat_load_histogram(EcatParams *p, const char *path, char *msg, int msg_len)
 /* Parse "3,17,250" into p->forced. Returns -1 and a message on bad input. */
 int ecat_parse_forced(EcatParams *p, const char *list, char *msg, int msg_len);
 
-/* out_bin_s: bin width of the written histogram. Returns 0, or -1 if out of memory. */
+/* out_bin_s: bin width of the written histogram. Returns 0, or -1 if 2·max(T, cap)/out_bin_s
+ * exceeds ECAT_HIST_BINS. */
 int ecat_init(EcatState *s, const EcatParams *p, const double q0[ECAT_DRIVES], double out_bin_s);
 double ecat_frame_time(const EcatParams *p);
 double ecat_draw_lateness(EcatState *s);
 /* One master cycle: commanded joint values in, targets and flags in the state. */
 void ecat_cycle(EcatState *s, const double q_cmd[ECAT_DRIVES]);
 int ecat_write_histogram(const EcatState *s, const char *path, char *msg, int msg_len);
-/* Frees the histogram tables (owned by s->p after ecat_init) and the output counts. */
+/* Frees the histogram tables (owned by s->p after ecat_init). */
 void ecat_free(EcatState *s);
 void ecat_free_params(EcatParams *p);
 
