@@ -22,7 +22,7 @@ fmus: $(STAMP)
 	@if [ -f fmus/build.py ]; then $(BIN)/python fmus/build.py; fi
 
 run: fmus
-	$(BIN)/pkmbench kins-demo
+	$(BIN)/pkmbench run benchmarks/suites/default.toml
 
 test: fmus
 	$(BIN)/python -m pytest

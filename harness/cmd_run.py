@@ -32,24 +32,34 @@ def _progress(k, n, name):
     sys.stderr.flush()
 
 
+def _line_of(text: str, key: str) -> str:
+    """'line N' of the first assignment to key (tomllib reports no positions)."""
+    import re
+    for i, line in enumerate(text.splitlines(), start=1):
+        if re.match(rf"\s*\"?{re.escape(key)}\"?\s*=", line):
+            return f"line {i}"
+    return "line ?"
+
+
 def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
     if args.suite:
         f = Path(args.suite)
         if not f.exists():
             raise CliError(f"{f}: no such suite file")
         try:
-            suite = tomllib.loads(f.read_text())
+            text = f.read_text()
+            suite = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise CliError(f"{f}: not valid TOML: {e}") from None
         known = {"name", "description", "run", "sweep", "planner_options", "ci"}
         for key in suite:
             if key not in known:
-                raise CliError(f"{f}: unknown key '{key}' (valid: {', '.join(sorted(known))})")
+                raise CliError(f"{f}:{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(known))})")
         cases = []
         for i, r in enumerate(suite.get("run", [])):
             for key in r:
                 if key not in {"machine", "machines", "path", "paths", "planners"}:
-                    raise CliError(f"{f}: [[run]] #{i + 1}: unknown key '{key}' "
+                    raise CliError(f"{f}:{_line_of(text, key)}: [[run]] #{i + 1}: unknown key '{key}' "
                                    f"(valid: machine(s), path(s), planners)")
             machines = r.get("machines") or ([r["machine"]] if "machine" in r else [])
             paths = r.get("paths") or ([r["path"]] if "path" in r else [])
