@@ -297,3 +297,22 @@ def init_failure_messages(unzipped, start):
     except Exception:
         return Bus.last_messages
     raise AssertionError(f"initialisation accepted {start}")
+
+
+def test_fmu_state_round_trip_replays_the_same_cycles(unzipped, tmp_path):
+    hist = tmp_path / "h.csv"
+    hist.write_text("-5,5,10\n30,40,1\n")
+    bus = Bus(unzipped, base(distribution="histogram", histogram_file=str(hist), seed=9,
+                             loss_probability=0.2, sync_error_limit=10 ** 6), T)
+    q = ramp_cmd(40)
+    bus.run(q[:20])
+    state = bus.fmu.getFMUState()
+    t_saved = bus.t
+    first = bus.run(q[20:])
+    bus.fmu.setFMUState(state)
+    bus.t = t_saved
+    again = bus.run(q[20:])
+    bus.fmu.freeFMUState(state)
+    bus.close()
+    for n in OUTS:
+        assert np.array_equal(first[n], again[n])
