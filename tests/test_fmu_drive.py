@@ -323,3 +323,23 @@ def test_kossel_thesis_moves_following_error_about_23_um(unzipped):
         assert overshoot <= inc
         assert abs(out["position"][-1] - end) < 3 * inc
     assert 15.0 <= worst <= 35.0                   # thesis: about 23 µm
+
+
+def test_drive_params_for_every_machine_initialise(unzipped):
+    from kins import available_machines
+    for name in available_machines():
+        start = drive_start_values(name)
+        sim = Sim(unzipped, {**start, "target": 12.5}, 1e-3)
+        out = sim.run([12.5, 12.5])
+        sim.close()
+        assert np.all(np.isfinite(out["position"])), name
+
+
+def test_nanotec_conversion_rejects_what_it_cannot_model():
+    from kins import MachineFileError
+    gains = {"position_p": 1500, "position_i": 10, "velocity_p": 22000, "velocity_i": 1600,
+             "current_p": 120000, "current_i": 5000}
+    with pytest.raises(MachineFileError, match="position_i"):
+        nanotec_gains_to_si(gains, 31.416)
+    with pytest.raises(MachineFileError, match="velocity_p"):
+        nanotec_gains_to_si({**gains, "position_i": 0, "velocity_p": 0}, 31.416)
