@@ -137,15 +137,21 @@ def _instantiate(system: System) -> tuple[list[_Instance], dict[str, list[str]]]
             insts.append(_Instance(comp, 0.0, logs[comp.name]))
         for inst in insts:
             inst.fmu.enterInitializationMode()
-        # propagate start outputs along the connections before leaving initialisation
+        # Leave initialisation along the signal flow: each component gets its inputs from the
+        # components already initialised (the Interpolator's start point reaches the IK, the
+        # IK's joints reach the bus and the drives' start positions). Feedback inputs from
+        # components not yet initialised keep their start values.
         by = {i.name: i for i in insts}
-        for c in system.connections:
-            by[c.dst].set(c.dst_var, by[c.src].get(c.src_var))
+        ready: set[str] = set()
         for inst in insts:
+            for c in system.connections:
+                if c.dst == inst.name and c.src in ready:
+                    inst.set(c.dst_var, by[c.src].get(c.src_var))
             try:
                 inst.fmu.exitInitializationMode()
             except Exception:
                 raise CoSimError(f"{inst.name}: initialisation failed: {' | '.join(inst.logs[-5:]) or 'no log'}") from None
+            ready.add(inst.name)
     except BaseException:
         _free(insts)
         raise

@@ -246,7 +246,8 @@ void model_free(ModelInstance *comp) { (void)comp; }
 
 fmi2Status model_get_real(ModelInstance *comp, fmi2ValueReference vr, double *v) {
     ModelData *m = &comp->data;
-    if (vr >= vr_q1_cmd && vr <= vr_cond_J && m->dirty && comp->phase != PKM_INSTANTIATED) {
+    /* feed-through once initialised (the geometry is derived in model_initialize) */
+    if (vr >= vr_q1_cmd && vr <= vr_cond_J && m->dirty && comp->phase == PKM_STEP_COMPLETE) {
         char why[512];
         compute(comp, why, sizeof why);   /* feed-through: outputs follow inputs at once */
     }
