@@ -57,7 +57,8 @@ class System:
 def fmu_file(name: str) -> Path:
     f = FMU_DIR / f"{name}.fmu"
     if not f.exists():
-        raise SystemError_(f"{f.relative_to(REPO)} is missing: build the FMUs with 'make fmus' "
+        shown = f.relative_to(REPO) if f.is_relative_to(REPO) else f
+        raise SystemError_(f"{shown} is missing: build the FMUs with 'make fmus' "
                            f"(or '.venv/bin/python fmus/build.py {name}')")
     return f
 

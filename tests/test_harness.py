@@ -96,9 +96,9 @@ def test_run_is_deterministic_and_recordings_read_back(tmp_path):
 
 def test_fmu_error_names_fmu_time_and_log(keops, tmp_path):
     # a straight line that leaves the workspace: the Kinematics FMU must stop the run
-    path = SegmentPath([Line([0.0, 0.0, -400.0], [0.0, 0.0, -700.0])], source="down")
+    path = SegmentPath([Line([0.0, 0.0, -400.0], [0.0, 0.0, -800.0])], source="down")
     profile = planners.profile.Profile.from_s("line", keops.servo_period_s,
-                                              np.linspace(0, 300.0, 2001), path)
+                                              np.linspace(0, 400.0, 2001), path)
     with pytest.raises(CoSimError, match=r"kinematics failed at t = [0-9.]+ s: .*stroke|kinematics failed at t = .*reach"):
         cosimulate(keops, profile, tmp_path, ideal=True)
 
