@@ -1,0 +1,228 @@
+"""Offline G-code checker for a PKM: compile, simulate through the kinematics, report.
+
+Like the off-line programming system of the LOLA pn101 (Dimić et al., ICPE-S 2018): a
+program is valid only if, run as the planner would run it at the servo period, every point
+is in the workspace, no singularity is approached and every joint stays within its stroke,
+velocity, acceleration and jerk limits. Each finding carries the G-code line(s) it comes
+from and the worst value against the limit.
+
+    report = check_program("part.ngc", load_machine("kossel"))
+    print(report.text()); exit(report.exit_code)      # 0 clean, 1 findings, 2 invalid
+"""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from harness import metrics as M
+
+EXIT_CLEAN, EXIT_FINDINGS, EXIT_INVALID = 0, 1, 2
+
+
+@dataclass
+class Finding:
+    kind: str              # compile | unreachable | stroke | singularity | box | joint_velocity | …
+    severity: str          # "error" | "warning"
+    lines: list[int]       # G-code line numbers (1-based file lines)
+    value: float | None    # worst value (unit below)
+    limit: float | None
+    unit: str
+    message: str
+
+
+@dataclass
+class Report:
+    program: str
+    machine: str
+    planner: str
+    findings: list[Finding] = field(default_factory=list)
+    invalid: bool = False
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def exit_code(self) -> int:
+        if self.invalid:
+            return EXIT_INVALID
+        return EXIT_FINDINGS if any(f.severity == "error" for f in self.findings) else EXIT_CLEAN
+
+    def to_json(self) -> str:
+        d = {"program": self.program, "machine": self.machine, "planner": self.planner,
+             "valid": not self.invalid, "exit_code": self.exit_code, "stats": self.stats,
+             "findings": [asdict(f) for f in self.findings]}
+        return json.dumps(d, indent=2, sort_keys=True)
+
+    def text(self) -> str:
+        head = f"{self.program}: {self.machine}, planner {self.planner}"
+        if self.invalid:
+            return head + "\n" + "\n".join(f"  {self.program}:{f.lines[0] if f.lines else 0}: error: {f.message}"
+                                           for f in self.findings if f.kind == "compile")
+        if not self.findings:
+            return head + f"\n  clean: {self.stats.get('moves', 0)} moves, {self.stats.get('samples', 0)} samples checked"
+        by_line: dict[int, list[Finding]] = {}
+        for f in self.findings:
+            by_line.setdefault(f.lines[0] if f.lines else 0, []).append(f)
+        # lines ordered by their worst finding (ratio to the limit), worst first
+        def badness(f):
+            if f.value is None or not f.limit:
+                return 1.0
+            return abs(f.value) / abs(f.limit)
+        order = sorted(by_line, key=lambda ln: (-max(badness(f) for f in by_line[ln]), ln))
+        out = [head, f"  {len(self.findings)} finding(s) on {len(order)} line(s), worst first:"]
+        for ln in order:
+            for f in sorted(by_line[ln], key=lambda f: -badness(f)):
+                out.append(f"  {self.program}:{ln}: {f.severity}: {f.message}")
+        return "\n".join(out)
+
+
+class CheckError(Exception):
+    """The checker itself cannot run (no such file, unknown machine or planner)."""
+
+
+_N_WORD = re.compile(r"^\s*[Nn]\s*(\d+)")
+
+
+def _n_number_warnings(text: str, source: str) -> list[Finding]:
+    """N numbers must increase (a warning: LinuxCNC ignores them, but a reordered program is suspect)."""
+    from planners.gcode import GCodeError, _strip_comments
+
+    out, last = [], None
+    for ln, raw in enumerate(text.splitlines(), start=1):
+        try:
+            body = _strip_comments(raw, source, ln)
+        except GCodeError:
+            continue
+        m = _N_WORD.match(body)
+        if not m:
+            continue
+        n = int(m.group(1))
+        if last is not None and n <= last[0]:
+            out.append(Finding("compile", "warning", [ln], float(n), float(last[0]), "",
+                               f"N{n} does not increase (line {last[1]} has N{last[0]})"))
+        last = (n, ln)
+    return out
+
+
+def _lines_of(path, s: np.ndarray) -> np.ndarray:
+    """G-code line of each arc length; blend arcs (no line of their own) take the line before."""
+    lines = path.line_at(s)
+    if (lines < 0).any():
+        seg_lines = np.array([-1 if g.line is None else g.line for g in path.segments])
+        filled = seg_lines.copy()
+        for i in range(1, len(filled)):
+            if filled[i] < 0:
+                filled[i] = filled[i - 1]
+        lines = filled[path.segment_index(s)]
+    return lines
+
+
+def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, limit: float, unit: str,
+           what: str) -> list[Finding]:
+    """One finding per G-code line where mask holds, with that line's worst value."""
+    out = []
+    idx = np.nonzero(mask)[0]
+    if not len(idx):
+        return out
+    for ln in np.unique(lines[idx]):
+        sel = idx[lines[idx] == ln]
+        k = sel[np.argmax(np.abs(values[sel]))]
+        v = float(values[k])
+        out.append(Finding(kind, "error", [int(ln)], v, limit, unit,
+                           f"{what} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
+                           f"(ratio {abs(v) / limit:.3f}, {len(sel)} sample(s))"))
+    return out
+
+
+def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5) -> Report:
+    import planners
+    from planners.gcode import GCodeError, program_path, read_gcode
+
+    file = Path(file)
+    rep = Report(str(file), machine.name, planner)
+    if planner not in planners.PLANNERS:
+        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.PLANNERS)}")
+    if not file.exists():
+        raise CheckError(f"{file}: no such file")
+    # 1. compile
+    try:
+        prog = read_gcode(file)
+        path = program_path(prog)
+    except GCodeError as e:
+        rep.invalid = True
+        rep.findings.append(Finding("compile", "error", [int(e.line)], None, None, "", e.message
+                                    if hasattr(e, "message") else str(e)))
+        return rep
+    text = file.read_text(errors="replace")
+    rep.findings += _n_number_warnings(text, str(file))
+    rep.stats["moves"] = len(prog.moves)
+    rep.stats["length_mm"] = float(path.length)
+    # 2. geometry: every point of the path, densely, against the workspace (all findings)
+    n = max(2, int(np.ceil(path.length / workspace_step_mm)) + 1)
+    s = np.linspace(0.0, path.length, n)
+    P = path.point(s)
+    lines = _lines_of(path, s)
+    found = machine.check(P)
+    bad_geometry = False
+    for kind in ("unreachable", "stroke", "singularity", "box"):
+        fs = [f for f in found if f.kind == kind]
+        if not fs:
+            continue
+        bad_geometry |= kind in ("unreachable", "stroke")
+        if kind == "singularity":
+            vals = np.zeros(n)
+            for f in fs:
+                vals[f.index] = f.value
+            rep.findings += _group("singularity", vals > 0, vals, lines, machine.cond_max, "",
+                                   "Jacobian condition number")
+            continue
+        for ln in sorted({int(lines[f.index]) for f in fs}):
+            mine = [f for f in fs if lines[f.index] == ln]
+            worst = max(mine, key=lambda f: abs(f.value - f.limit))
+            at = P[worst.index]
+            where = f"at ({at[0]:.4g}, {at[1]:.4g}, {at[2]:.4g}) mm"
+            if kind == "unreachable":
+                msg = f"rod {worst.joint} cannot reach the point {where} (short by {worst.value:.4g} mm)"
+                val, lim = worst.value, 0.0
+            elif kind == "stroke":
+                msg = (f"joint {worst.joint} at {worst.value:.6g} mm is beyond its stroke limit "
+                       f"{worst.limit:g} mm by {abs(worst.value - worst.limit):.4g} mm {where}")
+                val, lim = worst.value, worst.limit
+            else:
+                msg = f"outside the workspace box {where}"
+                val, lim = None, None
+            rep.findings.append(Finding(kind, "error", [ln], val, lim, "mm", msg))
+    if bad_geometry:
+        rep.stats["dynamics"] = "skipped: the path leaves the workspace"
+        return rep
+    # 3. dynamics: the program as the planner runs it, at the servo period, through the IK
+    try:
+        prof = planners.plan(planner, path, machine)
+    except Exception as e:
+        rep.findings.append(Finding("planning", "error", [], None, None, "", f"{planner} cannot plan it: {e}"))
+        return rep
+    T = machine.servo_period_s
+    P = prof.path.point(prof.s)
+    Q = machine.ik(P)
+    slines = _lines_of(prof.path, prof.s) if hasattr(prof.path, "line_at") else np.full(len(P), -1)
+    rep.stats["samples"] = int(len(P))
+    rep.stats["execution_time_s"] = prof.execution_time_s
+    for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
+        for order, D in M.differences(X, T).items():
+            L = {"velocity": lim.v, "acceleration": lim.a, "jerk": lim.j}[order]
+            unit = {"velocity": "mm/s", "acceleration": "mm/s²", "jerk": "mm/s³"}[order]
+            worst = np.abs(D).max(axis=1)
+            col = np.abs(D).argmax(axis=1)
+            mask = worst > L * (1 + M.FEASIBLE_TOL)
+            if not mask.any():
+                continue
+            ln = slines[-len(D):]
+            for f in _group(f"{space.lower()}_{order}", mask, worst, ln, L, unit, f"{space} {order}"):
+                if space == "joint":
+                    sel = mask & (ln == f.lines[0])
+                    j = int(np.bincount(col[sel]).argmax()) + 1
+                    f.message = f"joint {j} " + f.message[len('joint '):]
+                rep.findings.append(f)
+    return rep
