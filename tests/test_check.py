@@ -105,3 +105,9 @@ def test_json_report_and_usage_errors(tmp_path, capsys):
     assert "none.ngc: no such file" in capsys.readouterr().err
     assert main(["check", str(f), "--machine", "keops", "--planner", "magic"]) == 2
     assert "unknown planner 'magic'; valid: trapezoid" in capsys.readouterr().err
+
+
+def test_gcode_reader_fuzz_short():
+    from tests.fuzz_gcode import fuzz
+    counts = fuzz(3000, seed=1)
+    assert counts["GCodeError"] > 500 and counts["parsed"] > 50   # both paths really exercised
