@@ -126,13 +126,16 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     idx = np.nonzero(mask)[0]
     if not len(idx):
         return out
-    for ln in np.unique(lines[idx]):
-        sel = idx[lines[idx] == ln]
-        k = sel[np.argmax(np.abs(values[sel]))]
-        v = float(values[k])
-        out.append(Finding(kind, "error", [int(ln)], v, limit, unit,
+    # sort by line, then by |value| descending: the first sample of each line is its worst
+    order = np.lexsort((-np.abs(values[idx]), lines[idx]))
+    idx, ln = idx[order], lines[idx][order]
+    first = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
+    count = np.diff(np.r_[first, len(idx)])
+    for f0, c in zip(first, count):
+        v = float(values[idx[f0]])
+        out.append(Finding(kind, "error", [int(ln[f0])], v, limit, unit,
                            f"{what} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
-                           f"(ratio {abs(v) / limit:.3f}, {len(sel)} sample(s))"))
+                           f"(ratio {abs(v) / limit:.3f}, {c} sample(s))"))
     return out
 
 
