@@ -145,3 +145,25 @@ def test_cli_errors(tmp_path, capsys):
     assert main(["run", str(suite), "--out", str(tmp_path / "o")]) == 2
     assert "s.toml:line 3: [[run]] #1: unknown key 'paht'" in capsys.readouterr().err
     assert not (tmp_path / "o" / "summary.json").exists()
+
+
+def test_sweep_default_task_is_the_full_cosimulation(tmp_path):
+    """A sweep's default task runs the FMU chain: drive following error and SSP files exist,
+    and a preset that the EtherCAT FMU does not know fails that task only."""
+    import sqlite3
+
+    from harness.sweep import run_sweep
+    from harness.sweep.suite import expand
+
+    line = str(Path(__file__).parent / "data" / "short_line.json")
+    suite = {"run": [{"machine": "keops", "path": line, "planners": ["scurve"]}],
+             "sweep": {"seeds": [0], "presets": ["tuned_rt", "wobbly"]}}
+    res = run_sweep(expand(suite), tmp_path, workers=0, progress=False)
+    assert (res.total, res.ok, res.failed) == (2, 1, 1)
+    assert "wobbly" in res.failures[0][0] or "wobbly" in res.failures[0][1]
+    rows = sqlite3.connect(tmp_path / "results.sqlite").execute("select * from results").fetchall()
+    assert rows
+    assert list(tmp_path.rglob("SystemStructure.ssd"))
+    summaries = [json.loads(p.read_text()) for p in tmp_path.rglob("summary.json")]
+    m = [s["planners"]["scurve"] for s in summaries if "scurve" in s["planners"]][0]
+    assert 0 < m["max_following_error_um"] < 1000 and m["feasible"] is True

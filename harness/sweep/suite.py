@@ -11,7 +11,7 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
     iterations = 40
     [sweep]                      # optional axes, crossed with every run
     seeds = [0, 1]               # default [0]
-    presets = ["none", "nominal"]  # jitter presets of the EtherCAT FMU, default ["none"]
+    presets = ["none", "tuned_rt"]  # EtherCAT jitter presets ("machine" = the machine file's), default ["none"]
     [[sweep.variation]]          # default: one variation "base" that changes nothing
     name = "jerk_half"
     set = { "limits.joint.j" = 2.5e5 }   # dotted keys of the machine file, overridden

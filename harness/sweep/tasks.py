@@ -1,7 +1,6 @@
 """Task functions for sweeps (the interface is in harness/sweep/__init__.py).
 
-- ``default_task``: the harness's full co-simulation run when it is installed, else
-  ``plan_task``.
+- ``default_task`` = ``cosim_task``: the harness's full co-simulation of one planner.
 - ``plan_task``: planning only — ``planners.plan`` + ``harness.metrics`` on the commanded
   trajectory (no FMUs): cheap, deterministic apart from ``planning_time_s``.
 - ``line_task``: a quintic (minimum-jerk) move along a straight line, with no planner at
@@ -170,6 +169,30 @@ def plan_task(task: dict, out_dir: Path) -> dict:
     return metrics
 
 
+def cosim_task(task: dict, out_dir: Path) -> dict:
+    """The full co-simulation of one planner (harness.run.run_case): plan, FMU chain, metrics.
+
+    The task's preset is the EtherCAT jitter preset ("none" = an ideal bus clock; "machine" or
+    empty = the machine file's). Run files (summary.json, command.csv, the SSP system) land in
+    out_dir; recordings (mcap, rrd) are skipped in sweeps to keep them light.
+    """
+    from harness.run import run_case
+
+    planner = task["planner"]
+    mfile, pfile = task_input_files(task, out_dir / "inputs")
+    preset = task.get("preset") or "machine"
+    summary = run_case(str(mfile), str(pfile), [planner], out_dir, seed=int(task.get("seed", 0)),
+                       jitter=None if preset == "machine" else preset,
+                       planner_options={planner: dict(task.get("planner_options") or {})},
+                       recordings=False)
+    m = summary["planners"][planner]
+    if "error" in m:
+        raise TaskError(m["error"])
+    timing = json.loads((out_dir / "timing.json").read_text())
+    m["planning_time_s"] = timing[planner]["planning_time_s"]
+    return m
+
+
 def default_task(task: dict, out_dir: Path) -> dict:
-    """The full co-simulation when the harness provides it, else planning only."""
-    return plan_task(task, out_dir)
+    """The full co-simulation (cosim_task)."""
+    return cosim_task(task, out_dir)
