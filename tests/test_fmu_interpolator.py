@@ -185,3 +185,12 @@ def test_build_sources_rebuild_with_fmpy_compile(tmp_path, monkeypatch):
     assert so.exists()
     r = simulate_fmu(str(unzip), stop_time=0.001, output=["q1_cmd"])
     assert abs(r["q1_cmd"][-1] - KEOPS.ik([0, 0, -400.0])[0]) < 1e-9
+
+
+if __name__ == "__main__":   # the long fuzz run: python tests/test_fmu_interpolator.py [N] [SEED]
+    import sys
+    import tempfile
+    from pathlib import Path
+    with tempfile.TemporaryDirectory() as d:
+        print(fuzz(int(sys.argv[1]) if len(sys.argv) > 1 else 100_000, Path(d),
+                   int(sys.argv[2]) if len(sys.argv) > 2 else 0))
