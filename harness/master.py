@@ -66,13 +66,13 @@ def _extract(fmu: Path) -> Path:
 
 
 class _Instance:
-    def __init__(self, comp, start_time: float, logs: list[str]):
+    def __init__(self, comp, start_time: float, logs: list[str], logging_on: bool = False):
         from fmpy import read_model_description
         from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
         from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
         self.name = comp.name
-        unzip = _extract(comp.fmu)
+        unzip = Path(comp.fmu) if Path(comp.fmu).is_dir() else _extract(comp.fmu)   # a folder: already unzipped
         try:
             md = read_model_description(str(unzip), validate=False)
         except Exception as e:
@@ -91,7 +91,7 @@ class _Instance:
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(unzip),
                              modelIdentifier=md.coSimulation.modelIdentifier, instanceName=comp.name)
         try:
-            self.fmu.instantiate(callbacks=self.callbacks)
+            self.fmu.instantiate(callbacks=self.callbacks, loggingOn=logging_on)
         except Exception as e:
             raise CoSimError(f"{comp.name} ({comp.fmu.name}): instantiation failed: {e}; log: {logs[-5:]}") from None
         self.fmu.setupExperiment(startTime=start_time)

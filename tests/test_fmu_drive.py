@@ -10,11 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
-                       fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE)
+from fmpy import extract
 from fmpy.validation import validate_fmu
 
+from tests.fmu_util import SteppedFmu
 from harness.drive_params import drive_start_values, nanotec_gains_to_si
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -28,53 +27,11 @@ def unzipped(tmp_path_factory):
     return extract(str(FMU), unzipdir=str(tmp_path_factory.mktemp("drive")))
 
 
-class Sim:
-    """One FMU instance stepped from Python; messages of the FMU's logger are kept."""
+class Sim(SteppedFmu):
+    """One drive FMU stepped from Python (tests/fmu_util.SteppedFmu)."""
 
     def __init__(self, unzipdir, start, step):
-        md = read_model_description(unzipdir)
-        self.vars = {v.name: v for v in md.modelVariables}
-        self.step = step
-        self.t = 0.0
-        self.messages = []
-        Sim.last_messages = self.messages
-        self._cb = fmi2CallbackFunctions()
-        self._cb.logger = fmi2CallbackLoggerTYPE(self._log)
-        from fmpy.fmi2 import calloc, free
-        self._cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName="drive")
-        self.fmu.instantiate(callbacks=self._cb, loggingOn=True)
-        self.fmu.setupExperiment(startTime=0.0)
-        self.set(start)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
-
-    def _log(self, env, name, status, category, message):
-        self.messages.append(message.decode(errors="replace"))
-
-    def set(self, values):
-        for name, value in values.items():
-            v = self.vars[name]
-            if v.type == "Real":
-                self.fmu.setReal([v.valueReference], [float(value)])
-            elif v.type in ("Integer", "Enumeration"):
-                self.fmu.setInteger([v.valueReference], [int(value)])
-            elif v.type == "Boolean":
-                self.fmu.setBoolean([v.valueReference], [bool(value)])
-            else:
-                self.fmu.setString([v.valueReference], [str(value)])
-
-    def get(self, name):
-        v = self.vars[name]
-        if v.type == "Real":
-            return self.fmu.getReal([v.valueReference])[0]
-        if v.type in ("Integer", "Enumeration"):
-            return self.fmu.getInteger([v.valueReference])[0]
-        if v.type == "Boolean":
-            return bool(self.fmu.getBoolean([v.valueReference])[0])
-        return self.fmu.getString([v.valueReference])[0]
+        super().__init__(unzipdir, start, step, "drive")
 
     def run(self, targets, names=("position", "following_error", "force", "state", "fault"),
             sync_ok=None):
@@ -89,9 +46,6 @@ class Sim:
                 out[n].append(self.get(n))
         return {n: np.array(v) for n, v in out.items()}
 
-    def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
 
 
 def keops(**over):

@@ -10,11 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
-                       fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free)
+from fmpy import extract
 from fmpy.validation import validate_fmu
 
+from tests.fmu_util import SteppedFmu
 from harness.drive_params import ethercat_start_values
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -31,47 +30,11 @@ def unzipped(tmp_path_factory):
     return extract(str(FMU), unzipdir=str(tmp_path_factory.mktemp("ecat")))
 
 
-class Bus:
-    last_messages: list = []
+class Bus(SteppedFmu):
+    """One bus FMU stepped from Python (tests/fmu_util.SteppedFmu)."""
 
     def __init__(self, unzipdir, start, step):
-        md = read_model_description(unzipdir)
-        self.vars = {v.name: v for v in md.modelVariables}
-        self.step, self.t = step, 0.0
-        self.messages = []
-        Bus.last_messages = self.messages
-        self._cb = fmi2CallbackFunctions()
-        self._cb.logger = fmi2CallbackLoggerTYPE(
-            lambda env, name, status, cat, msg: self.messages.append(msg.decode(errors="replace")))
-        self._cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bus")
-        self.fmu.instantiate(callbacks=self._cb, loggingOn=True)
-        self.fmu.setupExperiment(startTime=0.0)
-        self.set(start)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
-
-    def set(self, values):
-        for name, value in values.items():
-            v = self.vars[name]
-            if v.type == "Real":
-                self.fmu.setReal([v.valueReference], [float(value)])
-            elif v.type == "Integer":
-                self.fmu.setInteger([v.valueReference], [int(value)])
-            elif v.type == "Boolean":
-                self.fmu.setBoolean([v.valueReference], [bool(value)])
-            else:
-                self.fmu.setString([v.valueReference], [str(value)])
-
-    def get(self, name):
-        v = self.vars[name]
-        if v.type == "Real":
-            return self.fmu.getReal([v.valueReference])[0]
-        if v.type == "Integer":
-            return self.fmu.getInteger([v.valueReference])[0]
-        return bool(self.fmu.getBoolean([v.valueReference])[0])
+        super().__init__(unzipdir, start, step, "bus")
 
     def run(self, q_cmd):
         """q_cmd: (n, 3) commands, one row per cycle; returns every output per cycle."""
@@ -84,9 +47,6 @@ class Bus:
                 out[n].append(self.get(n))
         return {n: np.array(v) for n, v in out.items()}
 
-    def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
 
 
 T = 1e-3
