@@ -160,8 +160,39 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
             _recordings(pdir, machine, res, P, Q)
         timing[name]["recording_wall_s"] = time.perf_counter() - t2
     write_json(out_dir / "timing.json", timing)
+    comparison_plot(summary, out_dir / "comparison.png")
     write_json(out_dir / "summary.json", summary)   # last: its presence means the run finished
     return summary
+
+
+def comparison_plot(summary: dict, file: Path) -> None:
+    """Execution time and worst joint-limit ratios per planner, side by side."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = {n: m for n, m in summary["planners"].items() if "error" not in m}
+    if not ok:
+        return
+    names = list(ok)
+    x = np.arange(len(names))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    a1.bar(x, [ok[n]["execution_time_s"] for n in names], color="tab:blue")
+    a1.set(xticks=x, xticklabels=names, ylabel="execution time (s)",
+           title=f"{summary['machine']} / {summary['path']}")
+    for k, order in enumerate(("velocity", "acceleration", "jerk")):
+        a2.bar(x + (k - 1) * 0.27, [ok[n]["joint_peak_ratio"][order] for n in names], 0.27, label=order)
+    a2.axhline(1.0, color="k", ls="--", lw=1, label="joint limit")
+    a2.set(xticks=x, xticklabels=names, ylabel="peak |joint derivative| / limit", yscale="log",
+           title="joint-limit ratios on the commanded trajectory (IK at T)")
+    a2.legend(fontsize=8)
+    for a in (a1, a2):
+        a.tick_params(axis="x", rotation=30)
+    fig.tight_layout()
+    tmp = file.with_name(file.name + ".part.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    tmp.replace(file)
 
 
 def _recordings(pdir: Path, machine, res, P, Q) -> None:
