@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from planners.path import CORNER_ANGLE, Arc, Line, Path, PathError, SegmentPath
+from planners.path import CORNER_ANGLE, Arc, Line, Path, PathError, SegmentPath, cross3
 
 REVERSAL_ANGLE = math.pi - 1e-6
 
@@ -86,7 +86,7 @@ def blend_corners(segments, tolerances):
             u1, u2 = g.direction, segs[i + 1].direction
             m = u2 - math.cos(delta) * u1
             m /= np.linalg.norm(m)
-            n = np.cross(u1, u2)
+            n = cross3(u1, u2)
             n /= np.linalg.norm(n)
             t1 = g.end - d * u1
             out.append(Arc(t1, t1 + R * m, n, delta, 0.0, segs[i + 1].line))
