@@ -18,6 +18,7 @@ the exact-stop points), ``bounds()`` and ``to_file(file)``. :func:`load_path` re
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -412,11 +413,17 @@ class Arc:
             out.append(k**3 * (s_ * self.a - c * self.b))
         return out
 
+    def _tangent(self, phi: float) -> np.ndarray:
+        """dP/ds at sweep φ: the first derivative of eval() for one point, without arrays."""
+        k = self.angle / self.length
+        hn = (self.rise / self.angle) * self.normal
+        return k * (-math.sin(phi) * self.a + math.cos(phi) * self.b + hn)
+
     def tangent_in(self):
-        return self.eval(np.array([0.0]), 1)[1][0]
+        return self._tangent(0.0)
 
     def tangent_out(self):
-        return self.eval(np.array([self.length]), 1)[1][0]
+        return self._tangent(self.angle)
 
     def to_dict(self) -> dict:
         d = {"type": "arc", "start": self.start.tolist(), "center": self.center.tolist(),
