@@ -2,8 +2,7 @@
 collect the FMU's log."""
 from __future__ import annotations
 
-from pathlib import Path
-
+from harness.fmu_driver import SteppedFmu  # noqa: F401  (re-exported for the FMU tests)
 from harness.master import _Instance
 from harness.system import Component, FMU_DIR
 
@@ -42,40 +41,4 @@ class Fmu:
             self.fmu.terminate()
         except Exception:
             pass
-        self.fmu.freeInstance()
-
-
-class SteppedFmu:
-    """One FMU instance (an unzipped folder) initialised with ``start`` and stepped at ``step``
-    from Python; every message of its logger is kept (``messages``, and the class's
-    ``last_messages`` for instances whose initialisation raised)."""
-
-    last_messages: list = []
-
-    def __init__(self, unzipdir, start: dict, step: float, name: str = "fmu"):
-        self.messages: list[str] = []
-        type(self).last_messages = self.messages
-        self.inst = _Instance(Component(name, Path(unzipdir), {}), 0.0, self.messages, logging_on=True)
-        self.fmu, self.vars = self.inst.fmu, self.inst.vars
-        self.step, self.t = step, 0.0
-        self.set(start)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
-
-    def set(self, values: dict) -> None:
-        for name, value in values.items():
-            self.inst.set(name, value)
-
-    def get(self, name: str):
-        v = self.vars[name]
-        if v.type == "Real":
-            return self.fmu.getReal([v.valueReference])[0]
-        if v.type in ("Integer", "Enumeration"):
-            return self.fmu.getInteger([v.valueReference])[0]
-        if v.type == "Boolean":
-            return bool(self.fmu.getBoolean([v.valueReference])[0])
-        return self.fmu.getString([v.valueReference])[0]
-
-    def close(self) -> None:
-        self.fmu.terminate()
         self.fmu.freeInstance()

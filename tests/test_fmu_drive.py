@@ -13,6 +13,7 @@ import pytest
 from fmpy import extract
 from fmpy.validation import validate_fmu
 
+from harness.figures.kossel_thesis import trapezoid
 from tests.fmu_util import SteppedFmu
 from harness.drive_params import drive_start_values, nanotec_gains_to_si
 
@@ -52,22 +53,6 @@ def keops(**over):
     start = drive_start_values("keops")
     start.update(over)
     return start
-
-
-def trapezoid(distance, v, a, T, tail=0.3):
-    """Positions of a trapezoidal move sampled at T (closed form), plus a settle tail."""
-    ta = v / a
-    if a * ta * ta > distance:
-        ta = np.sqrt(distance / a)
-        v = a * ta
-    tc = (distance - a * ta * ta) / v
-    tt = 2 * ta + tc
-    t = np.arange(1, int(round((tt + tail) / T)) + 1) * T
-    x = np.where(t < ta, 0.5 * a * t ** 2,
-                 np.where(t < ta + tc, 0.5 * a * ta ** 2 + v * (t - ta),
-                          np.where(t < tt, distance - 0.5 * a * np.clip(tt - t, 0, None) ** 2,
-                                   distance)))
-    return x, tt
 
 
 def test_validation_clean():

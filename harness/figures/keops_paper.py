@@ -1,0 +1,71 @@
+"""KEOPS-Delta paper (Erwinski, Karasek, Živanović, Dimić, Slavković 2022), Figs. 5 and 6:
+the s-curve FLF profile of the bird under Cartesian limits 1000 mm/s, 10 000 mm/s², 5·10⁵ mm/s³
+(ε = 1 µm), its Cartesian v/a/j within the limits (Fig. 5) and the linear axes after the IK
+beyond them (Fig. 6); the same joint panel for pso, which plans under the joint limits."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from harness.figures import pyplot, save
+from harness.metrics import command_metrics, differences
+
+ORDERS = (("velocity", "mm/s", "v"), ("acceleration", "mm/s²", "a"), ("jerk", "mm/s³", "j"))
+
+
+def _panels(plt, title, t, D, lim, labels):
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True)
+    for ax, (order, unit, key) in zip(axes, ORDERS):
+        d = D[order]
+        tt = t[-len(d):]
+        for k, lab in enumerate(labels):
+            ax.plot(tt, d[:, k], lw=0.9, label=lab)
+        L = getattr(lim, key)
+        ax.axhline(L, color="k", ls="--", lw=1, label="limit")
+        ax.axhline(-L, color="k", ls="--", lw=1)
+        ax.set_ylabel(f"{order} ({unit})")
+    axes[0].set_title(title)
+    axes[0].legend(loc="upper right", fontsize=8, ncol=4)
+    axes[-1].set_xlabel("time (s)")
+    fig.tight_layout()
+    return fig
+
+
+def figures(out: Path, path_name: str = "bird_high", pso: bool = True) -> dict:
+    import planners
+    from kins import load_machine
+    from planners.path import resolve_path
+
+    plt = pyplot()
+    m = load_machine("keops")
+    T = m.servo_period_s
+    path = resolve_path(path_name)
+    result = {}
+    for name in ("scurve", "pso") if pso else ("scurve",):
+        prof = planners.plan(name, path, m)
+        P = prof.path.point(prof.s)
+        Q = m.ik(P)
+        met = command_metrics(m, P, T, prof.s)
+        result[name] = {"execution_time_s": prof.execution_time_s,
+                        "cartesian": met["cartesian_peak_ratio"], "joint": met["joint_peak_ratio"]}
+        t = prof.t
+        if name == "scurve":   # Fig. 5: feed profile and the Cartesian axes
+            fig, ax = plt.subplots(figsize=(9, 3))
+            ax.plot(t, prof.sd, label=f"{name} feed ṡ")
+            ax.axhline(m.limits.feed_max, color="k", ls="--", lw=1, label="F_max")
+            ax.set(xlabel="time (s)", ylabel="feed (mm/s)", title=f"Fig. 5a — {name} feed profile, keops / {path_name}")
+            ax.legend(fontsize=8)
+            fig.tight_layout()
+            save(fig, out, f"keops_fig5a_{name}_feed", {"t_s": t, "feed_mm_s": prof.sd})
+            D = differences(P, T)
+            fig = _panels(plt, f"Fig. 5 — {name}: Cartesian axes (limits dashed), keops / {path_name}", t, D,
+                          m.limits.cartesian, ["x", "y", "z"])
+            save(fig, out, f"keops_fig5_{name}_cartesian",
+                 {"t_s": t, **{f"{o}_{a}": D[o][:, k] for o, _, _ in ORDERS for k, a in enumerate("xyz")}})
+        D = differences(Q, T)
+        fig = _panels(plt, f"Fig. 6 — {name}: linear axes after the IK (joint limits dashed), keops / {path_name}",
+                      t, D, m.limits.joint, ["q1", "q2", "q3"])
+        save(fig, out, f"keops_fig6_{name}_joints",
+             {"t_s": t, **{f"{o}_q{k + 1}": D[o][:, k] for o, _, _ in ORDERS for k in range(3)}})
+    return result
