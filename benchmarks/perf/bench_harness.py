@@ -8,8 +8,8 @@ Prints the ratios and the real-time factor; main() -> dict for run_all.py.
 """
 from __future__ import annotations
 
+import sys
 import tempfile
-import time
 from pathlib import Path
 
 import planners
@@ -18,14 +18,8 @@ from harness.run import RECORD
 from harness.system import System, chain
 from kins import load_machine
 
-
-def _best(fn, repeat=3):
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_kins import _best_of  # noqa: E402  (best-of-n wall time, shared by the benchmarks)
 
 
 def main() -> dict:
@@ -39,12 +33,12 @@ def main() -> dict:
         system = chain(m, d / "path.json", d / "profile.csv", n * m.servo_period_s)
         bare = System(system.components, [], system.step_size, system.stop_time)
         sim_s = n * m.servo_period_s
-        t_naive = _best(lambda: simulate(system, RECORD, engine="python"), 1)
-        t_native = _best(lambda: simulate(system, RECORD, engine="native"))
-        t_min = _best(lambda: simulate(bare, [], engine="native"))
+        t_naive = _best_of(lambda: simulate(system, RECORD, engine="python"), 1)
+        t_native = _best_of(lambda: simulate(system, RECORD, engine="native"), 3)
+        t_min = _best_of(lambda: simulate(bare, [], engine="native"), 3)
         # instantiation/initialisation is common to all three: time it alone and subtract
         short = System(system.components, system.connections, system.step_size, system.step_size)
-        t_init = _best(lambda: simulate(short, RECORD, engine="native"))
+        t_init = _best_of(lambda: simulate(short, RECORD, engine="native"), 3)
     steps = n
     out = {
         "simulated_s": sim_s, "steps": steps, "init_s": t_init,
