@@ -42,3 +42,13 @@ def test_thesis_moves_following_error_15_to_35_um(tmp_path):
     r = kossel_thesis.moves(tmp_path)
     worst = max(d["max_following_error_um"] for d in r.values())
     assert 15.0 <= worst <= 35.0          # thesis: ≈ 23 µm
+
+
+def test_velocity_responses_follow_without_overshoot(tmp_path):
+    # thesis Figs. 41-43: no overshoot; the lag is ours (< 1 ms, the thesis saw ~20 ms, see REPORT.md)
+    r = kossel_thesis.velocity_responses(tmp_path)
+    assert set(r) == {"fig41", "fig42", "fig43"}
+    for d in r.values():
+        assert d["overshoot_pct"] <= 2.0
+        assert 0.0 < d["lag_ms"] < 5.0
+        assert 0.0 < d["ripple_mm_s"] < 10.0   # encoder quantisation: 1.96 um per 1 ms sample ~ 2 mm/s per count
