@@ -129,7 +129,10 @@ class PathTable:
     def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001):
         L = float(path.length)
         self.length = L
-        self.edges = np.array([0.0] + corner_list(path) + [L])
+        # pieces between the path's joins (segment ends, NURBS knots, corners): a derivative
+        # that jumps at a join is never blended, and a segment shorter than ds still gets
+        # points of its own (a 0.04 mm G64 blend arc)
+        self.edges = np.array([0.0] + breakpoints(path) + [L])
         per_mm = max(1.0 / ds, (min_points - 1) / L)
         grids, self.offset, self.hs = [], [], []
         n0 = 0
@@ -196,32 +199,61 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
     acceleration jump by Δx″·ṡ², which a drive reads at period T as a jerk ≈ Δx″·ṡ²/T, so
     every jerk-limited planner caps the feed there at √(c·J·T/max|Δx″|).
     """
-    g = table.s
-    P2 = table.cart[2]
-    d = np.linalg.norm(np.diff(P2, axis=0), axis=1)
-    base = np.median(d) + 1e-12
-    dn = np.maximum(np.concatenate([[0.0], d[:-1]]), np.concatenate([d[1:], [0.0]]))
-    # a jump stands out from both neighbouring cells; a steep but smooth stretch does not
-    cand = np.nonzero((d > 50 * base) & (d > 1e-3) & (d > 4 * dn))[0]
     corners = np.asarray(list(corners), float)
-    if len(corners):
-        cand = np.array([i for i in cand if np.min(np.abs(corners - g[i])) >= 1e-3], int)
-    if len(cand) == 0:
-        return []
-    lo, hi = g[cand], g[cand + 1]
-    m, rows = 64, np.arange(len(cand))
-    for _ in range(3):          # three vectorised 64-way refinements: cell / 2.6e5 ≈ 2e-7 mm
-        sub = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, m)[None, :]
-        Q2 = cartesian_derivs(path, sub.ravel())[2].reshape(len(cand), m, 3)
-        k = np.linalg.norm(np.diff(Q2, axis=1), axis=2).argmax(axis=1)
-        lo, hi = sub[rows, k], sub[rows, k + 1]
+    if hasattr(path, "seg_start"):
+        # joins are known: compare the one-sided values there (no search needed)
+        known = np.array(breakpoints(path))
+        if len(corners) and len(known):
+            known = np.array([b for b in known if np.min(np.abs(corners - b)) >= 1e-9])
+        if len(known) == 0:
+            return []
+        lo = hi = known
+        cand = np.arange(len(known))
+        d = np.zeros(len(known))
+    else:
+        g = table.s
+        P2 = table.cart[2]
+        d = np.linalg.norm(np.diff(P2, axis=0), axis=1)
+        base = np.median(d) + 1e-12
+        dn = np.maximum(np.concatenate([[0.0], d[:-1]]), np.concatenate([d[1:], [0.0]]))
+        # a jump stands out from both neighbouring cells; a steep but smooth stretch does not
+        cand = np.nonzero((d > 50 * base) & (d > 1e-3) & (d > 4 * dn))[0]
+        if len(corners):
+            cand = np.array([i for i in cand if np.min(np.abs(corners - g[i])) >= 1e-3], int)
+        if len(cand) == 0:
+            return []
+        lo, hi = g[cand], g[cand + 1]
+        m, rows = 64, np.arange(len(cand))
+        for _ in range(3):          # three vectorised 64-way refinements: cell / 2.6e5 ≈ 2e-7 mm
+            sub = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, m)[None, :]
+            Q2 = cartesian_derivs(path, sub.ravel())[2].reshape(len(cand), m, 3)
+            k = np.linalg.norm(np.diff(Q2, axis=1), axis=2).argmax(axis=1)
+            lo, hi = sub[rows, k], sub[rows, k + 1]
+        d = d[cand]
+        cand = np.arange(len(cand))
     pairs = np.column_stack([lo - 1e-7, hi + 1e-7]).ravel()
     cart = cartesian_derivs(path, pairs)
     D = joint_derivs(machine, path, pairs, cart=cart) if machine is not None else cart
     cjump = np.linalg.norm(cart[2][1::2] - cart[2][0::2], axis=1)
     jump = np.abs(D[2][1::2] - D[2][0::2]).max(axis=1)
-    return [(float(0.5 * (lo[n] + hi[n])), float(jump[n]))
-            for n, i in enumerate(cand) if cjump[n] >= 0.25 * d[i]]   # else steep but continuous
+    # keep real jumps (a smooth stretch's change over 2e-7 mm is tiny; a C² knot has none)
+    return [(float(0.5 * (lo[n] + hi[n])), float(jump[n])) for n in cand
+            if cjump[n] >= max(0.25 * d[n], 1e-6)]
+
+
+def breakpoints(path) -> list[float]:
+    """Interior arc lengths where the path's pieces join: the segment boundaries of a
+    line/arc path (its curvature jumps there) and the corners.  A NURBS's derivatives jump
+    only at its corners (multiple knots, found by `corners()`); elsewhere they are searched."""
+    L = path.length
+    out = [float(x) for x in np.asarray(path.seg_start)[1:-1]] if hasattr(path, "seg_start") else []
+    out += corner_list(path)
+    out = sorted(x for x in out if 1e-9 < x < L - 1e-9)
+    merged = []
+    for x in out:
+        if not merged or x - merged[-1] > 1e-9:
+            merged.append(x)
+    return merged
 
 
 def corner_list(path):

@@ -59,17 +59,23 @@ class _Piece:
         self.s0, self.s1 = s0, s1
         self.joins = [(sj, dq2) for sj, dq2 in joins if s0 + 1e-6 < sj < s1 - 1e-6]
         self.T = T
-        inside = (table.s > s0) & (table.s < s1)
-        g = np.concatenate([[s0], table.s[inside], [s1]])
-        e = np.clip(g, s0 + 1e-9, s1 - 1e-9)
-        d1, d2, d3 = table.joints(e)
-        c = np.interp(g, table.s, cap)
-        grid = [g.tolist()]
-        mk = lambda name, y: ca.interpolant(name, "bspline", grid, np.ascontiguousarray(y).tolist())
-        self.q1 = [mk(f"q1_{i}", d1[:, i]) for i in range(3)]
-        self.q2 = [mk(f"q2_{i}", d2[:, i]) for i in range(3)]
-        self.q3 = [mk(f"q3_{i}", d3[:, i]) for i in range(3)]
-        self.cap = mk("cap", c)
+        # one set of interpolants per phase (between G1 joins), each from one-sided values,
+        # so a jump of q″ at a join is never smoothed over
+        bounds = [s0] + [sj for sj, _ in self.joins] + [s1]
+        self.phase_fns = []
+        for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+            g = table.s[(table.s > a) & (table.s < b)]
+            g = np.unique(np.concatenate([[a], g, [b], np.linspace(a, b, 4)]))
+            e = np.clip(g, a + 1e-9, b - 1e-9)
+            d1, d2, d3 = table.joints(e)
+            c = np.interp(g, table.s, cap)
+            grid = [g.tolist()]
+            mk = lambda name, y: ca.interpolant(name, "bspline", grid, np.ascontiguousarray(y).tolist())
+            self.phase_fns.append({
+                "q1": [mk(f"q1_{k}_{i}", d1[:, i]) for i in range(3)],
+                "q2": [mk(f"q2_{k}_{i}", d2[:, i]) for i in range(3)],
+                "q3": [mk(f"q3_{k}_{i}", d3[:, i]) for i in range(3)],
+                "cap": mk(f"cap_{k}", c)})
         self.table = table
         self.lim = limits.joint
         self.margin = margin
@@ -113,20 +119,25 @@ class _Piece:
         opti.subject_to(opti.bounded(0.05, eta, 20.0))
         opti.subject_to(nu >= 0)
         sm = ca.fmin(ca.fmax(s, self.s0), self.s1)
-        ST = sm.T
-        capv = self.cap.map(N + 1)(ST).T
-        opti.subject_to(v <= capv * m)
-        uL = ca.vertcat(u, u[N - 1])        # jerk of the interval after each node …
-        uR = ca.vertcat(u[0], u)            # … and before it
-        for i in range(3):
-            d1 = self.q1[i].map(N + 1)(ST).T
-            d2 = self.q2[i].map(N + 1)(ST).T
-            d3 = self.q3[i].map(N + 1)(ST).T
-            opti.subject_to(opti.bounded(-m, d1 * v / Vs, m))
-            opti.subject_to(opti.bounded(-m, (d2 * v ** 2 + d1 * a) / As, m))
-            base = d3 * v ** 3 + 3 * d2 * v * a
-            opti.subject_to(opti.bounded(-m, (base + d1 * uL) / Js, m))
-            opti.subject_to(opti.bounded(-m, (base + d1 * uR) / Js, m))
+        starts = np.concatenate([[0], np.cumsum(Ns)])
+        for k, fns in enumerate(self.phase_fns):
+            n0, n1 = int(starts[k]), int(starts[k + 1])
+            n = n1 - n0 + 1
+            ST = sm[n0:n1 + 1].T
+            vk, ak, uk = v[n0:n1 + 1], a[n0:n1 + 1], u[n0:n1]
+            capv = fns["cap"].map(n)(ST).T
+            opti.subject_to(vk <= capv * m)
+            uL = ca.vertcat(uk, uk[n - 2])      # jerk of the interval after each node …
+            uR = ca.vertcat(uk[0], uk)          # … and before it (within this phase)
+            for i in range(3):
+                d1 = fns["q1"][i].map(n)(ST).T
+                d2 = fns["q2"][i].map(n)(ST).T
+                d3 = fns["q3"][i].map(n)(ST).T
+                opti.subject_to(opti.bounded(-m, d1 * vk / Vs, m))
+                opti.subject_to(opti.bounded(-m, (d2 * vk ** 2 + d1 * ak) / As, m))
+                base = d3 * vk ** 3 + 3 * d2 * vk * ak
+                opti.subject_to(opti.bounded(-m, (base + d1 * uL) / Js, m))
+                opti.subject_to(opti.bounded(-m, (base + d1 * uR) / Js, m))
         opti.minimize(ca.dot(ca.DM(np.asarray(Ns, float) * np.asarray(h0s)), eta) / float(np.sum(np.asarray(Ns) * np.asarray(h0s))))
         opti.set_initial(eta, np.ones(len(Ns)))
         opti.set_initial(sig, (S0 - self.s0) / L)

@@ -24,8 +24,10 @@ samples arrays).  After the search the best profile is sampled at T and checked 
 independent metrics; a discretisation excess is removed by a further small stretch.
 
 Seeded: the swarm starts around the `scurve_joint` profile (its feed fitted by least
-squares), ``seed`` drives all random numbers, the iteration count bounds the search (the
-time budget is only a safety stop, documented in ``info`` when it ends the search).
+squares), ``seed`` drives all random numbers and the iteration count ends the search, so the
+same inputs give the same profile on any machine.  An optional wall-clock ``time_budget_s``
+(off by default: it would make the result depend on the machine's speed) is reported in
+``info['stopped_by']`` when it ends the search.
 """
 from __future__ import annotations
 
@@ -42,6 +44,7 @@ from . import toppra_ref
 
 DEGREE = 2                   # ṡ quadratic per knot span ⇒ s⃛ piecewise constant, as in an s-curve
 JUMP_READ_FACTOR = 0.75      # see optimal.py: a jump Δq″ reads as ≤ 0.75·Δq″·ṡ²/T at T
+MIN_KNOT_GAP_T = 2           # seed switch times < 2 servo periods apart share a knot (see _seed_window)
 
 
 class _Shape:
@@ -163,7 +166,16 @@ def _seed_window(prof, s0, s1):
     tau = np.concatenate([[0.0], (t[inside] - t0) / D, [1.0]])
     vv = np.concatenate([[0.0], prof.sd[inside], [0.0]])
     jj = np.concatenate([[0.0], prof.sddd[inside], [0.0]])
-    knots = (sw[(sw > t0 + 1e-9) & (sw < t1 - 1e-9)] - t0) / D if len(sw) else None
+    knots = None
+    if len(sw):
+        # switch times closer than ~2 servo periods (a jerk phase the s-curve's bisection left
+        # almost empty) become one knot: a knot span holding no seed sample leaves the
+        # least-squares fit undetermined there, and its jerk exploded (×2000 on bird)
+        kept = []
+        for ts in sw[(sw > t0 + 1e-9) & (sw < t1 - 1e-9)]:
+            if not kept or ts - kept[-1] >= MIN_KNOT_GAP_T * prof.T:
+                kept.append(ts)
+        knots = (np.array(kept) - t0) / D
     return tau, vv, jj, D, knots
 
 
@@ -208,7 +220,7 @@ def _sample(pieces, T, path, info) -> Profile:
 
 def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iterations: int = 150,
          control_points: int = 60, samples: int = 400, margin: float = 0.005,
-         time_budget_s: float = 120.0, seed_profile=None, target_time_s: float | None = None,
+         time_budget_s: float | None = None, seed_profile=None, target_time_s: float | None = None,
          exact_knots: bool = True, extra_knots: float = 0.5, spread: float = 0.05) -> Profile:
     """PSO-optimised feed.  ``control_points``: total over the pieces (≥ 8 each, shared in
     proportion to the seed's time on each); ``target_time_s``: record when the swarm's
@@ -272,7 +284,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     time_to_target = history[0][0] if target_time_s and history[0][1] <= target_time_s else None
     stopped_by = "iterations"
     for it in range(iterations):
-        if time.perf_counter() - t0 > time_budget_s:
+        if time_budget_s is not None and time.perf_counter() - t0 > time_budget_s:
             stopped_by = "time budget"
             break
         for pr, sw in zip(probs, swarm):

@@ -174,8 +174,11 @@ class _Planner:
         m = MIN_NEIGHBOURS
         Fp = np.concatenate([np.full(m, np.inf), F, np.full(m, np.inf)])
         is_min = np.ones(n, bool)
+        # strictly lower by more than rounding: on an arc the FLF is a plateau whose last-digit
+        # noise would otherwise make minima everywhere (its ends are critical points below)
+        Fs = F * (1 + 1e-9)
         for k in range(1, m + 1):
-            is_min &= (F < Fp[m - k:m - k + n]) & (F < Fp[m + k:m + k + n])
+            is_min &= (Fs < Fp[m - k:m - k + n]) & (Fs < Fp[m + k:m + k + n])
         h = float(self.table.hs.max())
         cs = np.array(sorted(pts))
         for i in np.nonzero(is_min)[0]:
@@ -188,6 +191,12 @@ class _Planner:
             pts[s_min] = f_min
         for sj, vj in self.second_derivative_jumps(cs):
             pts[sj] = min(pts.get(sj, np.inf), vj)
+        # every join of the path's pieces (segment ends, knots): the lower one-sided FLF there
+        # (a short blend arc is a plateau of the FLF, which has no strict minimum)
+        for b in self.table.edges[1:-1]:
+            b = float(b)
+            if b not in pts:
+                pts[b] = float(F[np.abs(g - b) <= 1e-12].min())
         s = np.array(sorted(pts))
         # merge points closer than 1 µm (a knot that is also an FLF minimum), keeping the lower feed
         keep = [0]

@@ -25,12 +25,16 @@ import toppra.constraint as constraint
 from .joint_limits import PathTable, PlanningError, check_limits, check_path, feed_cap
 from .profile import Profile
 
-toppra.setup_logging("WARNING")
+toppra.setup_logging("ERROR")   # a failed interpolation-scheme try is handled below
 
 # The fourth coordinate q₄ = s needs an acceleration bound too (toppra applies one to every
 # coordinate); 100·A never binds while some joint has |q′| > 0.01, and a finite bound keeps
 # the reachability LPs well conditioned (1e12 made them fail).
 S_ACC_FACTOR = 100.0
+# Where joints move alike on part of a piece (a vertical move of a linear delta), their
+# constraint rows coincide and toppra's 2-D LP solver fails; bounds apart by 1e-9 relative
+# (far below any tolerance that matters) make the rows parallel but not coincident.
+vscale = 1.0 - 1e-9 * np.arange(3)
 
 
 class _PieceGeometry(toppra.interpolator.AbstractGeometricPath):
@@ -70,13 +74,20 @@ def pieces(path):
 
 
 def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
-    """TOPP-RA on each piece: (s grid, ṡ on it) for the whole path, ṡ = 0 at corners."""
+    """TOPP-RA on each piece: (s grid, ṡ on it, pieces solved by collocation) for the whole
+    path, ṡ = 0 at corners."""
     T = machine.servo_period_s
     vj, aj = limits.joint.v, limits.joint.a
-    S, SD = [], []
+    S, SD, fallbacks = [], [], []
     for k, (s0, s1) in enumerate(pieces(path)):
-        n = max(20, int(math.ceil((s1 - s0) / grid_mm)) + 1)
-        grid = np.linspace(s0, s1, n)
+        # grid: ≤ grid_mm apart (≥ 19 intervals per piece), uniform between the joins of the
+        # path's segments, each join on it and ≥ 4 intervals on each segment (a 0.04 mm G64
+        # blend arc is resolved, not stepped over)
+        step = min(grid_mm, (s1 - s0) / 19)
+        edges = table.edges[(table.edges >= s0 - 1e-12) & (table.edges <= s1 + 1e-12)]
+        parts = [np.linspace(a, b, max(5, int(math.ceil((b - a) / step - 1e-9)) + 1))[:-1]
+                 for a, b in zip(edges[:-1], edges[1:])]
+        grid = np.concatenate(parts + [[s1]])
         # joints that move identically on this piece (e.g. a vertical move of a linear delta)
         # give identical constraint rows, which toppra's LP solver cannot handle: keep one
         e = np.clip(grid, s0 + 1e-9, s1 - 1e-9)
@@ -102,14 +113,21 @@ def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
 
         def vlim(s, grid=grid, cap=cap):
             c = float(np.interp(s, grid, cap))
-            return np.array([[-vj, vj]] * nj + [[-c, c]])
+            return np.vstack([np.outer(vscale[:nj], [-vj, vj]), [[-c, c]]])
 
-        cons = [constraint.JointVelocityConstraintVarying(vlim),
-                constraint.JointAccelerationConstraint(
-                    np.array([[-aj, aj]] * nj + [[-s_acc, s_acc]]),
-                    discretization_scheme=constraint.DiscretizationType.Interpolation)]
-        inst = algo.TOPPRA(cons, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel")
-        sdd, sd, _, _ = inst.compute_parameterization(0.0, 0.0, return_data=True)
+        sd = None
+        # the interpolation scheme is the more accurate; at some joins (a vertical move into a
+        # tiny blend arc) its reachability LP fails, and collocation still solves
+        for scheme in (constraint.DiscretizationType.Interpolation, constraint.DiscretizationType.Collocation):
+            cons = [constraint.JointVelocityConstraintVarying(vlim),
+                    constraint.JointAccelerationConstraint(
+                        np.vstack([np.outer(vscale[:nj], [-aj, aj]), [[-s_acc, s_acc]]]),
+                        discretization_scheme=scheme)]
+            inst = algo.TOPPRA(cons, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+            sdd, sd, _, _ = inst.compute_parameterization(0.0, 0.0, return_data=True)
+            if sd is not None and np.all(np.isfinite(sd)):
+                break
+            fallbacks.append(k)
         if sd is None or not np.all(np.isfinite(sd)):
             raise PlanningError(f"toppra: no feasible parametrisation of piece {k} "
                                 f"(s = {s0:.6g}…{s1:.6g} mm)")
@@ -117,7 +135,7 @@ def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
         sd[0] = sd[-1] = 0.0
         S.append(grid if k == 0 else grid[1:])
         SD.append(sd if k == 0 else sd[1:])
-    return np.concatenate(S), np.concatenate(SD)
+    return np.concatenate(S), np.concatenate(SD), fallbacks
 
 
 def sample_const_accel(s_grid, sd_grid, T, path, planner, info) -> Profile:
@@ -150,8 +168,9 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.25) -> Profile:
     check_limits(limits, "toppra")
     check_path(path, "toppra")
     table = PathTable(path, machine)
-    s_grid, sd_grid = solve_grid(path, machine, limits, table, grid_mm)
+    s_grid, sd_grid, fallbacks = solve_grid(path, machine, limits, table, grid_mm)
     prof = sample_const_accel(s_grid, sd_grid, machine.servo_period_s, path, "toppra",
-                              {"grid_points": int(len(s_grid)), "pieces": len(pieces(path))})
+                              {"grid_points": int(len(s_grid)), "pieces": len(pieces(path)),
+                               "collocation_pieces": fallbacks})
     prof.planning_time_s = time.perf_counter() - t0
     return prof

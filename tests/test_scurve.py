@@ -129,3 +129,41 @@ def test_empty_path_is_a_clear_error():
         length = 0.0
     with pytest.raises(PlanningError, match="non-empty"):
         scurve.plan(Empty(), KEOPS)
+
+
+def test_a_g64_blend_arc_shorter_than_the_table_grid_is_a_critical_point():
+    """G64 P0.01 between two perpendicular lines leaves a 0.038 mm arc of radius 0.024 mm —
+    shorter than the 0.05 mm planning grid.  The feed through it is the arc's FLF
+    min(√(A/κ), ∛(J/κ²)) (closed form) and the G1 joins' cap, so the Cartesian limits hold;
+    before the joins were table edges the s-curve crossed it at full feed (a ≈ 36×)."""
+    from planners.gcode import parse_gcode, program_path
+    kossel = load_machine("kossel")
+    path = program_path(parse_gcode("G21 G90 G64 P0.01\nG1 X-20 Y-20 Z-250 F1200\nX20\nY20\n"))
+    arcs = [g for g in path.segments if g.kind == "arc"]
+    assert len(arcs) == 1 and arcs[0].length < 0.05
+    c = kossel.limits.cartesian
+    kappa = 1 / arcs[0].radius
+    v_arc = min(math.sqrt(c.a / kappa), (c.j / kappa ** 2) ** (1 / 3))
+    p = scurve.plan(path, kossel)
+    k = [g.kind for g in path.segments].index("arc")
+    on_arc = (p.s > path.seg_start[k]) & (p.s < path.seg_start[k + 1])
+    assert on_arc.any() and p.sd[on_arc].max() <= v_arc * (1 + 1e-6)
+    r = command_metrics(kossel, path.point(p.s), p.T, p.s)
+    assert max(r["cartesian_peak_ratio"].values()) <= 1 + 1e-6
+
+
+def test_test_part_on_kossel_cartesian_plan_breaks_the_joints_joint_plan_does_not():
+    """The Kossel thesis part (blended corners, circles, two depths): scurve within the
+    Cartesian limits breaks a joint limit, scurve_joint is feasible and slower, toppra (no
+    jerk limit) is the fastest."""
+    from planners.path import resolve_path
+    kossel = load_machine("kossel")
+    path = resolve_path("test_part.ngc")
+    out = {}
+    for name in ("scurve", "scurve_joint", "toppra"):
+        p = plan(name, path, kossel)
+        out[name] = (p.execution_time_s, command_metrics(kossel, path.point(p.s), p.T, p.s))
+    sc, sj, tp = out["scurve"][1], out["scurve_joint"][1], out["toppra"][0]
+    assert max(sc["cartesian_peak_ratio"].values()) <= 1 + 1e-6 and not sc["feasible"]
+    assert sj["feasible"]
+    assert tp < out["scurve_joint"][0] and tp < out["scurve"][0]
