@@ -14,9 +14,9 @@ COMMITTED = Path(__file__).resolve().parent.parent / "results" / "figures"
 
 
 def test_scurve_keeps_cartesian_limits_and_breaks_a_joint_limit(tmp_path):
-    r = keops_paper.figures(tmp_path, "bird_high", pso=False)["scurve"]
+    r = keops_paper.figures(tmp_path, "bird", pso=False)["scurve"]
     assert max(r["cartesian"].values()) <= 1 + 1e-6
-    assert max(r["joint"].values()) > 1.0
+    assert max(r["joint"].values()) > 1.1          # the paper: "significantly violate"
     assert (tmp_path / "keops_fig6_scurve_joints.csv").exists()
 
 

@@ -5,7 +5,7 @@ import pytest
 from kins import load_machine
 from planners.path import resolve_path
 
-FITS = [("bird", "keops"), ("bird_high", "keops"), ("flower", "keops"), ("helix", "keops"),
+FITS = [("bird", "keops"), ("bird_flat", "keops"), ("flower", "keops"), ("helix", "keops"),
         ("bird_kossel", "kossel"), ("test_part.ngc", "kossel")]
 
 
@@ -24,7 +24,12 @@ def test_bird_shape():
     p = resolve_path("bird")
     lo, hi = p.bounds()
     assert np.allclose(hi[:2] - lo[:2], 160.0, atol=4.0)           # 160 × 160 mm area
-    assert np.allclose(0.5 * (hi + lo), [0, 0, -400], atol=10.0)   # around the keops centre
+    assert np.allclose(0.5 * (hi[:2] + lo[:2]), [0, 0], atol=10.0)  # around the keops centre …
+    # … on the plane z = −400 − 0.5·(x + y) through it (the flat twin lies at z = −400)
+    s = np.linspace(0, p.length, 2001)
+    P, F = p.point(s), resolve_path("bird_flat").point(s * resolve_path("bird_flat").length / p.length)
+    assert np.allclose(P[:, 2], -400 - 0.5 * (P[:, 0] + P[:, 1]), atol=1e-9)
+    assert np.allclose(F[:, 2], -400, atol=1e-12)
     assert len(p.corners()) >= 4                                    # sharp corners
     s = np.linspace(0, p.length, 20001)
     k = p.curvature(s)
@@ -37,5 +42,5 @@ def test_bird_shape():
 def test_flower_closed_and_kossel_bird_scaled():
     f = resolve_path("flower")
     assert np.allclose(f.point(0.0), f.point(f.length), atol=1e-12)
-    b, bk = resolve_path("bird"), resolve_path("bird_kossel")
+    b, bk = resolve_path("bird_flat"), resolve_path("bird_kossel")
     assert bk.length == pytest.approx(0.5 * b.length, rel=1e-9)

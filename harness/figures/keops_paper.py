@@ -32,7 +32,7 @@ def _panels(plt, title, t, D, lim, labels):
     return fig
 
 
-def figures(out: Path, path_name: str = "bird_high", pso: bool = True) -> dict:
+def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
     import planners
     from kins import load_machine
     from planners.path import resolve_path
