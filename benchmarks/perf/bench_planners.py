@@ -22,7 +22,7 @@ from kins import load_machine  # noqa: E402
 from planners import PlanningError, plan  # noqa: E402
 from planners.path import resolve_path  # noqa: E402
 
-CASES = [("bird", "keops"), ("bird_high", "keops"), ("flower", "keops"), ("helix", "keops"),
+CASES = [("bird", "keops"), ("bird_flat", "keops"), ("flower", "keops"), ("helix", "keops"),
          ("bird_kossel", "kossel"), ("test_part.ngc", "kossel")]
 ORDER = ["scurve", "scurve_joint", "toppra", "optimal", "pso"]
 
