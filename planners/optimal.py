@@ -12,7 +12,10 @@ of the grid.  Formulation (direct multiple shooting, exact integration):
   intervals that meet there), ṡ ≤ feed cap(s); q′, q″, q‴ and the cap are B-spline
   interpolants of the PathTable over s, so IPOPT sees exact derivatives;
 * the feed cap also holds the G1-join caps (joint_limits.second_derivative_jumps);
-* objective N·h, warm start from the `toppra` solution slowed down by 15 %.
+* objective N·h, warm start from the `scurve_joint` profile (feasible, so IPOPT starts inside
+  the constraint set: from the faster but jerk-infeasible `toppra` profile IPOPT lost itself
+  in restoration on kossel's test_part, whose 0.04 mm blend arcs make it 68× over the jerk
+  limit), slowed down by 2 %.
 
 The solution is sampled at T exactly and checked with the independent metrics; if a
 discretisation effect pushes a joint ratio above 1, the margin on the limits is doubled and
@@ -35,6 +38,10 @@ from . import toppra_ref
 # most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
 # difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
 JUMP_READ_FACTOR = 0.75
+# Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
+# 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
+# read at T peaked 2 % above the limit between them.
+MIN_PHASE_NODES = 24
 
 
 def cap_table(path, table: PathTable, limits, T):
@@ -103,10 +110,12 @@ class _Piece:
         for (sj, dq2), k in zip(self.joins, bounds):
             k = int(k)
             opti.subject_to(sig[k] == (sj - self.s0) / L)
-            d1, d2, d3 = (np.asarray(x)[0] for x in self.table.joints(np.array([sj + 1e-9])))
+            # one-sided derivatives: the interval before the join is on the curve before it
+            D1, D2, D3 = (np.asarray(x) for x in self.table.joints(np.array([sj - 1e-9, sj + 1e-9])))
+            left, right = (D1[0], D2[0], D3[0]), (D1[1], D2[1], D3[1])
             for i in range(3):
                 read = JUMP_READ_FACTOR * float(dq2[i]) * v[k] ** 2 / self.T
-                for uu in (u[k - 1], u[k]):
+                for uu, (d1, d2, d3) in ((u[k - 1], left), (u[k], right)):
                     cont = d3[i] * v[k] ** 3 + 3 * d2[i] * v[k] * a[k] + d1[i] * uu
                     opti.subject_to((cont + read) / Js <= m)
                     opti.subject_to((read - cont) / Js <= m)
@@ -145,7 +154,7 @@ class _Piece:
         opti.set_initial(al, A0 / As)
         opti.set_initial(mu, U0 / Js)
         opti.solver("ipopt", {"print_time": False},
-                    {"print_level": 0, "max_iter": max_iter, "tol": 1e-8, "acceptable_tol": 1e-6,
+                    {"print_level": int(__import__("os").environ.get("PKM_IPOPT_PRINT", 0)), "max_iter": max_iter, "tol": 1e-8, "acceptable_tol": 1e-6,
                      "sb": "yes", "mu_strategy": "adaptive"})
         try:
             sol = opti.solve()
@@ -170,9 +179,9 @@ def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15):
     sgrid, idx = np.unique(prof.s, return_index=True)
     tb = np.interp(bounds, sgrid, t[idx])
     D = np.maximum(np.diff(tb), 4 * prof.T)
-    Ns = np.clip(np.ceil(D * stretch / node_period_s).astype(int), 6, None)
+    Ns = np.clip(np.ceil(D * stretch / node_period_s).astype(int), MIN_PHASE_NODES, None)
     if Ns.sum() > max_nodes:
-        Ns = np.maximum(6, (Ns * max_nodes / Ns.sum()).astype(int))
+        Ns = np.maximum(MIN_PHASE_NODES, (Ns * max_nodes / Ns.sum()).astype(int))
     tt = np.concatenate([np.linspace(tb[k], tb[k] + D[k], Ns[k] + 1)[:-1] for k in range(len(Ns))]
                         + [[tb[-1]]])
     S = np.interp(tt, t, prof.s)
@@ -216,8 +225,10 @@ def sample_cubic(pieces_sol, T, path, info) -> Profile:
 
 
 def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: float = 1e-3,
-         max_nodes_per_piece: int = 600, warm=None, retries: int = 3) -> Profile:
-    """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from toppra."""
+         max_nodes_per_piece: int = 600, warm=None, warm_stretch: float = 1.02,
+         retries: int = 3) -> Profile:
+    """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from ``warm`` (a
+    Profile; default the `scurve_joint` plan) slowed down by ``warm_stretch``."""
     from harness.metrics import command_metrics
 
     t0 = time.perf_counter()
@@ -228,14 +239,16 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
     table = PathTable(path, machine)
     cap = cap_table(path, table, limits, T)
     joins = join_jumps(path, table, machine)
-    warm = toppra_ref.plan(path, machine, limits) if warm is None else warm
+    if warm is None:
+        from .scurve import plan_joint
+        warm = plan_joint(path, machine, limits)
     pcs = toppra_ref.pieces(path)
     problems, starts = [], []
     for s0, s1 in pcs:
         piece = _Piece(table, cap, s0, s1, limits, margin, joins, T)
         bounds = [s0] + [sj for sj, _ in piece.joins] + [s1]
         problems.append(piece)
-        starts.append(_warm_start(warm, bounds, node_period_s, max_nodes_per_piece))
+        starts.append(_warm_start(warm, bounds, node_period_s, max_nodes_per_piece, warm_stretch))
     for attempt in range(retries + 1):
         sols, statuses, nxt = [], [], []
         for piece, (Ns, hs, S, V, A, U) in zip(problems, starts):

@@ -49,3 +49,16 @@ def test_empty_path():
         length = 0.0
     with pytest.raises(PlanningError, match="non-empty"):
         optimal.plan(Empty(), KOSSEL)
+
+
+def test_g64_blend_arc_between_toppra_and_scurve_joint():
+    """Two lines blended by a 0.038 mm G64 arc (two G1 joins where q″ jumps): IPOPT starts from
+    the feasible scurve_joint plan, ends feasible, no slower than it and no faster than toppra.
+    (From toppra's start, 68× over the jerk limit on such arcs, it did not converge.)"""
+    from planners.gcode import parse_gcode, program_path
+    path = program_path(parse_gcode("G21 G90 G64 P0.01\nG1 X-20 Y-20 Z-250 F1200\nX20\nY20\n"))
+    p = plan("optimal", path, KOSSEL)
+    assert all(st.startswith("Solve_Succeeded") for st in p.info["ipopt"])
+    assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
+    sj, tp = plan("scurve_joint", path, KOSSEL), plan("toppra", path, KOSSEL)
+    assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
