@@ -135,10 +135,15 @@ class _PieceProblem:
                                            / (self.lim.j * m)),
                                    v / (cap * m)])
         lam = local.max(axis=1)
+        rows = np.arange(len(v))
         for sj, dq2 in self.joins:
-            # feed at the join: its T-reading 0.75·Δq″·ṡ²/T takes at most half the jerk limit
-            i = np.argmax(s >= sj, axis=1)
-            vj = v[np.arange(len(v)), i]
+            # feed at the join: its T-reading 0.75·Δq″·ṡ²/T takes at most half the jerk limit.
+            # Interpolated between the samples around it: the feed dips there, and the sample
+            # after a 0.04 mm blend arc may already be far up the next line's ramp
+            i = np.clip(np.argmax(s >= sj, axis=1), 1, s.shape[1] - 1)
+            sa, sb = s[rows, i - 1], s[rows, i]
+            f = np.clip((sj - sa) / np.maximum(sb - sa, 1e-12), 0.0, 1.0)
+            vj = (1 - f) * v[rows, i - 1] + f * v[rows, i]
             lam = np.maximum(lam, vj * np.sqrt(JUMP_READ_FACTOR * dq2.max() / (self.T * 0.5 * self.lim.j * m)))
         lam = np.where(bad | ~np.isfinite(lam), np.inf, lam)
         return lam, (s, v, a, j)
@@ -254,7 +259,10 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         tau, vv, jj, D, knots = _seed_window(seed_prof, s0, s1)
         # with the seed's jerk switch times as knots a quadratic B-spline holds the s-curve
         # exactly: the swarm starts from the seed itself
-        pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K * extra_knots) if knots is not None and exact_knots else int(K), samples, table.s, cap,
+        # samples at least every 8 servo periods of the seed's time on the piece (a 17 s piece
+        # of kossel's test_part would get one per 42 ms, coarser than its feed dips)
+        M = max(samples, int(math.ceil(D / (8 * T))))
+        pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K * extra_knots) if knots is not None and exact_knots else int(K), M, table.s, cap,
                            knot_density(tau, jj), inner=knots if exact_knots else None)
         probs.append(pr)
         X0.append(pr.shape.fit(tau, vv))
