@@ -120,8 +120,9 @@ def _lines_of(path, s: np.ndarray) -> np.ndarray:
 
 
 def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, limit: float, unit: str,
-           what: str) -> list[Finding]:
-    """One finding per G-code line where mask holds, with that line's worst value."""
+           what: str, joints: np.ndarray | None = None) -> list[Finding]:
+    """One finding per G-code line where mask holds, with that line's worst value (and, given
+    ``joints``, the joint of that worst sample named first: "joint 2 …")."""
     out = []
     idx = np.nonzero(mask)[0]
     if not len(idx):
@@ -133,8 +134,9 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     count = np.diff(np.r_[first, len(idx)])
     for f0, c in zip(first, count):
         v = float(values[idx[f0]])
+        name = what if joints is None else f"joint {int(joints[idx[f0]]) + 1} {what}"
         out.append(Finding(kind, "error", [int(ln[f0])], v, limit, unit,
-                           f"{what} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
+                           f"{name} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
                            f"(ratio {abs(v) / limit:.3f}, {c} sample(s))"))
     return out
 
@@ -222,10 +224,8 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
             if not mask.any():
                 continue
             ln = slines[-len(D):]
-            for f in _group(f"{space.lower()}_{order}", mask, worst, ln, L, unit, f"{space} {order}"):
-                if space == "joint":
-                    sel = mask & (ln == f.lines[0])
-                    j = int(np.bincount(col[sel]).argmax()) + 1
-                    f.message = f"joint {j} " + f.message[len('joint '):]
-                rep.findings.append(f)
+            if space == "joint":
+                rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col)
+            else:
+                rep.findings += _group(f"cartesian_{order}", mask, worst, ln, L, unit, f"Cartesian {order}")
     return rep

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from planners.path import CORNER_ANGLE, Arc, Line, Path, PathError, SegmentPath, cross3
+from planners.path import CORNER_ANGLE, Arc, Line, Path, PathError, SegmentPath, cross3, norm3
 
 REVERSAL_ANGLE = math.pi - 1e-6
 
@@ -28,7 +28,7 @@ def line_blend(u1: np.ndarray, u2: np.ndarray, room: float, tolerance: float):
     The arc touches the lines at d = R·tan(δ/2) from the corner and passes the corner at
     R·(1/cos(δ/2) − 1), δ being the turn angle.
     """
-    delta = math.acos(max(-1.0, min(1.0, float(np.dot(u1, u2)))))
+    delta = math.acos(max(-1.0, min(1.0, float(u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2]))))
     half = 0.5 * delta
     R_room = room / math.tan(half)
     sec_m1 = 1.0 / math.cos(half) - 1.0
@@ -51,18 +51,21 @@ def blend_corners(segments, tolerances):
     trim_end = [0.0] * len(segs)
     arcs: dict[int, tuple] = {}
     done = []
-    for i, tol in enumerate(tolerances):
-        a, b = segs[i], segs[i + 1]
-        if tol is None or not (a.kind == "line" and b.kind == "line"):
-            continue
+    # the turn of every line–line corner at once (a CAM program has 10⁵ of them)
+    is_line = np.array([g.kind == "line" for g in segs])
+    cand = [i for i, tol in enumerate(tolerances) if tol is not None and is_line[i] and is_line[i + 1]]
+    if cand:
+        U = np.array([g.direction if g.kind == "line" else (0.0, 0.0, 0.0) for g in segs])
+        c = np.array(cand)
+        turns = np.arccos(np.clip(np.einsum("ij,ij->i", U[c], U[c + 1]), -1.0, 1.0)).tolist()
+    for i, turn in zip(cand, turns if cand else []):
+        a, b, tol = segs[i], segs[i + 1], tolerances[i]
         if not tol > 0:
             raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
-        u1, u2 = a.direction, b.direction
-        turn = math.acos(max(-1.0, min(1.0, float(np.dot(u1, u2)))))
         if turn <= CORNER_ANGLE or turn >= REVERSAL_ANGLE:
             continue                      # tangent already, or a reversal: nothing to round
         room = 0.5 * min(a.length, b.length)
-        R, d, dev, delta = line_blend(u1, u2, room, tol)
+        R, d, dev, delta = line_blend(a.direction, b.direction, room, tol)
         if not (R > 0 and d > 0):
             continue
         trim_end[i] = d
@@ -77,19 +80,19 @@ def blend_corners(segments, tolerances):
         if g.kind == "line":
             left = g.length - trim_start[i] - trim_end[i]
             if left > 1e-9:
-                out.append(Line(g.start + trim_start[i] * g.direction,
-                                g.end - trim_end[i] * g.direction, g.line, direction=g.direction))
+                out.append(Line.exact(g.start + trim_start[i] * g.direction,
+                                      g.end - trim_end[i] * g.direction, g.direction, g.line))
         else:
             out.append(g)
         if i in arcs:
             R, d, delta = arcs[i]
             u1, u2 = g.direction, segs[i + 1].direction
             m = u2 - math.cos(delta) * u1
-            m /= np.linalg.norm(m)
+            m /= norm3(m)
             n = cross3(u1, u2)
-            n /= np.linalg.norm(n)
+            n /= norm3(n)
             t1 = g.end - d * u1
-            out.append(Arc(t1, t1 + R * m, n, delta, 0.0, segs[i + 1].line))
+            out.append(Arc.exact(t1, t1 + R * m, n, delta, segs[i + 1].line))
     return out, done
 
 

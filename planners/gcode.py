@@ -37,6 +37,9 @@ ARC_RADIUS_REL_TOL = 0.001     # … and relative; an arc is rejected if it brea
 ZERO_MOVE_MM = 1e-9
 
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?\s*(?:\d+\.?\d*|\.\d+))")
+# a line made of words and blanks only (the common case): read with one findall
+_WORD_ALL = re.compile(r"(([A-Za-z])\s*([+-]?\s*(?:\d+\.?\d*|\.\d+)))")
+_LINE = re.compile(r"(?:\s*[A-Za-z]\s*[+-]?\s*(?:\d+\.?\d*|\.\d+))*\s*")
 _GROUPS = {  # modal groups of the G words we accept
     0.0: "motion", 1.0: "motion", 2.0: "motion", 3.0: "motion", 80.0: "motion",
     17.0: "plane", 18.0: "plane", 19.0: "plane",
@@ -84,6 +87,8 @@ class GCodeProgram:
 
 
 def _strip_comments(text: str, src: str, ln: int) -> str:
+    if "(" not in text and ")" not in text and ";" not in text:
+        return text                     # most lines of a CAM program: nothing to strip
     out, i = [], 0
     while i < len(text):
         c = text[i]
@@ -106,6 +111,8 @@ def _strip_comments(text: str, src: str, ln: int) -> str:
 
 
 def _words(body: str, src: str, ln: int) -> list[tuple[str, float, str]]:
+    if _LINE.fullmatch(body):
+        return [(L.upper(), float(v.replace(" ", "")), w) for w, L, v in _WORD_ALL.findall(body)]
     words, pos = [], 0
     for m in _WORD.finditer(body):
         gap = body[pos:m.start()]

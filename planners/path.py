@@ -45,9 +45,15 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _vec3(v, what: str, where: str) -> np.ndarray:
     a = np.asarray(v, float)
-    if a.shape != (3,) or not np.isfinite(a).all():
+    # math.isfinite on three floats: np.isfinite(a).all() costs ~3 µs, paths build 10⁵ of these
+    if a.shape != (3,) or not (math.isfinite(a[0]) and math.isfinite(a[1]) and math.isfinite(a[2])):
         raise PathError(f"{where}: {what} must be 3 finite numbers [x, y, z], got {v!r}")
     return a
+
+
+def norm3(v) -> float:
+    """|v| of one 3-vector (np.linalg.norm costs ~3 µs a call)."""
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
 class Path:
@@ -330,17 +336,27 @@ class Line:
         self.start = _vec3(start, "line start", where)
         self.end = _vec3(end, "line end", where)
         self.line = line
-        self.length = float(np.linalg.norm(self.end - self.start))
+        self.length = norm3(self.end - self.start)
         if not self.length > CONTIG_TOL:
             raise PathError(f"{where}: zero-length line at {self.start.tolist()}")
         self.direction = (self.end - self.start) / self.length
         if direction is not None:
             # A known exact direction (e.g. a line trimmed by corner blends): for a very short
             # line, the direction of end − start would carry the rounding of both ends.
-            d = np.asarray(direction, float) / np.linalg.norm(direction)
-            if np.linalg.norm(self.start + self.length * d - self.end) > END_TOL:
+            d = np.asarray(direction, float)
+            d = d / norm3(d)
+            if norm3(self.start + self.length * d - self.end) > END_TOL:
                 raise PathError(f"{where}: line direction {d.tolist()} does not lead from start to end")
             self.direction = d
+
+    @classmethod
+    def exact(cls, start, end, direction, line: int | None = None) -> "Line":
+        """A line from geometry a planner computed (a blend's trimmed line, keeping its
+        original direction): no re-validation (see Arc.exact)."""
+        g = cls.__new__(cls)
+        g.start, g.end, g.line, g.direction = start, end, line, direction
+        g.length = norm3(end - start)
+        return g
 
     def tangent_in(self):
         return self.direction
@@ -365,7 +381,7 @@ class Arc:
         self.start = _vec3(start, "arc start", where)
         self.center = _vec3(center, "arc center", where)
         n = _vec3(normal, "arc normal", where)
-        nn = np.linalg.norm(n)
+        nn = norm3(n)
         if not nn > 0:
             raise PathError(f"{where}: arc normal is the zero vector")
         if abs(nn - 1.0) > 1e-6:
@@ -381,22 +397,38 @@ class Arc:
         if not np.isfinite(self.rise):
             raise PathError(f"{where}: arc rise h = {rise!r} is not finite")
         self.line = line
-        a = self.start - self.center
-        off = float(np.dot(a, self.normal))
+        off = self._derive()
         if abs(off) > END_TOL:
             raise PathError(f"{where}: arc center is {off:.6g} mm off the plane through start ⟂ normal")
-        self.a = a - off * self.normal
-        self.b = cross3(self.normal, self.a)
-        self.radius = float(np.linalg.norm(self.a))
         if not self.radius > CONTIG_TOL:
             raise PathError(f"{where}: arc radius is zero (center = start)")
-        self.length = float(self.angle * np.hypot(self.radius, self.rise / self.angle))
-        self.end = self.eval(np.array([self.length]), 0)[0][0]
         if end is not None:
             e = _vec3(end, "arc end", where)
-            if np.linalg.norm(e - self.end) > END_TOL:
+            if norm3(e - self.end) > END_TOL:
                 raise PathError(f"{where}: arc end {e.tolist()} disagrees with start/center/normal/angle/rise "
-                                f"(computed {self.end.tolist()}, off by {np.linalg.norm(e - self.end):.3g} mm)")
+                                f"(computed {self.end.tolist()}, off by {norm3(e - self.end):.3g} mm)")
+
+    @classmethod
+    def exact(cls, start, center, normal, angle: float, line: int | None = None) -> "Arc":
+        """A circular arc from geometry a planner computed (a G64 blend): no re-validation,
+        which costs more than the arc itself when a program has 10⁵ corners."""
+        g = cls.__new__(cls)
+        g.start, g.center, g.normal, g.angle, g.rise, g.line = start, center, normal, angle, 0.0, line
+        g._derive()
+        return g
+
+    def _derive(self) -> float:
+        """In-plane basis a, b, radius, length and end; returns the centre's offset from the plane."""
+        a = self.start - self.center
+        nv = self.normal
+        off = float(a[0] * nv[0] + a[1] * nv[1] + a[2] * nv[2])
+        self.a = a - off * nv
+        self.b = cross3(nv, self.a)
+        self.radius = norm3(self.a)
+        self.length = float(self.angle * math.hypot(self.radius, self.rise / self.angle))
+        # eval() at φ = θ for one point, without arrays
+        self.end = self.center + math.cos(self.angle) * self.a + math.sin(self.angle) * self.b + self.rise * nv
+        return off
 
     def eval(self, t: np.ndarray, order: int) -> list[np.ndarray]:
         """Point and s-derivatives at arc length t from the arc start."""
@@ -459,9 +491,12 @@ class SegmentPath(Path):
         segs = list(segments)
         if not segs:
             raise PathError(f"{source}: empty path (no segments)")
-        for i in range(1, len(segs)):
-            gap = np.linalg.norm(segs[i].start - segs[i - 1].end)
-            if gap > CONTIG_TOL * max(1.0, np.abs(segs[i].start).max()):
+        if len(segs) > 1:
+            starts = np.array([g.start for g in segs[1:]])
+            gaps = np.linalg.norm(starts - np.array([g.end for g in segs[:-1]]), axis=1)
+            bad = np.nonzero(gaps > CONTIG_TOL * np.maximum(1.0, np.abs(starts).max(axis=1)))[0]
+            if len(bad):
+                i, gap = int(bad[0]) + 1, float(gaps[bad[0]])
                 ln = f" (G-code line {segs[i].line})" if segs[i].line is not None else ""
                 raise PathError(f"{source}: segment #{i}{ln} starts {gap:.3g} mm away from the end "
                                 f"of segment #{i - 1}: segments must be contiguous")
@@ -522,8 +557,13 @@ class SegmentPath(Path):
             if len(self.segments) < 2:
                 self._corners = np.array([])
             else:
-                t0 = np.array([g.tangent_out() for g in self.segments[:-1]])
-                t1 = np.array([g.tangent_in() for g in self.segments[1:]])
+                # unit tangents from the struct-of-arrays tables: a line's direction; an arc's
+                # k·(b + hn) at φ = 0 and k·(−sin θ·a + cos θ·b + hn) at φ = θ
+                th = np.array([g.angle if g.kind == "arc" else 0.0 for g in self.segments])[:, None]
+                arc, k = self._is_arc[:, None], self._k[:, None]
+                t_in = np.where(arc, k * (self._b + self._hn), self._dir)
+                t_out = np.where(arc, k * (-np.sin(th) * self._a + np.cos(th) * self._b + self._hn), self._dir)
+                t0, t1 = t_out[:-1], t_in[1:]
                 c = np.einsum("ij,ij->i", t0, t1) / (np.linalg.norm(t0, axis=1) * np.linalg.norm(t1, axis=1))
                 sharp = np.arccos(np.clip(c, -1.0, 1.0)) > CORNER_ANGLE
                 self._corners = np.asarray(self.seg_start[1:len(self.segments)][sharp], float)
