@@ -194,3 +194,24 @@ if __name__ == "__main__":   # the long fuzz run: python tests/test_fmu_interpol
     with tempfile.TemporaryDirectory() as d:
         print(fuzz(int(sys.argv[1]) if len(sys.argv) > 1 else 100_000, Path(d),
                    int(sys.argv[2]) if len(sys.argv) > 2 else 0))
+
+
+@pytest.mark.parametrize("gap, accepted", [(3e-9, True), (1e-6, False)])
+def test_segment_gap_tolerance_is_the_python_contract(tmp_path, gap, accepted):
+    """Consecutive segments may be 1e-9 mm per unit of the largest coordinate apart, as in
+    planners/path.py: at |z| = 400 a 3e-9 mm gap (rounding of a near-straight G64 blend of
+    R = 2400 mm on bird) is accepted by both, 1e-6 mm refused by both, naming the segment."""
+    a, b = [0.0, 0.0, -400.0], [10.0, 0.0, -400.0]
+    c = [10.0, 0.0 + gap, -400.0]
+    doc = {"type": "segments", "units": "mm", "segments": [
+        {"type": "line", "start": a, "end": b}, {"type": "line", "start": c, "end": [10.0, 10.0, -400.0]}]}
+    ok, log = _init_with(tmp_path, json.dumps(doc))
+    assert ok == accepted, log
+    if not accepted:
+        assert "segments[1] starts" in log and "away from the end of segments[0]" in log
+    from planners.path import PathError, SegmentPath as SP
+    if accepted:
+        SP([Line(a, b), Line(c, [10.0, 10.0, -400.0])])
+    else:
+        with pytest.raises(PathError, match="segment #1 starts"):
+            SP([Line(a, b), Line(c, [10.0, 10.0, -400.0])])
