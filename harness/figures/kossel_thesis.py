@@ -65,6 +65,19 @@ def latency(out: Path, cycles: int = 1_000_000, seed: int = 1) -> dict:
     return {"cycles": cycles, "within_20us": float(within), "worst_us": worst}
 
 
+def _drive_trace(start: dict, x0: float, targets, T: float, outputs) -> list[np.ndarray]:
+    """Drive.fmu at rest at x0, then fed one CSP target per period: each output's trace."""
+    sim = SteppedFmu(FMU_DIR / "Drive.fmu", {**start, "target": x0}, T, "drive")
+    got = [[] for _ in outputs]
+    for k, tgt in enumerate(targets):
+        sim.set({"target": float(tgt)})
+        sim.fmu.doStep(currentCommunicationPoint=k * T, communicationStepSize=T)
+        for g, name in zip(got, outputs):
+            g.append(sim.get(name))
+    sim.close()
+    return [np.array(g) for g in got]
+
+
 def moves(out: Path) -> dict:
     from harness.drive_params import drive_start_values
 
@@ -77,16 +90,9 @@ def moves(out: Path) -> dict:
         if back:                       # ±2.5 mm: out and straight back
             xb, _ = trapezoid(distance, v, a, T)
             x = np.concatenate([x[: int(round(tt / T))], distance - xb])
-        sim = SteppedFmu(FMU_DIR / "Drive.fmu", {**start, "target": x0}, T, "drive")
-        pos, fe = [], []
-        for k, tgt in enumerate(x0 + x):
-            sim.set({"target": float(tgt)})
-            sim.fmu.doStep(currentCommunicationPoint=k * T, communicationStepSize=T)
-            pos.append(sim.get("position"))
-            fe.append(sim.get("following_error"))
-        sim.close()
+        pos, fe = _drive_trace(start, x0, x0 + x, T, ("position", "following_error"))
         t = np.arange(1, len(x) + 1) * T
-        pos, fe_um = np.array(pos), np.array(fe) * 1e3
+        fe_um = fe * 1e3
         label = f"{'±' if back else '+'}{distance:g} mm at {v:g} mm/s"
         result[name] = {"move": label, "max_following_error_um": float(np.abs(fe_um).max())}
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
@@ -124,14 +130,7 @@ def velocity_responses(out: Path) -> dict:
         out_, _ = trapezoid(distance, V, a, T, tail=0.0)
         back, _ = trapezoid(distance, V, a, T, tail=0.15)
         x = np.concatenate([out_, distance - back])
-        sim = SteppedFmu(FMU_DIR / "Drive.fmu", {**start, "target": x0}, T, "drive")
-        reported, load = [], []
-        for k, tgt in enumerate(x0 + x):
-            sim.set({"target": float(tgt)})
-            sim.fmu.doStep(currentCommunicationPoint=k * T, communicationStepSize=T)
-            reported.append(sim.get("velocity"))
-            load.append(sim.get("load_position"))
-        sim.close()
+        reported, load = _drive_trace(start, x0, x0 + x, T, ("velocity", "load_position"))
         t = np.arange(1, len(x) + 1) * T
         v_target = np.diff(np.concatenate([[0.0], x])) / T            # mean over each cycle
         v_carriage = np.diff(np.concatenate([[x0], load])) / T        # true carriage, mean over each cycle
@@ -159,5 +158,5 @@ def velocity_responses(out: Path) -> dict:
         fig.tight_layout()
         save(fig, out, f"kossel_{name}_velocity", {"t_s": t, "target_velocity_mm_s": v_target,
                                                    "carriage_velocity_mm_s": v_carriage,
-                                                   "reported_velocity_mm_s": np.array(reported)})
+                                                   "reported_velocity_mm_s": reported})
     return result
