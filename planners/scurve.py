@@ -263,8 +263,11 @@ class _Planner:
 
     def ratios(self, seg: Segment) -> np.ndarray:
         """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits)."""
-        n = int(min(400, max(32, math.ceil(seg.duration / (2 * self.T)))))
-        tt = np.linspace(0, seg.duration, n)
+        # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
+        # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
+        tt = np.unique(np.concatenate([
+            np.linspace(a, b, int(min(4000, max(16, math.ceil((b - a) / self.T)))))
+            for a, b in zip(seg.tcum[:-1], seg.tcum[1:]) if b > a] + [[0.0, seg.duration]]))
         p, v, a, j = seg.at(tt)
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)

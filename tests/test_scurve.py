@@ -167,3 +167,14 @@ def test_test_part_on_kossel_cartesian_plan_breaks_the_joints_joint_plan_does_no
     assert max(sc["cartesian_peak_ratio"].values()) <= 1 + 1e-6 and not sc["feasible"]
     assert sj["feasible"]
     assert tp < out["scurve_joint"][0] and tp < out["scurve"][0]
+
+
+def test_helix_one_long_segment_keeps_the_cartesian_limits():
+    """The helix is one arc: a single s-curve segment, 0 → cruise → 0, whose ms-long jerk
+    phases hide between uniform samples of a 1.6 s segment; every phase is sampled on its own
+    (before: Cartesian jerk 1.24 read at T)."""
+    from planners.path import resolve_path
+    path = resolve_path("helix")
+    p = scurve.plan(path, KEOPS)
+    r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)
+    assert max(r["cartesian_peak_ratio"].values()) <= 1 + 1e-6
