@@ -87,3 +87,13 @@ def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
                                pso.knot_density(tau, jerk), inner=knots)
         lam, _ = pr.scale(pr.shape.fit(tau, v)[None, :], 0.005)
         assert lam[0] == pytest.approx(D, rel=0.01), (s0, s1)
+
+
+def test_never_slower_than_a_feasible_seed():
+    """With no search and a 5 % margin the swarm's best is the seed stretched to 95 % of every
+    limit, slower than the seed: pso then returns the seed itself (feasible), and says so."""
+    seed = plan("scurve_joint", PATH, KEOPS)
+    p = plan("pso", PATH, KEOPS, seed_profile=seed, iterations=0, particles=4, margin=0.05)
+    assert p.execution_time_s == seed.execution_time_s and p.planner == "pso"
+    assert p.info["returned"].startswith("seed (scurve_joint)")
+    assert command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)["feasible"]
