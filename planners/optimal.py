@@ -265,8 +265,9 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
         if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
             break
         if attempt == retries:
-            raise PlanningError(f"optimal: solution breaks a joint limit at T even with margin "
-                                f"{margin:g}: peak ratios {r['joint_peak_ratio']}")
+            raise PlanningError(f"optimal: solution breaks a limit at T even with margin {margin:g}: joint "
+                                f"peak ratios {r['joint_peak_ratio']}, feed / F_max "
+                                f"{r['cartesian_peak_ratio'].get('feed', 0):.6g}")
         margin *= 2
         starts = nxt
     prof.planning_time_s = time.perf_counter() - t0
