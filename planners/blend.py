@@ -54,11 +54,12 @@ def blend_corners(segments, tolerances):
     # the turn of every line–line corner at once (a CAM program has 10⁵ of them)
     is_line = np.array([g.kind == "line" for g in segs])
     cand = [i for i, tol in enumerate(tolerances) if tol is not None and is_line[i] and is_line[i + 1]]
+    turns = []
     if cand:
         U = np.array([g.direction if g.kind == "line" else (0.0, 0.0, 0.0) for g in segs])
         c = np.array(cand)
         turns = np.arccos(np.clip(np.einsum("ij,ij->i", U[c], U[c + 1]), -1.0, 1.0)).tolist()
-    for i, turn in zip(cand, turns if cand else []):
+    for i, turn in zip(cand, turns):
         a, b, tol = segs[i], segs[i + 1], tolerances[i]
         if not tol > 0:
             raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")

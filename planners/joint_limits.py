@@ -129,9 +129,9 @@ class PathTable:
     def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001):
         L = float(path.length)
         self.length = L
-        # pieces between the path's joins (segment ends, NURBS knots, corners): a derivative
-        # that jumps at a join is never blended, and a segment shorter than ds still gets
-        # points of its own (a 0.04 mm G64 blend arc)
+        # pieces between the path's joins (segment ends of a line/arc path, corners): a
+        # derivative that jumps at a join is never blended, and a segment shorter than ds
+        # still gets points of its own (a 0.04 mm G64 blend arc)
         self.edges = np.array([0.0] + breakpoints(path) + [L])
         per_mm = max(1.0 / ds, (min_points - 1) / L)
         grids, self.offset, self.hs = [], [], []

@@ -24,6 +24,7 @@ the problem re-solved from the last solution.
 from __future__ import annotations
 
 import math
+import os
 import time
 
 import casadi as ca
@@ -42,6 +43,8 @@ JUMP_READ_FACTOR = 0.75
 # 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
 # read at T peaked 2 % above the limit between them.
 MIN_PHASE_NODES = 24
+# IPOPT's own progress table, for diagnosing a solve: PKM_IPOPT_PRINT=5 (default 0, silent)
+IPOPT_PRINT_LEVEL = int(os.environ.get("PKM_IPOPT_PRINT", "0"))
 
 
 def cap_table(path, table: PathTable, limits, T):
@@ -154,7 +157,7 @@ class _Piece:
         opti.set_initial(al, A0 / As)
         opti.set_initial(mu, U0 / Js)
         opti.solver("ipopt", {"print_time": False},
-                    {"print_level": int(__import__("os").environ.get("PKM_IPOPT_PRINT", 0)), "max_iter": max_iter, "tol": 1e-8, "acceptable_tol": 1e-6,
+                    {"print_level": IPOPT_PRINT_LEVEL, "max_iter": max_iter, "tol": 1e-8, "acceptable_tol": 1e-6,
                      "sb": "yes", "mu_strategy": "adaptive"})
         try:
             sol = opti.solve()
@@ -173,7 +176,7 @@ class _Piece:
 
 
 def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15):
-    """Phase sizes, interval durations and nodes from the toppra profile on one piece,
+    """Phase sizes, interval durations and nodes from a profile (the warm start) on one piece,
     slowed down by `stretch`.  ``bounds`` = [s0, joins…, s1]."""
     t = prof.t
     sgrid, idx = np.unique(prof.s, return_index=True)
