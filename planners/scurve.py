@@ -191,7 +191,7 @@ class _Planner:
             pts[s_min] = f_min
         for sj, vj in self.second_derivative_jumps(cs):
             pts[sj] = min(pts.get(sj, np.inf), vj)
-        # every join of the path's pieces (segment ends, knots): the lower one-sided FLF there
+        # every join of the path's segments (the table's edges): the lower one-sided FLF there
         # (a short blend arc is a plateau of the FLF, which has no strict minimum)
         for b in self.table.edges[1:-1]:
             b = float(b)

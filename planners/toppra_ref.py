@@ -34,7 +34,7 @@ S_ACC_FACTOR = 100.0
 # Where joints move alike on part of a piece (a vertical move of a linear delta), their
 # constraint rows coincide and toppra's 2-D LP solver fails; bounds apart by 1e-9 relative
 # (far below any tolerance that matters) make the rows parallel but not coincident.
-vscale = 1.0 - 1e-9 * np.arange(3)
+ROW_STAGGER = 1.0 - 1e-9 * np.arange(3)
 
 
 class _PieceGeometry(toppra.interpolator.AbstractGeometricPath):
@@ -113,7 +113,7 @@ def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
 
         def vlim(s, grid=grid, cap=cap):
             c = float(np.interp(s, grid, cap))
-            return np.vstack([np.outer(vscale[:nj], [-vj, vj]), [[-c, c]]])
+            return np.vstack([np.outer(ROW_STAGGER[:nj], [-vj, vj]), [[-c, c]]])
 
         sd = None
         # the interpolation scheme is the more accurate; at some joins (a vertical move into a
@@ -121,7 +121,7 @@ def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
         for scheme in (constraint.DiscretizationType.Interpolation, constraint.DiscretizationType.Collocation):
             cons = [constraint.JointVelocityConstraintVarying(vlim),
                     constraint.JointAccelerationConstraint(
-                        np.vstack([np.outer(vscale[:nj], [-aj, aj]), [[-s_acc, s_acc]]]),
+                        np.vstack([np.outer(ROW_STAGGER[:nj], [-aj, aj]), [[-s_acc, s_acc]]]),
                         discretization_scheme=scheme)]
             inst = algo.TOPPRA(cons, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel")
             sdd, sd, _, _ = inst.compute_parameterization(0.0, 0.0, return_data=True)
