@@ -69,3 +69,29 @@ def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
         save(fig, out, f"keops_fig6_{name}_joints",
              {"t_s": t, **{f"{o}_q{k + 1}": D[o][:, k] for o, _, _ in ORDERS for k in range(3)}})
     return result
+
+
+def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
+    """Where pso loses to the jerk-limited optimum: the feed of scurve_joint (pso's seed), pso
+    and optimal over arc length, all three within the joint limits."""
+    import planners
+    from kins import load_machine
+    from planners.path import resolve_path
+
+    plt = pyplot()
+    m = load_machine("keops")
+    path = resolve_path(path_name)
+    s = np.linspace(0.0, path.length, int(path.length / 0.25) + 1)
+    cols, result = {"s_mm": s}, {}
+    fig, ax = plt.subplots(figsize=(10, 3.6))
+    for name in ("scurve_joint", "pso", "optimal"):
+        prof = planners.plan(name, path, m)
+        result[name] = prof.execution_time_s
+        cols[f"{name}_feed_mm_s"] = np.interp(s, prof.s, prof.sd)
+        ax.plot(s, cols[f"{name}_feed_mm_s"], lw=1, label=f"{name}: {prof.execution_time_s:.4f} s")
+    ax.set(xlabel="arc length s (mm)", ylabel="feed ṡ (mm/s)",
+           title=f"keops / {path_name}: feed over arc length, every profile within the joint limits")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    save(fig, out, f"keops_{path_name}_feed_over_s", cols)
+    return result
