@@ -349,8 +349,10 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                 p["lam"] *= worst * (1 + 1e-4)
     else:
         raise PlanningError(f"pso: best particle breaks a joint limit at T: {r['joint_peak_ratio']}")
+    # (prof.info is _sample's copy of info: the entries below go to both)
     info["t_check_stretch"] = [round(p["lam"] / sw["fg"], 6) for p, sw in zip(pieces, swarm)]
     info["returned"] = "swarm best"
+    prof.info.update(t_check_stretch=info["t_check_stretch"], returned=info["returned"])
     # the best feasible profile known: the swarm's, or its seed where the swarm did not beat it
     # (the swarm's constraint set carries a margin the seed's own check does not: on paths
     # where the feed limit rules, as kossel's, the stretched seed ends a few ms slower)

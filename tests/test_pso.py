@@ -33,6 +33,7 @@ def test_beats_its_seed_and_is_feasible():
     assert p.execution_time_s < seed.execution_time_s
     r = command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)
     assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
+    assert p.info["returned"] == "swarm best" and len(p.info["t_check_stretch"]) == 1
     # the swarm's best never gets worse
     best = [h[1] for h in p.info["history"]]
     assert all(x >= y for x, y in zip(best, best[1:]))
