@@ -1,11 +1,13 @@
 """Drive a single FMU from Python, step by step (tests, figures, diagnostics).
 
     sim = SteppedFmu(unzipped_dir, {"motor": "stepper_belt", ...}, step=1e-3, name="drive")
-    sim.set({"target": 51.0}); sim.fmu.doStep(...); sim.get("position")
+    out = sim.run([{"target": 50.001}, {"target": 50.002}], ("position", "following_error"))
 """
 from __future__ import annotations
 
 from pathlib import Path
+
+import numpy as np
 
 from harness.master import _Instance
 from harness.system import Component
@@ -41,6 +43,18 @@ class SteppedFmu:
         if v.type == "Boolean":
             return bool(self.fmu.getBoolean([v.valueReference])[0])
         return self.fmu.getString([v.valueReference])[0]
+
+    def run(self, inputs, outputs) -> dict[str, np.ndarray]:
+        """One step per element of ``inputs`` (a dict of input values): set it, step from the
+        current time, read every output; returns each output's trace."""
+        out = {n: [] for n in outputs}
+        for values in inputs:
+            self.set(values)
+            self.fmu.doStep(currentCommunicationPoint=self.t, communicationStepSize=self.step)
+            self.t += self.step
+            for n in outputs:
+                out[n].append(self.get(n))
+        return {n: np.array(v) for n, v in out.items()}
 
     def close(self) -> None:
         self.fmu.terminate()

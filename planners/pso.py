@@ -349,18 +349,17 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                 p["lam"] *= worst * (1 + 1e-4)
     else:
         raise PlanningError(f"pso: best particle breaks a joint limit at T: {r['joint_peak_ratio']}")
-    # (prof.info is _sample's copy of info: the entries below go to both)
-    info["t_check_stretch"] = [round(p["lam"] / sw["fg"], 6) for p, sw in zip(pieces, swarm)]
-    info["returned"] = "swarm best"
-    prof.info.update(t_check_stretch=info["t_check_stretch"], returned=info["returned"])
+    prof.info["t_check_stretch"] = [round(p["lam"] / sw["fg"], 6) for p, sw in zip(pieces, swarm)]
+    prof.info["returned"] = "swarm best"
     # the best feasible profile known: the swarm's, or its seed where the swarm did not beat it
     # (the swarm's constraint set carries a margin the seed's own check does not: on paths
     # where the feed limit rules, as kossel's, the stretched seed ends a few ms slower)
     if seed_prof.execution_time_s < prof.execution_time_s:
         rs = command_metrics(machine, path.point(seed_prof.s), T, seed_prof.s)
         if rs["feasible"] and rs["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
-            info["returned"] = f"seed ({seed_prof.planner}): the swarm's best was {prof.execution_time_s:.6g} s"
             prof = Profile("pso", T, seed_prof.s, seed_prof.sd, seed_prof.sdd, seed_prof.sddd, path,
-                           info=dict(info, continuous_time_s=seed_prof.info.get("continuous_time_s")))
+                           info=dict(prof.info, continuous_time_s=seed_prof.info.get("continuous_time_s"),
+                                     returned=f"seed ({seed_prof.planner}): the swarm's best was "
+                                              f"{prof.execution_time_s:.6g} s"))
     prof.planning_time_s = time.perf_counter() - t0
     return prof

@@ -193,10 +193,12 @@ class _Planner:
             pts[sj] = min(pts.get(sj, np.inf), vj)
         # every join of the path's segments (the table's edges): the lower one-sided FLF there
         # (a short blend arc is a plateau of the FLF, which has no strict minimum)
-        for b in self.table.edges[1:-1]:
-            b = float(b)
+        # The table holds each edge twice: the last row of the piece before and the first of the
+        # piece after (a search of the grid per edge was quadratic in the segment count).
+        first = self.table.offset[1:]
+        for b, f in zip(self.table.edges[1:-1].tolist(), np.minimum(F[first - 1], F[first]).tolist()):
             if b not in pts:
-                pts[b] = float(F[np.abs(g - b) <= 1e-12].min())
+                pts[b] = f
         s = np.array(sorted(pts))
         # merge points closer than 1 µm (a knot that is also an FLF minimum), keeping the lower feed
         keep = [0]

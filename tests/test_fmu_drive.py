@@ -36,16 +36,9 @@ class Sim(SteppedFmu):
 
     def run(self, targets, names=("position", "following_error", "force", "state", "fault"),
             sync_ok=None):
-        out = {n: [] for n in names}
-        for k, tgt in enumerate(targets):
-            self.set({"target": tgt})
-            if sync_ok is not None:
-                self.set({"sync_ok": sync_ok[k]})
-            self.fmu.doStep(currentCommunicationPoint=self.t, communicationStepSize=self.step)
-            self.t += self.step
-            for n in names:
-                out[n].append(self.get(n))
-        return {n: np.array(v) for n, v in out.items()}
+        inputs = [{"target": tgt} if sync_ok is None else {"target": tgt, "sync_ok": sync_ok[k]}
+                  for k, tgt in enumerate(targets)]
+        return super().run(inputs, names)
 
 
 

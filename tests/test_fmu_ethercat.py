@@ -38,14 +38,7 @@ class Bus(SteppedFmu):
 
     def run(self, q_cmd):
         """q_cmd: (n, 3) commands, one row per cycle; returns every output per cycle."""
-        out = {n: [] for n in OUTS}
-        for row in np.atleast_2d(q_cmd):
-            self.set({"q1_cmd": row[0], "q2_cmd": row[1], "q3_cmd": row[2]})
-            self.fmu.doStep(currentCommunicationPoint=self.t, communicationStepSize=self.step)
-            self.t += self.step
-            for n in OUTS:
-                out[n].append(self.get(n))
-        return {n: np.array(v) for n, v in out.items()}
+        return super().run([{"q1_cmd": r[0], "q2_cmd": r[1], "q3_cmd": r[2]} for r in np.atleast_2d(q_cmd)], OUTS)
 
 
 

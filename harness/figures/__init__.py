@@ -1,7 +1,7 @@
 """Reproductions of the source publications' figures (`pkmbench figures`).
 
-One module per source: keops_paper (Erwinski et al. 2022, Figs. 5–6), kossel_thesis
-(Wąsowski 2024, Figs. 29 and 44–46), tii2022 (Erwinski, Wawrzak, Paprocki, planning/execution
+One module per source: keops_paper (Erwinski et al. 2022, Figs. 5–6, and where pso and the
+optimum differ), kossel_thesis (Wąsowski 2024, Figs. 29, 41–43 and 44–46), tii2022 (Erwinski, Wawrzak, Paprocki, planning/execution
 table). Each figure is a PNG with the plotted data as CSV beside it (compared across runs for
 determinism); every function returns the numbers that REPORT.md quotes.
 """

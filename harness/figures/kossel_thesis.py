@@ -68,14 +68,9 @@ def latency(out: Path, cycles: int = 1_000_000, seed: int = 1) -> dict:
 def _drive_trace(start: dict, x0: float, targets, T: float, outputs) -> list[np.ndarray]:
     """Drive.fmu at rest at x0, then fed one CSP target per period: each output's trace."""
     sim = SteppedFmu(FMU_DIR / "Drive.fmu", {**start, "target": x0}, T, "drive")
-    got = [[] for _ in outputs]
-    for k, tgt in enumerate(targets):
-        sim.set({"target": float(tgt)})
-        sim.fmu.doStep(currentCommunicationPoint=k * T, communicationStepSize=T)
-        for g, name in zip(got, outputs):
-            g.append(sim.get(name))
+    out = sim.run([{"target": float(x)} for x in targets], outputs)
     sim.close()
-    return [np.array(g) for g in got]
+    return [out[n] for n in outputs]
 
 
 def moves(out: Path) -> dict:
