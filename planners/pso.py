@@ -3,7 +3,8 @@ IOP Conf. Ser. MSE 1140, 2021; extended to a delta's joints as planned in Erwins
 NU·ROBOTI·FTS 2022, shared/SOURCES.md §A).
 
 Shared constraint set with `toppra` and `optimal`: joint v, a, j limits, F_max and the
-chord-error feed cap (plus the jerk a G1 join's jump of q″ causes when read at T).
+chord-error feed cap (plus, at a G1 join, the jerk its jump of q″ reads as at T added to the
+continuous jerk, bounded as in `optimal`).
 
 Parametrisation.  The path is split at exact-stop corners; on each piece the feed is a
 quadratic B-spline ṡ(τ) = Σ cₖBₖ(τ) over normalised time τ ∈ [0, 1] (so s⃛ is piecewise constant,
@@ -110,6 +111,8 @@ class _PieceProblem:
         self.lim, self.T = limits.joint, T
         self.shape = _Shape(K, M, density, inner=inner)
         self.joins = [(sj, d) for sj, d in joins if s0 + 1e-6 < sj < s1 - 1e-6]
+        # one-sided joint derivatives at each join (q″ jumps there)
+        self.join_derivs = [table.joints(np.array([sj - 1e-9, sj + 1e-9])) for sj, _ in self.joins]
         self.cap_grid, self.cap_vals = cap_grid, cap_vals
 
     def scale(self, X, margin):
@@ -136,17 +139,33 @@ class _PieceProblem:
                                    v / (cap * m)])
         lam = local.max(axis=1)
         rows = np.arange(len(v))
-        for sj, dq2 in self.joins:
-            # feed at the join: its T-reading 0.75·Δq″·ṡ²/T takes at most half the jerk limit.
-            # Interpolated between the samples around it: the feed dips there, and the sample
-            # after a 0.04 mm blend arc may already be far up the next line's ramp
+        Jm = self.lim.j * m
+        for (sj, dq2), (D1, D2, D3) in zip(self.joins, self.join_derivs):
+            # the join as `optimal` bounds it: its T-reading 0.75·Δq″·ṡ²/T plus the continuous
+            # jerk on either side within the jerk limit.  ṡ, s̈, s⃛ at the join are interpolated
+            # between the samples around it: the sample after a 0.04 mm blend arc may already be
+            # far up the next line's ramp
             i = np.clip(np.argmax(s >= sj, axis=1), 1, s.shape[1] - 1)
             sa, sb = s[rows, i - 1], s[rows, i]
             f = np.clip((sj - sa) / np.maximum(sb - sa, 1e-12), 0.0, 1.0)
-            vj = (1 - f) * v[rows, i - 1] + f * v[rows, i]
-            lam = np.maximum(lam, vj * np.sqrt(JUMP_READ_FACTOR * dq2.max() / (self.T * 0.5 * self.lim.j * m)))
+            vj, aj, jj = ((1 - f) * x[rows, i - 1] + f * x[rows, i] for x in (v, a, j))
+            read = JUMP_READ_FACTOR * dq2[None, :] * vj[:, None] ** 2 / self.T        # (P, 3)
+            for d1, d2, d3 in zip(D1, D2, D3):                                       # each side
+                cont = np.abs(d3 * vj[:, None] ** 3 + 3 * d2 * (vj * aj)[:, None] + d1 * jj[:, None])
+                lam = np.maximum(lam, join_stretch(read, cont, Jm).max(axis=1))
         lam = np.where(bad | ~np.isfinite(lam), np.inf, lam)
         return lam, (s, v, a, j)
+
+
+def join_stretch(read, cont, Jm):
+    """Smallest λ ≥ 0 with read/λ² + cont/λ³ ≤ Jm (elementwise): a G1 join's T-reading of the
+    jump of q″ scales with ṡ², so as 1/λ², the continuous jerk as 1/λ³.  λ is the positive root
+    of Jm·λ³ − read·λ − cont, found by Newton from the upper bound √(read/Jm) + ∛(cont/Jm)
+    (the cubic is convex and increasing beyond its root, so the iterates fall monotonically)."""
+    x = np.sqrt(read / Jm) + np.cbrt(cont / Jm)
+    for _ in range(8):
+        x = x - (Jm * x ** 3 - read * x - cont) / np.maximum(3 * Jm * x ** 2 - read, 1e-300)
+    return x
 
 
 def _seed_window(prof, s0, s1):

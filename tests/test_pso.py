@@ -98,3 +98,19 @@ def test_never_slower_than_a_feasible_seed():
     assert p.execution_time_s == seed.execution_time_s and p.planner == "pso"
     assert p.info["returned"].startswith("seed (scurve_joint)")
     assert command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)["feasible"]
+
+
+def test_join_stretch_is_the_root_of_the_join_cubic():
+    """λ with read/λ² + cont/λ³ = J exactly, checked against numpy's companion-matrix roots;
+    at the limits of a pure reading or a pure jerk it is √(read/J) or ∛(cont/J)."""
+    rng = np.random.default_rng(1)
+    J = 5e5
+    read = rng.uniform(0, 3e6, 200) * rng.integers(0, 2, 200)
+    cont = rng.uniform(0, 3e6, 200) * rng.integers(0, 2, 200)
+    lam = pso.join_stretch(read, cont, J)
+    for r, c, x in zip(read, cont, lam):
+        roots = np.roots([J, 0.0, -r, -c])
+        ref = max(z.real for z in roots if abs(z.imag) < 1e-9 * max(1.0, abs(z)))
+        assert x == pytest.approx(max(ref, 0.0), rel=1e-10, abs=1e-12)
+    np.testing.assert_allclose(pso.join_stretch(np.array([2e6]), np.array([0.0]), J), [2.0], rtol=1e-12)
+    np.testing.assert_allclose(pso.join_stretch(np.array([0.0]), np.array([4e6]), J), [2.0], rtol=1e-12)
