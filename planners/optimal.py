@@ -18,8 +18,11 @@ of the grid.  Formulation (direct multiple shooting, exact integration):
   limit), slowed down by 2 %.
 
 The solution is sampled at T exactly and checked with the independent metrics; if a
-discretisation effect pushes a joint ratio above 1, the margin on the limits is doubled and
-the problem re-solved from the last solution.
+discretisation effect pushes a joint ratio above 1 the problem is re-solved from the last
+solution: on a grid twice as fine where the node budget had spread the nodes ≥ 3× thinner than
+`node_period_s` (up to MAX_NODES_REFINED per piece), else with the margin on the limits
+doubled.  (On kossel's bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and ended at
+15.936 s, slower than pso; refined to ≤ 1500 nodes they pass at 0.005 with 15.391 s.)
 """
 from __future__ import annotations
 
@@ -43,6 +46,12 @@ JUMP_READ_FACTOR = 0.75
 # 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
 # read at T peaked 2 % above the limit between them.
 MIN_PHASE_NODES = 24
+# A piece's grid is refined on a failed check up to this many nodes (more than the default
+# budget: a 90 s solve on flower at 1500 nodes from the start, against ≤ 60 s wanted)
+MAX_NODES_REFINED = 1500
+# ... when the budget had spread its nodes this many times thinner than node_period_s (kossel's
+# 3 s pieces: 5 ms; keops' flower: 2 ms, where refining only cost time — its excess is at a join)
+THIN_GRID_FACTOR = 3.0
 # IPOPT's own progress table, for diagnosing a solve: PKM_IPOPT_PRINT=5 (default 0, silent)
 IPOPT_PRINT_LEVEL = int(os.environ.get("PKM_IPOPT_PRINT", "0"))
 
@@ -246,12 +255,13 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
         from .scurve import plan_joint
         warm = plan_joint(path, machine, limits)
     pcs = toppra_ref.pieces(path)
-    problems, starts = [], []
+    problems, starts, bounds = [], [], []
+    budgets = [max_nodes_per_piece] * len(pcs)
     for s0, s1 in pcs:
         piece = _Piece(table, cap, s0, s1, limits, margin, joins, T)
-        bounds = [s0] + [sj for sj, _ in piece.joins] + [s1]
+        bounds.append([s0] + [sj for sj, _ in piece.joins] + [s1])
         problems.append(piece)
-        starts.append(_warm_start(warm, bounds, node_period_s, max_nodes_per_piece, warm_stretch))
+        starts.append(_warm_start(warm, bounds[-1], node_period_s, max_nodes_per_piece, warm_stretch))
     for attempt in range(retries + 1):
         sols, statuses, nxt = [], [], []
         for piece, (Ns, hs, S, V, A, U) in zip(problems, starts):
@@ -271,7 +281,18 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
             raise PlanningError(f"optimal: solution breaks a limit at T even with margin {margin:g}: joint "
                                 f"peak ratios {r['joint_peak_ratio']}, feed / F_max "
                                 f"{r['cartesian_peak_ratio'].get('feed', 0):.6g}")
-        margin *= 2
+        # the limits hold at the nodes only: where the node budget spread a piece's grid
+        # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine (warm-started
+        # from this solution) comes before a larger margin, which costs time everywhere
+        thin = [sum(st[1] * st[0]) / sum(st[0]) >= THIN_GRID_FACTOR * node_period_s
+                and budgets[i] < MAX_NODES_REFINED for i, st in enumerate(starts)]
+        if any(thin):
+            for i, b in enumerate(bounds):
+                if thin[i]:
+                    budgets[i] = min(2 * budgets[i], MAX_NODES_REFINED)
+                    nxt[i] = _warm_start(prof, b, node_period_s, budgets[i], 1.0)
+        else:
+            margin *= 2
         starts = nxt
     prof.planning_time_s = time.perf_counter() - t0
     return prof

@@ -62,3 +62,18 @@ def test_g64_blend_arc_between_toppra_and_scurve_joint():
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
     sj, tp = plan("scurve_joint", path, KOSSEL), plan("toppra", path, KOSSEL)
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
+
+
+def test_thin_grid_is_refined_before_the_margin_grows():
+    """bird_kossel's 3 s pieces get 600 nodes (5 ms apart, 5× node_period_s): the first
+    solution reads above the jerk limit at T between nodes.  Doubling the margin until it
+    passed (0.04) cost 6 % over the toppra bound (15.936 s against 14.991 s); the refined grid
+    passes at the first margin and ends within 3 % of it (15.392 s)."""
+    from planners.path import resolve_path
+    path = resolve_path("bird_kossel")
+    p = plan("optimal", path, KOSSEL)
+    assert p.info["margin"] == 0.005
+    assert max(p.info["nodes"]) > 600
+    assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
+    tp = plan("toppra", path, KOSSEL)
+    assert tp.execution_time_s <= p.execution_time_s <= 1.03 * tp.execution_time_s
