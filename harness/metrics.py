@@ -35,6 +35,20 @@ def limit_ratios(X: np.ndarray, T: float, limits: Limits) -> tuple[dict, dict]:
     return peak, viol
 
 
+def worst_sample(X: np.ndarray, T: float, limits: Limits) -> tuple[str, int, float]:
+    """(order, first sample index of its difference window, ratio) of the largest limit ratio
+    of X at T: where a trajectory breaks its limits worst, for an error message."""
+    lim = {"velocity": limits.v, "acceleration": limits.a, "jerk": limits.j}
+    best = ("velocity", 0, 0.0)
+    for order, D in differences(X, T).items():
+        if len(D):
+            r = np.abs(D).max(axis=1) / lim[order]
+            i = int(np.argmax(r))
+            if r[i] > best[2]:
+                best = (order, i, float(r[i]))
+    return best
+
+
 def command_metrics(machine, P: np.ndarray, T: float, s: np.ndarray | None = None) -> dict:
     """Metrics of a commanded Cartesian trajectory P (N, 3) sampled at T on ``machine``.
 

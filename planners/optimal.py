@@ -250,7 +250,7 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
          retries: int = 3) -> Profile:
     """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from ``warm`` (a
     Profile; default the `scurve_joint` plan) slowed down by ``warm_stretch``."""
-    from harness.metrics import command_metrics
+    from harness.metrics import command_metrics, worst_sample
 
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
@@ -287,8 +287,11 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
         if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
             break
         if attempt == retries:
+            order, i, ratio = worst_sample(machine.ik(path.point(prof.s)), T, limits.joint)
             raise PlanningError(f"optimal: solution breaks a limit at T even with margin {margin:g}: joint "
-                                f"peak ratios {r['joint_peak_ratio']}, feed / F_max "
+                                f"{order} {ratio:.4g} × its limit in the window from s = {prof.s[i]:.6g} mm "
+                                f"(t = {prof.t[i]:.6g} s); joint peak ratios "
+                                f"{ {k: round(v, 4) for k, v in r['joint_peak_ratio'].items()} }, feed / F_max "
                                 f"{r['cartesian_peak_ratio'].get('feed', 0):.6g}")
         # the limits hold at the nodes only: where the node budget spread a piece's grid
         # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine (warm-started

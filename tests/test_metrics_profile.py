@@ -112,3 +112,18 @@ def test_profile_load_rejects_bad_files(tmp_path):
     f.write_text("t,s,sd,sdd,sddd\n0,0,0,0,zero\n")
     with pytest.raises(ProfileError, match="malformed profile"):
         Profile.load_csv(f, path)
+
+
+def test_worst_sample_finds_a_single_step():
+    """One sample displaced by d: its velocity reads d/T, its acceleration 2d/T², its jerk 3d/T³
+    (third-difference coefficients 1, −3, 3, −1), first in the window starting two samples
+    before it; with these limits the jerk ratio is the largest."""
+    from harness.metrics import worst_sample
+    T, d = 1e-3, 1e-6
+    X = np.zeros((30, 3))
+    X[10, 1] = d
+    order, i, ratio = worst_sample(X, T, Limits(1.0, 1.0, 1e3))
+    assert (order, i) == ("jerk", 8)
+    assert ratio == pytest.approx(3 * d / T ** 3 / 1e3)
+    order, i, ratio = worst_sample(X, T, Limits(1e-4, 1.0, 1e9))
+    assert (order, i, ratio) == ("velocity", 9, pytest.approx(d / T / 1e-4))
