@@ -16,13 +16,24 @@ activity (dense at the FLF minima and G1 joins); ``exact_knots=False`` uses the 
 knots only.  (A B-spline over arc length, as in the 2021 paper for a Cartesian machine,
 cannot leave rest with finite jerk — near rest ṡ ∝ s^{2/3} — hence normalised time.)
 
+A piece with G1 joins (at most MAX_JOINS_CUT) is also searched cut at them (`_SubPiece`):
+each join passed at a fixed feed with s̈ = 0, each sub-piece a feed spline of its own with
+those ends, in its own normalised time.  The feed must dip at a join (bird: to 57–207 mm/s
+from ~850 mm/s between them); a whole-piece spline spends its few control points on that dip
+and one time stretch couples all of it, while the cut search shapes each dip-to-dip stretch on
+its own.  Per piece the faster of the two is kept (bird: cut on its three pieces with joins,
+1.92 s against 2.13 s whole; kossel's bird_kossel: whole, its seconds-long sub-pieces need
+more than 10 control points).
+
 Objective.  Stretching time by λ divides joint velocity by λ, acceleration by λ², jerk by
-λ³ and the feed by λ.  So each particle's shape is scaled to the smallest λ at which every
+λ³ and the feed by λ.  So each whole piece's shape is scaled to the smallest λ at which every
 limit holds (the exact penalty for violations: time grows with the violation), and the
 objective is the execution time λ.  Every evaluated particle is thus feasible on its
-samples; the swarm only searches shapes.  The whole swarm is evaluated at once (particles ×
-samples arrays).  After the search the best profile is sampled at T and checked with the
-independent metrics; a discretisation excess is removed by a further small stretch.
+samples; the swarm only searches shapes.  A sub-piece's ends are fixed, so its objective is
+its duration × max(1, worst ratio)^PENALTY_POWER instead.  The whole swarm is evaluated at
+once (particles × samples arrays).  After the search the best profile is sampled at T and
+checked with the independent metrics; a discretisation excess is removed by a further small
+stretch of the whole piece (with its join feeds).
 
 Seeded: the swarm starts around the `scurve_joint` profile (its feed fitted by least
 squares), ``seed`` drives all random numbers and the iteration count ends the search, so the
@@ -46,6 +57,24 @@ from . import toppra_ref
 DEGREE = 2                   # ṡ quadratic per knot span ⇒ s⃛ piecewise constant, as in an s-curve
 JUMP_READ_FACTOR = 0.75      # see optimal.py: a jump Δq″ reads as ≤ 0.75·Δq″·ṡ²/T at T
 MIN_KNOT_GAP_T = 2           # seed switch times < 2 servo periods apart share a knot (see _seed_window)
+# A piece with G1 joins is cut there into sub-pieces (see _SubPiece).  Their join feed, as a
+# fraction of the feed at which the join's T-reading alone fills the jerk limit: the rest of the
+# limit is left to the continuous jerk on either side.  On bird (keops, every piece cut, 150
+# iterations) 0.6–0.7 gave 1.884–1.888 s, 0.8 1.899 s, 0.9 1.920 s, 0.95 1.943 s, 0.99 infeasible.
+JOIN_FEED_FRACTION = 0.65
+# control points per sub-piece: bird (as above) gave 2.056 s with 8, 1.888 s with 10 and 2.128 s
+# with 16 (150 iterations: more dimensions converge slower); shared by time, 100 in all, 1.927 s
+SUBPIECE_CONTROL_POINTS = 10
+# a sub-piece's fitness is its duration × max(1, worst limit ratio)^PENALTY_POWER: its ends are
+# fixed, so a violation cannot be removed by a time stretch of the sub-piece alone
+PENALTY_POWER = 4
+# a piece with more joins is searched whole only: each sub-piece is a swarm of its own, and
+# kossel's test_part (8–10 joins a piece, at G64 blends of 0.04 mm) took 100 s instead of 28 s
+# for sub-pieces that lost to the whole pieces anyway (bird: ≤ 2 joins a piece)
+MAX_JOINS_CUT = 6
+# samples per sub-piece (at least one per 8 servo periods of the seed's time there): on bird
+# 400 gave 1.919 s in 30 s, 200 1.921 s in 26 s, 100 1.924 s in 19 s
+SUBPIECE_SAMPLES = 200
 
 
 class _Shape:
@@ -155,6 +184,111 @@ class _PieceProblem:
                 lam = np.maximum(lam, join_stretch(read, cont, Jm).max(axis=1))
         lam = np.where(bad | ~np.isfinite(lam), np.inf, lam)
         return lam, (s, v, a, j)
+
+    def objective(self, X, margin):
+        return self.scale(X, margin)[0]
+
+    def start(self, x0, margin):
+        """The fitted seed stretched to meet every limit (or None)."""
+        lam0 = self.objective(x0[None, :], margin)[0]
+        return x0 / lam0 if np.isfinite(lam0) else None
+
+
+class _SubPiece:
+    """The part of a piece between two of its G1 joins (or a join and a rest end), with its end
+    feeds fixed: 0 at a rest end, JOIN_FEED_FRACTION of the join's read-only feed at a join, and
+    s̈ = 0 at both ends, so sub-pieces chain with ṡ and s̈ continuous.  The feed ṡ(τ) is a
+    quadratic B-spline over normalised time τ ∈ [0, 1] in mm/s; the duration follows from the
+    arc length, d = L/∫₀¹ṡ dτ (then s̈ = ṡ′/d, s⃛ = ṡ″/d²).  Cut this way each swarm shapes
+    one feed dip only, and a join's dip needs no knots of its own."""
+
+    def __init__(self, table, a, b, va, vb, ends, limits, T, K, M, cap_grid, cap_vals):
+        self.table, self.a, self.b, self.L, self.va, self.vb = table, a, b, b - a, va, vb
+        self.ends = ends                        # [(end index 0 | -1, Δq″, one-sided d1, d2, d3)]
+        self.lim, self.T = limits.joint, T
+        self.knots = np.concatenate([[0.0, 0.0], np.linspace(0, 1, K - 1), [1.0, 1.0]])
+        self.K = K
+        self.tau = np.linspace(0, 1, M)
+        eye = np.eye(K)
+        basis = [BSpline(self.knots, eye[k], DEGREE) for k in range(K)]
+        self.B = np.stack([bs(self.tau) for bs in basis], 1)
+        self.B1 = np.stack([bs.derivative(1)(self.tau) for bs in basis], 1)
+        self.B2 = np.stack([bs.derivative(2)(self.tau) for bs in basis], 1)
+        self.I1 = np.array([bs.antiderivative(1)(1.0) - bs.antiderivative(1)(0.0) for bs in basis])
+        self.I = np.stack([bs.antiderivative(1)(self.tau) - bs.antiderivative(1)(0.0) for bs in basis], 1)
+        self.free = np.arange(2, K - 2)
+        self.cap_grid, self.cap_vals = cap_grid, cap_vals
+
+    def full(self, X):
+        C = np.empty((X.shape[0], self.K))
+        C[:, :2], C[:, -2:] = self.va, self.vb
+        C[:, self.free] = np.maximum(X, 1e-6)
+        return C
+
+    def duration(self, X):
+        return self.L / (self.full(X) @ self.I1)
+
+    def ratio(self, X, margin):
+        """(duration, worst limit ratio as a time stretch would read it) per particle."""
+        C = self.full(X)
+        d = (self.L / (C @ self.I1))[:, None]
+        s = np.clip(self.a + d * (C @ self.I.T), self.a + 1e-9, self.b - 1e-9)
+        v, acc, jr = C @ self.B.T, (C @ self.B1.T) / d, (C @ self.B2.T) / d ** 2
+        d1, d2, d3 = self.table.joints(s)
+        v3, a3, j3 = v[..., None], acc[..., None], jr[..., None]
+        m = 1 - margin
+        cap = np.interp(s, self.cap_grid, self.cap_vals)
+        need = np.maximum.reduce([np.abs(d1 * v3).max(axis=2) / (self.lim.v * m),
+                                  np.sqrt(np.abs(d2 * v3 ** 2 + d1 * a3).max(axis=2) / (self.lim.a * m)),
+                                  np.cbrt(np.abs(d3 * v3 ** 3 + 3 * d2 * v3 * a3 + d1 * j3).max(axis=2)
+                                          / (self.lim.j * m)),
+                                  v / (cap * m)]).max(axis=1)
+        for i, dq2, e1, e2, e3 in self.ends:
+            # the join as `optimal` bounds it, on this side: T-reading + continuous jerk
+            vj, aj, jj = v[:, i], acc[:, i], jr[:, i]
+            read = JUMP_READ_FACTOR * dq2[None, :] * vj[:, None] ** 2 / self.T
+            cont = np.abs(e3 * vj[:, None] ** 3 + 3 * e2 * (vj * aj)[:, None] + e1 * jj[:, None])
+            need = np.maximum(need, ((read + cont) / (self.lim.j * m)).max(axis=1))
+        return d[:, 0], need
+
+    def objective(self, X, margin):
+        d, need = self.ratio(X, margin)
+        return np.where(np.isfinite(need), d * np.maximum(1.0, need) ** PENALTY_POWER, np.inf)
+
+    def fit(self, prof):
+        """Free coefficients of the profile's feed over this sub-piece, in its own time, with
+        the fixed ends."""
+        i = np.nonzero((prof.s >= self.a) & (prof.s <= self.b))[0]
+        if len(i) < 4:
+            return np.full(len(self.free), max(self.va, self.vb, 1e-3))
+        tt = (prof.t[i] - prof.t[i[0]]) / max(prof.t[i[-1]] - prof.t[i[0]], 1e-12)
+        eye = np.eye(self.K)
+        B = np.stack([BSpline(self.knots, eye[k], DEGREE)(tt) for k in range(self.K)], 1)
+        rhs = prof.sd[i] - B[:, :2].sum(1) * self.va - B[:, -2:].sum(1) * self.vb
+        x, *_ = np.linalg.lstsq(B[:, self.free], rhs, rcond=None)
+        return np.maximum(x, 1e-3)
+
+    def start(self, x0, margin):
+        """The fitted seed, its feed lowered until it meets every limit (or None)."""
+        for _ in range(60):
+            if self.ratio(x0[None, :], margin)[1][0] <= 1.0:
+                return x0
+            x0 = 0.9 * x0
+        return None
+
+
+def _join_feed(table, sj, dq2, limits, margin, T, cap):
+    """The largest feed at which a join passed with s̈ = s⃛ = 0 meets every limit: its T-reading
+    of the q″ jump within the jerk limit, and on either side the joint velocity, the centripetal
+    joint acceleration q″ṡ², the jerk q‴ṡ³ and the feed cap (kossel's bird: F_max rules)."""
+    m, lim = 1 - margin, limits.joint
+    d1, d2, d3 = table.joints(np.array([sj - 1e-9, sj + 1e-9]))
+    tiny = 1e-300
+    return float(min(math.sqrt(lim.j * m * T / (JUMP_READ_FACTOR * max(float(dq2.max()), tiny))),
+                     lim.v * m / max(float(np.abs(d1).max()), tiny),
+                     math.sqrt(lim.a * m / max(float(np.abs(d2).max()), tiny)),
+                     math.cbrt(lim.j * m / max(float(np.abs(d3).max()), tiny)),
+                     m * float(np.interp(sj, table.s, cap))))
 
 
 def join_stretch(read, cont, Jm):
@@ -273,8 +407,13 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     tp = np.array([max(np.count_nonzero((seed_prof.s > a) & (seed_prof.s < b)), 1) for a, b in pcs], float)
     Ks = np.maximum(8, np.round(control_points * tp / tp.sum()).astype(int))
 
-    probs, X0, seed_times = [], [], []
-    for (s0, s1), K in zip(pcs, Ks):
+    # each piece is searched whole (one time stretch, knots at the seed's switches) and, if it
+    # has G1 joins, also cut at them (_SubPiece); the better of the two is kept per piece:
+    # cut wins on keops' bird (1.917 s against 2.132 s), whole on kossel's bird_kossel, whose
+    # seconds-long sub-pieces 10 uniform control points cannot shape
+    probs, X0, tags = [], [], []                 # tags: (piece, "whole" | "cut")
+    Jm = limits.joint.j * (1 - margin)
+    for g, ((s0, s1), K) in enumerate(zip(pcs, Ks)):
         tau, vv, jj, D, knots = _seed_window(seed_prof, s0, s1)
         # with the seed's jerk switch times as knots a quadratic B-spline holds the s-curve
         # exactly: the swarm starts from the seed itself
@@ -285,59 +424,109 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                            knot_density(tau, jj), inner=knots if exact_knots else None)
         probs.append(pr)
         X0.append(pr.shape.fit(tau, vv))
-        seed_times.append(D)
+        tags.append((g, "whole"))
+        inside = [(sj, d) for sj, d in joins if s0 + 1e-6 < sj < s1 - 1e-6]
+        if not inside or len(inside) > MAX_JOINS_CUT:
+            continue
+        bnd = [s0] + [sj for sj, _ in inside] + [s1]
+        vs = [0.0] + [JOIN_FEED_FRACTION * _join_feed(table, sj, d, limits, margin, T, cap)
+                      for sj, d in inside] + [0.0]
+        for k in range(len(bnd) - 1):
+            ends = []
+            if k > 0:
+                e = table.joints(np.array([bnd[k] + 1e-9]))
+                ends.append((0, inside[k - 1][1], e[0][0], e[1][0], e[2][0]))
+            if k < len(bnd) - 2:
+                e = table.joints(np.array([bnd[k + 1] - 1e-9]))
+                ends.append((-1, inside[k][1], e[0][0], e[1][0], e[2][0]))
+            tk = np.interp([bnd[k], bnd[k + 1]], seed_prof.s, seed_prof.t)
+            M = max(SUBPIECE_SAMPLES, int(math.ceil((tk[1] - tk[0]) / (8 * T))))
+            pr = _SubPiece(table, bnd[k], bnd[k + 1], vs[k], vs[k + 1], ends, limits, T,
+                           SUBPIECE_CONTROL_POINTS, M, table.s, cap)
+            probs.append(pr)
+            X0.append(pr.fit(seed_prof))
+            tags.append((g, "cut"))
 
-    # one swarm per piece, all advanced together so the total best is known at every iteration
+    # one swarm per (sub-)piece, all advanced together so the total best is known at every iteration
     w, c1, c2 = 0.7298, 1.49618, 1.49618        # Clerc–Kennedy constriction coefficients
     swarm = []
     for pr, x0 in zip(probs, X0):
-        lam0, _ = pr.scale(x0[None, :], margin)
-        x0 = x0 / lam0[0]                          # the seed, stretched to meet every limit
+        x0 = pr.start(x0, margin)                  # the seed, made to meet every limit
+        if x0 is None:
+            swarm.append(None)
+            continue
         n = len(x0)
         X = x0[None, :] * (1 + spread * rng.standard_normal((particles, n)))
         X[0] = x0
         X = np.maximum(X, 0.0)
         span = np.maximum(x0, 1e-3 * x0.max())
         Vel = 0.05 * span[None, :] * rng.standard_normal((particles, n))
-        f, _ = pr.scale(X, margin)
+        f = pr.objective(X, margin)
         best = int(np.argmin(f))
         swarm.append({"X": X, "V": Vel, "P": X.copy(), "fP": f.copy(), "g": X[best].copy(),
                       "fg": float(f[best]), "vmax": 0.2 * span})
-    if not all(np.isfinite(sw["fg"]) for sw in swarm):
-        bad = [i for i, sw in enumerate(swarm) if not np.isfinite(sw["fg"])]
+
+    def best_options():
+        """{piece: (option, its time)}: per piece the option with the smaller best total."""
+        tot = {}
+        for (g, opt), sw in zip(tags, swarm):
+            tot[(g, opt)] = tot.get((g, opt), 0.0) + (sw["fg"] if sw is not None else math.inf)
+        out = {}
+        for (g, opt), v in tot.items():
+            if g not in out or v < out[g][1]:
+                out[g] = (opt, v)
+        return out
+
+    chosen = best_options()
+    bad = [g for g, (_, v) in chosen.items() if not math.isfinite(v)]
+    if bad:
         raise PlanningError(f"pso: no feasible particle on piece(s) {bad} (s = "
                             f"{', '.join(f'{pcs[i][0]:.6g}…{pcs[i][1]:.6g}' for i in bad)} mm)")
-    history = [(time.perf_counter() - t0, sum(sw["fg"] for sw in swarm))]
+    history = [(time.perf_counter() - t0, sum(v for _, v in chosen.values()))]
     time_to_target = history[0][0] if target_time_s and history[0][1] <= target_time_s else None
     stopped_by = "iterations"
+    live = [(pr, sw) for pr, sw in zip(probs, swarm) if sw is not None]
     for it in range(iterations):
         if time_budget_s is not None and time.perf_counter() - t0 > time_budget_s:
             stopped_by = "time budget"
             break
-        for pr, sw in zip(probs, swarm):
+        for pr, sw in live:
             X, V = sw["X"], sw["V"]
             r1, r2 = rng.random(X.shape), rng.random(X.shape)
             V = w * V + c1 * r1 * (sw["P"] - X) + c2 * r2 * (sw["g"][None, :] - X)
             V = np.clip(V, -sw["vmax"], sw["vmax"])
             X = np.maximum(X + V, 0.0)
-            f, _ = pr.scale(X, margin)
+            f = pr.objective(X, margin)
             imp = f < sw["fP"]
             sw["P"][imp], sw["fP"][imp] = X[imp], f[imp]
             b = int(np.argmin(sw["fP"]))
             if sw["fP"][b] < sw["fg"]:
                 sw["g"], sw["fg"] = sw["P"][b].copy(), float(sw["fP"][b])
             sw["X"], sw["V"] = X, V
-        total = sum(sw["fg"] for sw in swarm)
+        total = sum(v for _, v in best_options().values())
         history.append((time.perf_counter() - t0, total))
         if target_time_s and time_to_target is None and total <= target_time_s:
             time_to_target = history[-1][0]
 
+    chosen = best_options()
     pieces = []
-    for pr, sw, (s0, s1) in zip(probs, swarm, pcs):
-        pieces.append({"lam": sw["fg"], "C": pr.shape.full(sw["g"][None, :])[0],
-                       "knots": pr.shape.knots, "degree": pr.shape.degree, "s0": s0, "L": s1 - s0})
+    for pr, sw, (g, opt) in zip(probs, swarm, tags):
+        if chosen[g][0] != opt:
+            continue
+        if isinstance(pr, _SubPiece):
+            lam = float(pr.duration(sw["g"][None, :])[0])
+            pieces.append({"lam": lam, "C": pr.full(sw["g"][None, :])[0], "knots": pr.knots,
+                           "degree": DEGREE, "s0": pr.a, "L": pr.L, "group": g})
+        else:
+            pieces.append({"lam": sw["fg"], "C": pr.shape.full(sw["g"][None, :])[0],
+                           "knots": pr.shape.knots, "degree": pr.shape.degree, "s0": pr.s0,
+                           "L": pr.L, "group": g})
+        pieces[-1]["lam0"] = pieces[-1]["lam"]
     info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
-            "stopped_by": stopped_by, "control_points": [int(pr.shape.K) for pr in probs],
+            "stopped_by": stopped_by,
+            "control_points": [int(pr.K if isinstance(pr, _SubPiece) else pr.shape.K)
+                               for pr, (g, opt) in zip(probs, tags) if chosen[g][0] == opt],
+            "searched_as": [chosen[g][0] for g in range(len(pcs))],
             "seed_time_s": float(seed_prof.execution_time_s),
             "history": [[round(a, 4), float(b)] for a, b in history[:: max(1, len(history) // 50)]],
             "time_to_target_s": time_to_target}
@@ -360,15 +549,22 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         need[3:] = np.maximum(need[3:], np.cbrt(dj / lim.j))
         starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
         k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
-        for i, p in enumerate(pieces):
+        grp = np.array([p["group"] for p in pieces])[k]
+        for g in range(len(pcs)):
+            # a whole rest-to-rest piece is stretched (its sub-pieces' join feeds scale with it);
             # a window reaching across a rest point blames both pieces: cheap and safe
-            near = (k >= i - 0) & (k <= i)
+            near = grp == g
             worst = float(need[near].max()) if near.any() else 0.0
             if worst > 1.0:
-                p["lam"] *= worst * (1 + 1e-4)
+                for p in pieces:
+                    if p["group"] == g:
+                        p["lam"] *= worst * (1 + 1e-4)
     else:
         raise PlanningError(f"pso: best particle breaks a joint limit at T: {r['joint_peak_ratio']}")
-    prof.info["t_check_stretch"] = [round(p["lam"] / sw["fg"], 6) for p, sw in zip(pieces, swarm)]
+    first = {}
+    for p in pieces:
+        first.setdefault(p["group"], p)
+    prof.info["t_check_stretch"] = [round(p["lam"] / p["lam0"], 6) for p in first.values()]
     prof.info["returned"] = "swarm best"
     # the best feasible profile known: the swarm's, or its seed where the swarm did not beat it
     # (the swarm's constraint set carries a margin the seed's own check does not: on paths

@@ -58,8 +58,9 @@ def test_time_scaling_law():
 
 
 def test_no_feasible_particle_is_a_clear_error(monkeypatch):
-    monkeypatch.setattr(pso._PieceProblem, "scale",
-                        lambda self, X, margin: (np.full(len(X), np.inf), None))
+    # PATH's line–arc–line has two G1 joins: one piece, searched whole and cut into three
+    monkeypatch.setattr(pso._PieceProblem, "start", lambda self, x0, margin: None)
+    monkeypatch.setattr(pso._SubPiece, "start", lambda self, x0, margin: None)
     with pytest.raises(PlanningError, match=r"pso: no feasible particle on piece\(s\) \[0\]"):
         plan("pso", PATH, KEOPS, **FAST)
 
@@ -114,3 +115,44 @@ def test_join_stretch_is_the_root_of_the_join_cubic():
         assert x == pytest.approx(max(ref, 0.0), rel=1e-10, abs=1e-12)
     np.testing.assert_allclose(pso.join_stretch(np.array([2e6]), np.array([0.0]), J), [2.0], rtol=1e-12)
     np.testing.assert_allclose(pso.join_stretch(np.array([0.0]), np.array([4e6]), J), [2.0], rtol=1e-12)
+
+
+def test_sub_piece_duration_and_ratio_at_constant_feed():
+    """A sub-piece whose every control point is c moves at ṡ ≡ c (s̈ = s⃛ = 0): it lasts L/c, and
+    its worst ratio is the joint velocity |dq/ds|·c/V, here with dq/ds by central differences
+    of the IK (not the path table the planner reads)."""
+    from planners.joint_limits import PathTable
+    m, L, c = KEOPS, 40.0, 150.0
+    line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
+    table = PathTable(line, m)
+    sub = pso._SubPiece(table, 0.0, L, c, c, [], m.limits, m.servo_period_s, 10, 300, table.s,
+                        np.full(len(table.s), 1e9))
+    X = np.full((1, len(sub.free)), c)
+    d, need = sub.ratio(X, 0.0)
+    assert d[0] == pytest.approx(L / c, rel=1e-12)
+    s = np.linspace(1e-3, L - 1e-3, 2001)
+    h = 1e-4
+    dq = (m.ik(line.point(s + h)) - m.ik(line.point(s - h))) / (2 * h)
+    assert need[0] == pytest.approx(np.abs(dq).max() * c / m.limits.joint.v, rel=1e-4)
+
+
+def test_cut_piece_passes_each_join_at_its_join_feed():
+    """PATH's piece is searched cut at its two G1 joins (line–arc–line): the profile passes
+    each join at JOIN_FEED_FRACTION of the join's feed (divided by the T-check stretch), with
+    ṡ continuous there (a sub-piece's ends are fixed, so neighbours agree)."""
+    from planners.joint_limits import PathTable, feed_cap
+    p = plan("pso", PATH, KEOPS, **FAST)
+    assert p.info["searched_as"] == ["cut"]
+    m, T = KEOPS, KEOPS.servo_period_s
+    table = PathTable(PATH, m)
+    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
+    cap = feed_cap(PATH, table.s, m.limits, T, kappa=kappa)
+    a_max = m.limits.cartesian.a               # one sample's feed change is below a·T (2.5 mm/s)
+    for sj in (40.0, 40.0 + 10 * np.pi):        # the arc's ends
+        h = 1e-4                                # one-sided q″ by second differences of the IK
+        dq2 = np.diff(m.ik(PATH.point(sj + h * np.arange(-2, 3))), 2, axis=0)[[0, 2]] / h ** 2
+        want = pso.JOIN_FEED_FRACTION * pso._join_feed(table, sj, np.abs(dq2[1] - dq2[0]), m.limits,
+                                                        0.005, T, cap) / p.info["t_check_stretch"][0]
+        i = int(np.searchsorted(p.s, sj))
+        assert np.interp(sj, p.s, p.sd) == pytest.approx(want, rel=2e-3)
+        assert abs(p.sd[i] - p.sd[i - 1]) < a_max * T
