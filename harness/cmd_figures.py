@@ -78,10 +78,13 @@ def report(r: dict) -> str:
              "![](keops_bird_feed_over_s.png)", "",
              "Where pso loses to the jerk-limited optimum (execution s: " +
              ", ".join(f"{k} {v:.4f}" for k, v in r["KEOPS feed over arc length"].items()) +
-             "): between the corners at s ≈ 150–230 and 480–570 mm its seed, scurve_joint, cruises "
-             "at ~450 mm/s with dips at the Cartesian curvature peaks of its FLF, while the optimum "
-             "runs up to ~850 mm/s in one jerk-limited rise and fall; the swarm, a B-spline in "
-             "normalised time with knots at the seed's jerk switches, stays near its seed there.", "",
+             "): at the five G1 joins (s ≈ 53, 90, 229, 475, 570 mm) pso passes at 0.65 of the feed "
+             "the join's T-reading alone allows, with s̈ = 0, where the optimum passes at that feed "
+             "itself with almost no continuous jerk; and its peaks stay a few per cent below the "
+             "optimum's. Between the corners at s ≈ 150–230 and 480–570 mm, where its seed "
+             "scurve_joint cruises at ~450 mm/s with dips at the Cartesian curvature peaks of its FLF, "
+             "pso follows the optimum's single jerk-limited rise and fall (the pieces with joins are "
+             "searched cut at them, one feed spline per stretch between joins).", "",
              "Looked at: in the scurve Fig. 6 panel the joint acceleration and jerk traces reach and cross "
              "the dashed limits a few times (the peaks above), while the Fig. 5 Cartesian traces stay inside "
              "theirs; in the pso panel every joint trace stays inside, at the price of a Cartesian excursion "
