@@ -17,12 +17,12 @@ knots only.  (A B-spline over arc length, as in the 2021 paper for a Cartesian m
 cannot leave rest with finite jerk — near rest ṡ ∝ s^{2/3} — hence normalised time.)
 
 A piece with G1 joins (at most MAX_JOINS_CUT) is also searched cut at them (`_SubPiece`):
-each join passed at a fixed feed with s̈ = 0, each sub-piece a feed spline of its own with
+each join passed at a fixed feed with s̈ = s⃛ = 0, each sub-piece a feed spline of its own with
 those ends, in its own normalised time.  The feed must dip at a join (bird: to 57–207 mm/s
 from ~850 mm/s between them); a whole-piece spline spends its few control points on that dip
 and one time stretch couples all of it, while the cut search shapes each dip-to-dip stretch on
 its own.  Per piece the faster of the two is kept (bird: cut on its three pieces with joins,
-1.92 s against 2.13 s whole; kossel's bird_kossel: whole, its seconds-long sub-pieces need
+1.878 s against 2.132 s whole; kossel's bird_kossel: whole, its seconds-long sub-pieces need
 more than 10 control points).
 
 Objective.  Stretching time by λ divides joint velocity by λ, acceleration by λ², jerk by
@@ -58,10 +58,15 @@ DEGREE = 2                   # ṡ quadratic per knot span ⇒ s⃛ piecewise co
 JUMP_READ_FACTOR = 0.75      # see optimal.py: a jump Δq″ reads as ≤ 0.75·Δq″·ṡ²/T at T
 MIN_KNOT_GAP_T = 2           # seed switch times < 2 servo periods apart share a knot (see _seed_window)
 # A piece with G1 joins is cut there into sub-pieces (see _SubPiece).  Their join feed, as a
-# fraction of the feed at which the join's T-reading alone fills the jerk limit: the rest of the
-# limit is left to the continuous jerk on either side.  On bird (keops, every piece cut, 150
-# iterations) 0.6–0.7 gave 1.884–1.888 s, 0.8 1.899 s, 0.9 1.920 s, 0.95 1.943 s, 0.99 infeasible.
-JOIN_FEED_FRACTION = 0.65
+# fraction of the largest feed at which the join, passed with s̈ = s⃛ = 0, meets every limit
+# (_join_feed; the optimum passes bird's joins at 0.99–1.0 of it).  s⃛ = 0 holds over a first
+# and last knot span of FLAT_END_SPAN (normalised time) at a join end.  On bird (150 iterations):
+# flat span 0.003 / 0.01 / 0.03 with fraction 0.97 gave 1.878 / 1.888 / 1.915 s, 0.01 with 0.99
+# 1.967 s; without flat ends (s⃛ free at the join, so the fraction must leave room for the
+# continuous jerk) 0.65 gave 1.921 s; with every piece cut 0.6–0.7 1.884–1.888 s, 0.8 1.899 s,
+# 0.95 1.943 s.
+JOIN_FEED_FRACTION = 0.97
+FLAT_END_SPAN = 0.003
 # control points per sub-piece: bird (as above) gave 2.056 s with 8, 1.888 s with 10 and 2.128 s
 # with 16 (150 iterations: more dimensions converge slower); shared by time, 100 in all, 1.927 s
 SUBPIECE_CONTROL_POINTS = 10
@@ -196,8 +201,8 @@ class _PieceProblem:
 
 class _SubPiece:
     """The part of a piece between two of its G1 joins (or a join and a rest end), with its end
-    feeds fixed: 0 at a rest end, JOIN_FEED_FRACTION of the join's read-only feed at a join, and
-    s̈ = 0 at both ends, so sub-pieces chain with ṡ and s̈ continuous.  The feed ṡ(τ) is a
+    feeds fixed: 0 at a rest end, JOIN_FEED_FRACTION of `_join_feed` at a join, with s̈ = 0 at
+    both ends (and s⃛ = 0 at a join), so sub-pieces chain with ṡ and s̈ continuous.  The feed ṡ(τ) is a
     quadratic B-spline over normalised time τ ∈ [0, 1] in mm/s; the duration follows from the
     arc length, d = L/∫₀¹ṡ dτ (then s̈ = ṡ′/d, s⃛ = ṡ″/d²).  Cut this way each swarm shapes
     one feed dip only, and a join's dip needs no knots of its own."""
@@ -206,7 +211,14 @@ class _SubPiece:
         self.table, self.a, self.b, self.L, self.va, self.vb = table, a, b, b - a, va, vb
         self.ends = ends                        # [(end index 0 | -1, Δq″, one-sided d1, d2, d3)]
         self.lim, self.T = limits.joint, T
-        self.knots = np.concatenate([[0.0, 0.0], np.linspace(0, 1, K - 1), [1.0, 1.0]])
+        # at a join end three equal control points: s̈ = s⃛ = 0 over a short first (last) span,
+        # so the join's jerk is its T-reading alone; K − 4 free coefficients either way
+        a0, a1 = (FLAT_END_SPAN if va > 0 else 0.0), (1 - FLAT_END_SPAN if vb > 0 else 1.0)
+        inner = np.concatenate([[0.0] if va > 0 else [], np.linspace(a0, a1, K - 1),
+                                [1.0] if vb > 0 else []])
+        self.pin0, self.pin1 = (3 if va > 0 else 2), (3 if vb > 0 else 2)
+        K = len(inner) + 1
+        self.knots = np.concatenate([[0.0, 0.0], inner, [1.0, 1.0]])
         self.K = K
         self.tau = np.linspace(0, 1, M)
         eye = np.eye(K)
@@ -216,12 +228,12 @@ class _SubPiece:
         self.B2 = np.stack([bs.derivative(2)(self.tau) for bs in basis], 1)
         self.I1 = np.array([bs.antiderivative(1)(1.0) - bs.antiderivative(1)(0.0) for bs in basis])
         self.I = np.stack([bs.antiderivative(1)(self.tau) - bs.antiderivative(1)(0.0) for bs in basis], 1)
-        self.free = np.arange(2, K - 2)
+        self.free = np.arange(self.pin0, K - self.pin1)
         self.cap_grid, self.cap_vals = cap_grid, cap_vals
 
     def full(self, X):
         C = np.empty((X.shape[0], self.K))
-        C[:, :2], C[:, -2:] = self.va, self.vb
+        C[:, :self.pin0], C[:, -self.pin1:] = self.va, self.vb
         C[:, self.free] = np.maximum(X, 1e-6)
         return C
 
@@ -264,7 +276,7 @@ class _SubPiece:
         tt = (prof.t[i] - prof.t[i[0]]) / max(prof.t[i[-1]] - prof.t[i[0]], 1e-12)
         eye = np.eye(self.K)
         B = np.stack([BSpline(self.knots, eye[k], DEGREE)(tt) for k in range(self.K)], 1)
-        rhs = prof.sd[i] - B[:, :2].sum(1) * self.va - B[:, -2:].sum(1) * self.vb
+        rhs = prof.sd[i] - B[:, :self.pin0].sum(1) * self.va - B[:, -self.pin1:].sum(1) * self.vb
         x, *_ = np.linalg.lstsq(B[:, self.free], rhs, rcond=None)
         return np.maximum(x, 1e-3)
 
@@ -409,7 +421,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
 
     # each piece is searched whole (one time stretch, knots at the seed's switches) and, if it
     # has G1 joins, also cut at them (_SubPiece); the better of the two is kept per piece:
-    # cut wins on keops' bird (1.917 s against 2.132 s), whole on kossel's bird_kossel, whose
+    # cut wins on keops' bird (1.878 s against 2.132 s), whole on kossel's bird_kossel, whose
     # seconds-long sub-pieces 10 uniform control points cannot shape
     probs, X0, tags = [], [], []                 # tags: (piece, "whole" | "cut")
     Jm = limits.joint.j * (1 - margin)
