@@ -22,7 +22,7 @@ discretisation effect pushes a joint ratio above 1 the problem is re-solved from
 solution: on a grid twice as fine where the node budget had spread the nodes ≥ 3× thinner than
 `node_period_s` (up to MAX_NODES_REFINED per piece), else with the margin on the limits
 doubled.  (On kossel's bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and ended at
-15.936 s, slower than pso; refined to ≤ 1500 nodes they pass at 0.005 with 15.391 s.)
+15.936 s, slower than pso; refined to ~1200 nodes they pass at 0.005 with 15.392 s.)
 """
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ MIN_PHASE_NODES = 24
 # budget: a 90 s solve on flower at 1500 nodes from the start, against ≤ 60 s wanted)
 MAX_NODES_REFINED = 1500
 # ... when the budget had spread its nodes this many times thinner than node_period_s (kossel's
-# 3 s pieces: 5 ms; keops' flower: 2 ms, where refining only cost time — its excess is at a join)
+# 3 s pieces: 5 ms; keops' flower: 2 ms, where refining cost time and still failed the check)
 THIN_GRID_FACTOR = 3.0
 # IPOPT's own progress table, for diagnosing a solve: PKM_IPOPT_PRINT=5 (default 0, silent)
 IPOPT_PRINT_LEVEL = int(os.environ.get("PKM_IPOPT_PRINT", "0"))

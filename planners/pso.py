@@ -138,6 +138,19 @@ class _Shape:
         return np.maximum(x, 1e-6 * max(v.max(), 1e-9))
 
 
+def local_need(table, s, v, a, j, lim, m, cap_grid, cap_vals):
+    """(P, M) time stretch each sample alone asks for: the λ at which its joint velocity,
+    acceleration and jerk (÷ λ, λ², λ³) and its feed (÷ λ) meet the limits tightened by m."""
+    d1, d2, d3 = table.joints(s)                                  # (P, M, 3) each
+    v3, a3, j3 = v[..., None], a[..., None], j[..., None]
+    cap = np.interp(s, cap_grid, cap_vals)
+    return np.maximum.reduce([np.abs(d1 * v3).max(axis=2) / (lim.v * m),
+                              np.sqrt(np.abs(d2 * v3 ** 2 + d1 * a3).max(axis=2) / (lim.a * m)),
+                              np.cbrt(np.abs(d3 * v3 ** 3 + 3 * d2 * v3 * a3 + d1 * j3).max(axis=2)
+                                      / (lim.j * m)),
+                              v / (cap * m)])
+
+
 class _PieceProblem:
     def __init__(self, table, s0, s1, limits, T, joins, K, M, cap_grid, cap_vals, density=None,
                  inner=None):
@@ -161,17 +174,8 @@ class _PieceProblem:
         s = self.s0 + k * (C @ sh.I.T)                       # (P, M), exact
         v, a, j = k * (C @ sh.B.T), k * (C @ sh.B1.T), k * (C @ sh.B2.T)
         s = np.clip(s, self.s0 + 1e-9, self.s1 - 1e-9)
-        d1, d2, d3 = self.table.joints(s)                    # (P, M, 3) each
-        v3, a3, j3 = v[..., None], a[..., None], j[..., None]
         m = 1 - margin
-        cap = np.interp(s, self.cap_grid, self.cap_vals)
-        # local time-stretch need at each sample: the λ that sample alone would ask for
-        local = np.maximum.reduce([np.abs(d1 * v3).max(axis=2) / (self.lim.v * m),
-                                   np.sqrt(np.abs(d2 * v3 ** 2 + d1 * a3).max(axis=2) / (self.lim.a * m)),
-                                   np.cbrt(np.abs(d3 * v3 ** 3 + 3 * d2 * v3 * a3 + d1 * j3).max(axis=2)
-                                           / (self.lim.j * m)),
-                                   v / (cap * m)])
-        lam = local.max(axis=1)
+        lam = local_need(self.table, s, v, a, j, self.lim, m, self.cap_grid, self.cap_vals).max(axis=1)
         rows = np.arange(len(v))
         Jm = self.lim.j * m
         for (sj, dq2), (D1, D2, D3) in zip(self.joins, self.join_derivs):
@@ -202,9 +206,9 @@ class _PieceProblem:
 class _SubPiece:
     """The part of a piece between two of its G1 joins (or a join and a rest end), with its end
     feeds fixed: 0 at a rest end, JOIN_FEED_FRACTION of `_join_feed` at a join, with s̈ = 0 at
-    both ends (and s⃛ = 0 at a join), so sub-pieces chain with ṡ and s̈ continuous.  The feed ṡ(τ) is a
-    quadratic B-spline over normalised time τ ∈ [0, 1] in mm/s; the duration follows from the
-    arc length, d = L/∫₀¹ṡ dτ (then s̈ = ṡ′/d, s⃛ = ṡ″/d²).  Cut this way each swarm shapes
+    both ends (and s⃛ = 0 at a join), so sub-pieces chain with ṡ and s̈ continuous.  The feed
+    ṡ(τ) is a quadratic B-spline over normalised time τ ∈ [0, 1] in mm/s; the duration follows
+    from the arc length, d = L/∫₀¹ṡ dτ (then s̈ = ṡ′/d, s⃛ = ṡ″/d²).  Cut this way each swarm shapes
     one feed dip only, and a join's dip needs no knots of its own."""
 
     def __init__(self, table, a, b, va, vb, ends, limits, T, K, M, cap_grid, cap_vals):
@@ -243,18 +247,11 @@ class _SubPiece:
     def ratio(self, X, margin):
         """(duration, worst limit ratio as a time stretch would read it) per particle."""
         C = self.full(X)
-        d = (self.L / (C @ self.I1))[:, None]
+        d = self.duration(X)[:, None]
         s = np.clip(self.a + d * (C @ self.I.T), self.a + 1e-9, self.b - 1e-9)
         v, acc, jr = C @ self.B.T, (C @ self.B1.T) / d, (C @ self.B2.T) / d ** 2
-        d1, d2, d3 = self.table.joints(s)
-        v3, a3, j3 = v[..., None], acc[..., None], jr[..., None]
         m = 1 - margin
-        cap = np.interp(s, self.cap_grid, self.cap_vals)
-        need = np.maximum.reduce([np.abs(d1 * v3).max(axis=2) / (self.lim.v * m),
-                                  np.sqrt(np.abs(d2 * v3 ** 2 + d1 * a3).max(axis=2) / (self.lim.a * m)),
-                                  np.cbrt(np.abs(d3 * v3 ** 3 + 3 * d2 * v3 * a3 + d1 * j3).max(axis=2)
-                                          / (self.lim.j * m)),
-                                  v / (cap * m)]).max(axis=1)
+        need = local_need(self.table, s, v, acc, jr, self.lim, m, self.cap_grid, self.cap_vals).max(axis=1)
         for i, dq2, e1, e2, e3 in self.ends:
             # the join as `optimal` bounds it, on this side: T-reading + continuous jerk
             vj, aj, jj = v[:, i], acc[:, i], jr[:, i]
@@ -424,7 +421,6 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     # cut wins on keops' bird (1.878 s against 2.132 s), whole on kossel's bird_kossel, whose
     # seconds-long sub-pieces 10 uniform control points cannot shape
     probs, X0, tags = [], [], []                 # tags: (piece, "whole" | "cut")
-    Jm = limits.joint.j * (1 - margin)
     for g, ((s0, s1), K) in enumerate(zip(pcs, Ks)):
         tau, vv, jj, D, knots = _seed_window(seed_prof, s0, s1)
         # with the seed's jerk switch times as knots a quadratic B-spline holds the s-curve
