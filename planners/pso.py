@@ -392,7 +392,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     """PSO-optimised feed.  ``control_points``: total over the pieces (≥ 8 each, shared in
     proportion to the seed's time on each); ``target_time_s``: record when the swarm's
     best total first reaches it (``info['time_to_target_s']``), for the benchmark."""
-    from harness.metrics import command_metrics
+    from harness.metrics import command_metrics, differences
     from .scurve import plan_joint
 
     t0 = time.perf_counter()
@@ -546,21 +546,18 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
         if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
             break
-        Q = machine.ik(path.point(prof.s))
-        dv = np.abs(np.diff(Q, axis=0)).max(axis=1) / T
-        da = np.abs(np.diff(Q, 2, axis=0)).max(axis=1) / T ** 2
-        dj = np.abs(np.diff(Q, 3, axis=0)).max(axis=1) / T ** 3
+        D = {o: np.abs(x).max(axis=1) for o, x in differences(machine.ik(path.point(prof.s)), T).items()}
         feed = np.diff(prof.s) / T / limits.feed_max
         need = np.zeros(len(prof.s))
-        need[1:] = np.maximum(need[1:], np.maximum(dv / lim.v, feed))
-        need[2:] = np.maximum(need[2:], np.sqrt(da / lim.a))
-        need[3:] = np.maximum(need[3:], np.cbrt(dj / lim.j))
+        need[1:] = np.maximum(D["velocity"] / lim.v, feed)
+        need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
+        need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
         starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
         k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
         grp = np.array([p["group"] for p in pieces])[k]
         for g in range(len(pcs)):
-            # a whole rest-to-rest piece is stretched (its sub-pieces' join feeds scale with it);
-            # a window reaching across a rest point blames both pieces: cheap and safe
+            # a whole rest-to-rest piece is stretched (its sub-pieces' join feeds scale with it),
+            # by the worst need of the samples whose time falls in it
             near = grp == g
             worst = float(need[near].max()) if near.any() else 0.0
             if worst > 1.0:
