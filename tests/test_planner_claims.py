@@ -89,3 +89,14 @@ def test_reference_times_order(machine_name):
     assert t["toppra"] <= t["optimal"] + T            # the jerk limit only adds time
     assert t["optimal"] <= t["pso"] + T               # optimal is optimal within tolerance
     assert t["optimal"] <= t["scurve_joint"] + T
+
+
+@pytest.mark.parametrize("machine_name", ["keops", "kossel"])
+def test_pso_meets_the_issue_target_against_the_optimum(machine_name):
+    """Issue 5's target T_pso ≤ 1.03·T_optimal, here on the short path (bird: bench_planners);
+    the swarm alone is further off, the polish closes the gap (keops 0.4987 → 0.4758 s against
+    the optimum's 0.4748 s)."""
+    t_opt = run("optimal", machine_name)[2].execution_time_s
+    p = run("pso", machine_name)[2]
+    assert p.execution_time_s <= 1.03 * t_opt
+    assert p.info["swarm_time_s"] > 1.03 * t_opt

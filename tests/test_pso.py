@@ -92,10 +92,11 @@ def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
 
 
 def test_never_slower_than_a_feasible_seed():
-    """With no search and a 5 % margin the swarm's best is the seed stretched to 95 % of every
-    limit, slower than the seed: pso then returns the seed itself (feasible), and says so."""
+    """With no search, no polish and a 5 % margin the swarm's best is the seed stretched to 95 %
+    of every limit, slower than the seed: pso then returns the seed itself (feasible), and says so."""
     seed = plan("scurve_joint", PATH, KEOPS)
-    p = plan("pso", PATH, KEOPS, seed_profile=seed, iterations=0, particles=4, margin=0.05)
+    p = plan("pso", PATH, KEOPS, seed_profile=seed, iterations=0, particles=4, margin=0.05,
+             polish_steps=0)
     assert p.execution_time_s == seed.execution_time_s and p.planner == "pso"
     assert p.info["returned"].startswith("seed (scurve_joint)")
     assert command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)["feasible"]
@@ -156,3 +157,24 @@ def test_cut_piece_passes_each_join_at_its_join_feed():
         i = int(np.searchsorted(p.s, sj))
         assert np.interp(sj, p.s, p.sd) == pytest.approx(want, rel=2e-3)
         assert abs(p.sd[i] - p.sd[i - 1]) < a_max * T
+
+
+def test_polish_climbs_to_the_feed_cap():
+    """Under a feed cap c alone (joint limits out of reach, ends fixed at c) the fastest
+    sub-piece moves at ṡ ≡ c and lasts L/c.  From ṡ = c/2 inside, the polish's LP steps get there
+    (rel 1e-4) with the cap met (to the 1e-7 the penalised objective leaves)."""
+    from types import SimpleNamespace
+    from planners.joint_limits import PathTable
+    m, L, c = KEOPS, 40.0, 150.0
+    line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
+    table = PathTable(line, m)
+    free = SimpleNamespace(joint=SimpleNamespace(v=1e9, a=1e12, j=1e15))
+    sub = pso._SubPiece(table, 0.0, L, c, c, [], free, m.servo_period_s, 10, 300, table.s,
+                        np.full(len(table.s), c))
+    x0 = np.full(len(sub.free), c / 2)
+    assert sub.duration(x0[None, :])[0] > 1.3 * L / c
+    x, f, its = pso.polish(sub, x0, 0.0, 60)
+    d, need = sub.ratio(x[None, :], 0.0)
+    assert need[0] <= 1 + 1e-7 and f == pytest.approx(d[0], rel=1e-6)
+    assert d[0] == pytest.approx(L / c, rel=1e-4)
+    assert 0 < its <= 60

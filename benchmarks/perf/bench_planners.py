@@ -46,7 +46,7 @@ def run_case(path_name: str, machine_name: str, pso_iterations: int) -> dict:
     for name in ORDER:
         opts = {}
         if name == "pso":
-            opts = {"iterations": pso_iterations}
+            opts = {} if pso_iterations is None else {"iterations": pso_iterations}
             if "optimal" in out:
                 opts["target_time_s"] = 1.03 * out["optimal"]["exec"]
         t0 = time.perf_counter()
@@ -68,7 +68,8 @@ def run_case(path_name: str, machine_name: str, pso_iterations: int) -> dict:
         print(f"T_toppra {t['toppra']:.4f} ≤ T_optimal {t['optimal']:.4f} ≤ T_pso {t['pso']:.4f}: "
               f"{t['toppra'] <= t['optimal'] <= t['pso']};  T_pso/T_optimal = {t['pso'] / t['optimal']:.4f} "
               f"(target ≤ 1.03);  T_pso < T_scurve_joint ({t['scurve_joint']:.4f}): {t['pso'] < t['scurve_joint']}")
-        print(f"pso: {info['iterations_run']} iterations, stopped by {info['stopped_by']}; time to reach "
+        print(f"pso: {info['iterations_run']} iterations, stopped by {info['stopped_by']}; swarm alone "
+              f"{info['swarm_time_s']:.4f} s, polished {t['pso']:.4f} s; time to reach "
               f"1.03·T_optimal: {'%.2f s' % ttt if ttt is not None else 'not reached'}")
         print(f"optimal: planning {out['optimal']['plan']:.2f} s (anchor ≤ 60 s), IPOPT {out['optimal']['info']['ipopt']}")
     if "scurve" in out:
@@ -79,7 +80,7 @@ def run_case(path_name: str, machine_name: str, pso_iterations: int) -> dict:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("cases", nargs="*", help="path[:machine] (default: the standard set)")
-    ap.add_argument("--pso-iterations", type=int, default=150)
+    ap.add_argument("--pso-iterations", type=int, default=None, help="default: the planner's")
     a = ap.parse_args(argv)
     cases = [tuple(c.split(":")) if ":" in c else (c, "keops") for c in a.cases] or CASES
     for path_name, machine_name in cases:
