@@ -77,3 +77,16 @@ def test_thin_grid_is_refined_before_the_margin_grows():
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
     tp = plan("toppra", path, KOSSEL)
     assert tp.execution_time_s <= p.execution_time_s <= 1.03 * tp.execution_time_s
+
+
+def test_a_stop_at_a_blend_join_leaves_forward():
+    """Blended within 0.04 mm, the corner's arc is so tight that the optimum stops at a join
+    (ṡ = 0 at the node) and leaves it with s̈ < 0, s⃛ > 0: without ṡ ≥ 0 at the quarter points of
+    the intervals at a join, ṡ dipped below 0 between a node and a midpoint that sat on 0, and
+    sampling clipped s into a kink that read 1.54 × the jerk limit at T (2.69 × at P0.1), which
+    no margin removes.  With them the solution passes the check."""
+    from planners.gcode import parse_gcode, program_path
+    path = program_path(parse_gcode("G21 G90 G64 P0.04\nG0 X-25 Y-25 Z-250\nG1 X25 F1200\nY25\nX-25\n"))
+    p = plan("optimal", path, KOSSEL)
+    assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
+    assert np.all(np.diff(p.s) >= 0)
