@@ -91,9 +91,11 @@ MAX_JOINS_CUT = 6
 SUBPIECE_SAMPLES = 200
 # The polish after the swarm (see `polish`): SLP steps at most, the refinement of each piece's
 # spline, at most this many spans a whole piece, samples per span (16: with 6 a span, flower's
-# polished profile read 1.1× its jerk limit at T between the samples), and the share of the worst
-# stretch above which a sample enters the LP.  On bird (40 swarm iterations, then these): 1.783 s;
-# with whole pieces at 60 spans flower got 1.299 s, at 90 1.275 s.
+# polished profile read 1.1× its jerk limit at T between the samples), the share of the worst
+# stretch above which a row enters the LP and at most this many rows per coefficient (all rows
+# above 0.7: flower 1.2745 s in 13 s; 20 a coefficient: 1.273 s in 8 s; 5: 1.420 s; a threshold
+# of 0.95 instead: 1.438 s).  On bird (40 swarm iterations, then these): 1.7805 s; with whole
+# pieces at 60 spans flower got 1.299 s, at 90 1.275 s.
 POLISH_ITERATIONS = 40
 POLISH_REFINE = 3
 POLISH_MAX_SPANS = 90
@@ -356,14 +358,16 @@ class _SubPiece:
 
 def polish(pr, x, margin, iterations=None):
     """Sequential linear programming from the swarm's best x on one (sub-)piece: (x, objective,
-    iterations run).  Each step linearises the per-sample stretches N(x) (forward differences:
-    n + 1 particles evaluated at once) and solves an LP in a box trust region —
+    steps taken).  Each step linearises the stretch N(x) of every joint's v, a, j and the feed at
+    every sample (forward differences: n + 1 particles evaluated at once) and solves an LP in a
+    box trust region —
     whole piece: min t s.t. Nᵢ + ∇Nᵢ·δ ≤ t (its time is max N, a minimax);
     sub-piece:   min ∇d·δ + w·σ s.t. Nᵢ + ∇Nᵢ·δ ≤ 1 + σ, σ ≥ 0 (d its duration; σ an elastic
-    slack for a start that breaks a limit).  Only samples above POLISH_ACTIVE × the worst enter
-    the LP.  A step is kept if it lowers the swarm's own objective (so the polish can only
-    improve on the swarm), and the box grows ×1.5; else it shrinks ×0.4.  Stops when five
-    iterations gain less than 1e-5 relative."""
+    slack for a start that breaks a limit).  Only the rows above POLISH_ACTIVE × the worst enter
+    the LP, at most POLISH_ROWS_PER_COEFF per coefficient.  A step is kept if it lowers the
+    swarm's own objective (so the polish can only improve on the swarm); the box then doubles if
+    the LP predicted at least half the gain, and shrinks ×0.4 after a step that did not help.
+    Stops when five steps gained less than 1e-5 relative."""
     from scipy.optimize import linprog
     iterations = POLISH_ITERATIONS if iterations is None else iterations
     sub = isinstance(pr, _SubPiece)
@@ -373,7 +377,7 @@ def polish(pr, x, margin, iterations=None):
     if not math.isfinite(f):
         return x, f, 0
     rho, seen = 0.05 * x.max(), [f]
-    for it in range(iterations):
+    for _ in range(iterations):
         if len(seen) > 5 and seen[-6] - f < 1e-5 * f or rho < 1e-9 * x.max():
             break
         h = 1e-5 * x.max()
@@ -382,9 +386,9 @@ def polish(pr, x, margin, iterations=None):
             d, N = pr.needs(Xs, margin, each=True)
         else:
             N, _ = pr.needs(Xs, margin, each=True)
-        G = (N[1:] - N[0]) / h                                   # (n, constraints)
+        G = (N[1:] - N[0]) / h                                   # (n, rows)
         act = N[0] >= POLISH_ACTIVE * N[0].max()
-        if act.sum() > POLISH_ROWS_PER_COEFF * n:        # the LP's cost grows with its rows
+        if act.sum() > POLISH_ROWS_PER_COEFF * n:                # the LP's cost grows with its rows
             act = N[0] >= np.partition(N[0], -POLISH_ROWS_PER_COEFF * n)[-POLISH_ROWS_PER_COEFF * n]
         box = [(max(-rho, 1e-6 - xi), rho) for xi in x]
         A = np.hstack([G[:, act].T, -np.ones((int(act.sum()), 1))])
@@ -395,16 +399,16 @@ def polish(pr, x, margin, iterations=None):
             c = np.zeros(n + 1)
             c[-1] = 1.0
             res = linprog(c, A_ub=A, b_ub=-N[0, act], bounds=box + [(None, None)], method="highs")
-        fn = float(pr.objective((x + res.x[:n])[None, :], margin)[0]) if res.status == 0 else math.inf
+        xn = x + res.x[:n] if res.status == 0 else x
+        fn = float(pr.objective(xn[None, :], margin)[0]) if res.status == 0 else math.inf
         if fn < f:
-            # the LP's own prediction of the new objective, to judge the linear model
-            pred = (d[0] + c[:n] @ res.x[:n]) if sub else res.x[-1]
+            pred = (d[0] + c[:n] @ res.x[:n]) if sub else res.x[-1]     # the LP's own forecast
             good = (f - fn) >= 0.5 * (f - pred)
-            x, f, rho = x + res.x[:n], fn, min((2.0 if good else 1.0) * rho, 0.3 * x.max())
+            x, f, rho = xn, fn, min((2.0 if good else 1.0) * rho, 0.3 * xn.max())
         else:
             rho *= 0.4
         seen.append(f)
-    return x, f, it + 1 if iterations else 0
+    return x, f, len(seen) - 1
 
 
 def _join_feed(table, sj, dq2, limits, margin, T, cap):
