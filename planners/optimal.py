@@ -18,11 +18,14 @@ of the grid.  Formulation (direct multiple shooting, exact integration):
   limit), slowed down by 2 %.
 
 The solution is sampled at T exactly and checked with the independent metrics; if a
-discretisation effect pushes a joint ratio above 1 the problem is re-solved from the last
-solution: on a grid twice as fine where the node budget had spread the nodes ≥ 3× thinner than
-`node_period_s` (up to MAX_NODES_REFINED per piece), else with the margin on the limits
-doubled.  (On kossel's bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and ended at
-15.936 s, slower than pso; refined to ~1200 nodes they pass at 0.005 with 15.392 s.)
+discretisation effect pushes a joint ratio above 1 the problem is re-solved: on a grid twice
+as fine (from the seed again) where the node budget had spread the nodes ≥ 3× thinner than
+`node_period_s` (up to MAX_NODES_REFINED per piece), else from the last solution with the
+margin doubled on each limit read above 1, in the pieces where it was (each piece has one
+margin per limit).  (On kossel's bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and
+ended at 15.936 s, slower than pso; refined to ~1200 nodes they pass at 0.005 with 15.392 s.
+On kossel's test_part one margin for all limits passed at 0.02 with 46.61 s, slower than
+scurve_joint: the feed-capped cruise paid for a jerk read 1.007 × at one blend join.)
 """
 from __future__ import annotations
 
@@ -54,6 +57,27 @@ MAX_NODES_REFINED = 1500
 THIN_GRID_FACTOR = 3.0
 # IPOPT's own progress table, for diagnosing a solve: PKM_IPOPT_PRINT=5 (default 0, silent)
 IPOPT_PRINT_LEVEL = int(os.environ.get("PKM_IPOPT_PRINT", "0"))
+
+
+LIMIT_KINDS = ("velocity", "acceleration", "jerk", "feed")     # each with its own margin
+
+
+def broken_limits(machine, path, prof, pcs, limits) -> set:
+    """{(piece index, limit kind)} read above 1 at T: the joint velocity, acceleration, jerk
+    (differences of the IK'd samples, each window blamed on the piece its first sample is in)
+    and the feed against F_max."""
+    from harness.metrics import differences
+    T = prof.T
+    edges = np.array([a for a, _ in pcs[1:]])
+    lim = {"velocity": limits.joint.v, "acceleration": limits.joint.a, "jerk": limits.joint.j}
+    out = set()
+    for kind, D in differences(machine.ik(path.point(prof.s)), T).items():
+        bad = np.nonzero(np.abs(D).max(axis=1) > lim[kind])[0]
+        out |= {(int(g), kind) for g in np.searchsorted(edges, prof.s[bad], side="right")}
+    feed = np.diff(prof.s) / T
+    bad = np.nonzero(feed > limits.feed_max * (1 + 1e-6))[0]
+    out |= {(int(g), "feed") for g in np.searchsorted(edges, prof.s[bad], side="right")}
+    return out
 
 
 def cap_table(path, table: PathTable, limits, T):
@@ -97,13 +121,16 @@ class _Piece:
                 "cap": mk(f"cap_{k}", c)})
         self.table = table
         self.lim = limits.joint
-        self.margin = margin
+        # one margin per limit, grown apart: a jerk read above its limit at one blend join
+        # must not slow the feed-capped cruise of the whole part
+        self.margins = dict.fromkeys(LIMIT_KINDS, margin)
 
     def solve(self, Ns, h0s, S0, V0, A0, U0, max_iter=600):
         """Ns, h0s: intervals and initial interval duration of each phase (the phases are
         separated by the G1 joins, where the node lies exactly on the join)."""
         L = self.s1 - self.s0
-        lim, m = self.lim, 1 - self.margin
+        lim = self.lim
+        mv, ma, mj, mf = (1 - self.margins[k] for k in LIMIT_KINDS)
         Vs, As, Js = lim.v, lim.a, lim.j
         N = int(sum(Ns))
         opti = ca.Opti()
@@ -129,8 +156,8 @@ class _Piece:
                 read = JUMP_READ_FACTOR * float(dq2[i]) * v[k] ** 2 / self.T
                 for uu, (d1, d2, d3) in ((u[k - 1], left), (u[k], right)):
                     cont = d3[i] * v[k] ** 3 + 3 * d2[i] * v[k] * a[k] + d1[i] * uu
-                    opti.subject_to((cont + read) / Js <= m)
-                    opti.subject_to((read - cont) / Js <= m)
+                    opti.subject_to((cont + read) / Js <= mj)
+                    opti.subject_to((read - cont) / Js <= mj)
         # exact constant-jerk integration over each interval
         opti.subject_to(s[1:] == s[:-1] + v[:-1] * h + a[:-1] * h ** 2 / 2 + u * h ** 3 / 6)
         opti.subject_to(v[1:] == v[:-1] + a[:-1] * h + u * h ** 2 / 2)
@@ -163,19 +190,19 @@ class _Piece:
             ST = sm[n0:n1 + 1].T
             vk, ak, uk = v[n0:n1 + 1], a[n0:n1 + 1], u[n0:n1]
             capv = fns["cap"].map(n)(ST).T
-            opti.subject_to(vk <= capv * m)
-            opti.subject_to(v_mid[n0:n1] <= ca.fmin(capv[:-1], capv[1:]) * m)
+            opti.subject_to(vk <= capv * mf)
+            opti.subject_to(v_mid[n0:n1] <= ca.fmin(capv[:-1], capv[1:]) * mf)
             uL = ca.vertcat(uk, uk[n - 2])      # jerk of the interval after each node …
             uR = ca.vertcat(uk[0], uk)          # … and before it (within this phase)
             for i in range(3):
                 d1 = fns["q1"][i].map(n)(ST).T
                 d2 = fns["q2"][i].map(n)(ST).T
                 d3 = fns["q3"][i].map(n)(ST).T
-                opti.subject_to(opti.bounded(-m, d1 * vk / Vs, m))
-                opti.subject_to(opti.bounded(-m, (d2 * vk ** 2 + d1 * ak) / As, m))
+                opti.subject_to(opti.bounded(-mv, d1 * vk / Vs, mv))
+                opti.subject_to(opti.bounded(-ma, (d2 * vk ** 2 + d1 * ak) / As, ma))
                 base = d3 * vk ** 3 + 3 * d2 * vk * ak
-                opti.subject_to(opti.bounded(-m, (base + d1 * uL) / Js, m))
-                opti.subject_to(opti.bounded(-m, (base + d1 * uR) / Js, m))
+                opti.subject_to(opti.bounded(-mj, (base + d1 * uL) / Js, mj))
+                opti.subject_to(opti.bounded(-mj, (base + d1 * uR) / Js, mj))
         opti.minimize(ca.dot(ca.DM(np.asarray(Ns, float) * np.asarray(h0s)), eta) / float(np.sum(np.asarray(Ns) * np.asarray(h0s))))
         opti.set_initial(eta, np.ones(len(Ns)))
         opti.set_initial(sig, (S0 - self.s0) / L)
@@ -282,13 +309,15 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
     for attempt in range(retries + 1):
         sols, statuses, nxt = [], [], []
         for piece, (Ns, hs, S, V, A, U) in zip(problems, starts):
-            piece.margin = margin
             sol, status, iters = piece.solve(Ns, hs, S, V, A, U)
             sols.append(sol)
             statuses.append(f"{status} ({iters} it)")
             hh = sol[0]
             nxt.append((Ns, hh[np.cumsum(Ns) - 1], sol[1], sol[2], sol[3], sol[4]))
-        prof = sample_cubic(sols, T, path, {"pieces": len(pcs), "margin": margin, "ipopt": statuses,
+        margins = [dict(p.margins) for p in problems]
+        prof = sample_cubic(sols, T, path, {"pieces": len(pcs), "ipopt": statuses,
+                                            "margin": max(max(m.values()) for m in margins),
+                                            "margins": margins,
                                             "nodes": [int(np.sum(x[0])) for x in starts],
                                             "g1_joins": len(joins)})
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
@@ -296,23 +325,30 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
             break
         if attempt == retries:
             order, i, ratio = worst_sample(machine.ik(path.point(prof.s)), T, limits.joint)
-            raise PlanningError(f"optimal: solution breaks a limit at T even with margin {margin:g}: joint "
+            raise PlanningError(f"optimal: solution breaks a limit at T even with margins up to "
+                                f"{prof.info['margin']:g}: joint "
                                 f"{order} {ratio:.4g} × its limit in the window from s = {prof.s[i]:.6g} mm "
                                 f"(t = {prof.t[i]:.6g} s); joint peak ratios "
                                 f"{ {k: round(v, 4) for k, v in r['joint_peak_ratio'].items()} }, feed / F_max "
                                 f"{r['cartesian_peak_ratio'].get('feed', 0):.6g}")
         # the limits hold at the nodes only: where the node budget spread a piece's grid
-        # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine (warm-started
-        # from this solution) comes before a larger margin, which costs time everywhere
+        # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine comes before a
+        # larger margin, which costs time everywhere.  Warm-started from the feasible seed again:
+        # from this solution (on the limits at the old nodes, off them between) IPOPT took
+        # > 4 min on test_part's first piece at 1200 nodes, from the seed 29 s
         thin = [sum(st[1] * st[0]) / sum(st[0]) >= THIN_GRID_FACTOR * node_period_s
                 and budgets[i] < MAX_NODES_REFINED for i, st in enumerate(starts)]
         if any(thin):
             for i, b in enumerate(bounds):
                 if thin[i]:
                     budgets[i] = min(2 * budgets[i], MAX_NODES_REFINED)
-                    nxt[i] = _warm_start(prof, b, node_period_s, budgets[i], 1.0)
+                    nxt[i] = _warm_start(warm, b, node_period_s, budgets[i], warm_stretch)
         else:
-            margin *= 2
+            # only the limits read above 1, only in the pieces where they were
+            broken = broken_limits(machine, path, prof, pcs, limits) or {
+                (g, kind) for g in range(len(pcs)) for kind in LIMIT_KINDS}
+            for g, kind in broken:
+                problems[g].margins[kind] *= 2
         starts = nxt
     prof.planning_time_s = time.perf_counter() - t0
     return prof

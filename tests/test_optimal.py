@@ -90,3 +90,20 @@ def test_a_stop_at_a_blend_join_leaves_forward():
     p = plan("optimal", path, KOSSEL)
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
     assert np.all(np.diff(p.s) >= 0)
+
+
+@pytest.mark.parametrize("fast", [0, 1])
+def test_broken_limits_names_the_piece_and_the_limit(fast):
+    """A feed of 1.5 × F_max on one of two pieces and 0.5 × on the other: the feed is blamed
+    on the fast piece only, so only its feed margin grows."""
+    from types import SimpleNamespace
+    from planners import toppra_ref
+    z = KOSSEL.home[2]
+    path = SegmentPath([Line([-20, 0, z], [0, 0, z]), Line([0, 0, z], [0, 20, z])])
+    pcs = toppra_ref.pieces(path)
+    assert len(pcs) == 2
+    T, F = KOSSEL.servo_period_s, KOSSEL.limits.feed_max
+    k = [1.5, 0.5] if fast == 0 else [0.5, 1.5]
+    s = np.concatenate([np.arange(0, 20, k[0] * F * T), np.arange(20, 40, k[1] * F * T), [40.0]])
+    out = optimal.broken_limits(KOSSEL, path, SimpleNamespace(T=T, s=s), pcs, KOSSEL.limits)
+    assert (fast, "feed") in out and (1 - fast, "feed") not in out
