@@ -25,6 +25,9 @@ def add_arguments(p) -> None:
     p.add_argument("--baseline", default="results/baseline.json", help="baseline file")
     p.add_argument("--update-baseline", action="store_true",
                    help="write the current numbers as the baseline instead of comparing")
+    p.add_argument("--no-timing", action="store_true",
+                   help="compare every metric but planning time (a check that the numbers reproduce, "
+                        "on a machine that is not the nightly runner)")
     p.add_argument("--out", default="results/ci", help="folder for junit.xml, summary.md and the run")
     p.add_argument("--junit", help="JUnit XML file (default OUT/junit.xml)")
     p.add_argument("--markdown", help="Markdown summary file (default OUT/summary.md)")
@@ -67,6 +70,8 @@ def main(args) -> int:
         suite = load_suite(args.suite)
         tasks = expand(suite, src=args.suite, base=Path.cwd())
         tolerances = ci.tolerances_from_suite(suite)
+        if args.no_timing:
+            tolerances = ci.without_timing(tolerances)
     except SuiteError as e:
         raise CliError(str(e)) from None
 

@@ -234,6 +234,12 @@ def tolerances_from_suite(suite: dict) -> list[tuple[str, dict]]:
     return [(k, dict(v)) for k, v in extra.items()] + DEFAULT_TOLERANCES
 
 
+def without_timing(tolerances: list[tuple[str, dict]]) -> list[tuple[str, dict]]:
+    """The same rules with planning time not compared: for checking that a baseline's numbers
+    reproduce on a machine whose speed is not the nightly runner's (``make test``)."""
+    return [("planning_time_ratio", {"ignore": True})] + tolerances
+
+
 # -- outputs ---------------------------------------------------------------------------------
 def _fmt(v) -> str:
     if isinstance(v, float):
