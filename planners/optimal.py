@@ -20,12 +20,15 @@ of the grid.  Formulation (direct multiple shooting, exact integration):
 The solution is sampled at T exactly and checked with the independent metrics; if a
 discretisation effect pushes a joint ratio above 1 the problem is re-solved: on a grid twice
 as fine (from the seed again) where the node budget had spread the nodes ≥ 3× thinner than
-`node_period_s` (up to MAX_NODES_REFINED per piece), else from the last solution with the
-margin doubled on each limit read above 1, in the pieces where it was (each piece has one
-margin per limit).  (On kossel's bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and
-ended at 15.936 s, slower than pso; refined to ~1200 nodes they pass at 0.005 with 15.392 s.
-On kossel's test_part one margin for all limits passed at 0.02 with 46.61 s, slower than
-scurve_joint: the feed-capped cruise paid for a jerk read 1.007 × at one blend join.)
+`node_period_s` (up to MAX_NODES_REFINED per piece), else from the last solution, in the
+pieces where a limit read above 1: with the margin doubled on each limit read above 1 (each
+piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
+at each interval's midpoint too (keops' flower: the jerk read 1.04 × between nodes 2 ms
+apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (On kossel's bird_kossel, 3 s pieces
+at 600 nodes needed margin 0.04 and ended at 15.936 s, slower than pso; refined to ~1200
+nodes they pass at 0.005 with 15.392 s.  On kossel's test_part one margin for all limits
+passed at 0.02 with 46.61 s, slower than scurve_joint: the feed-capped cruise paid for a
+jerk read 1.007 × at one blend join.)
 """
 from __future__ import annotations
 
@@ -124,6 +127,14 @@ class _Piece:
         # one margin per limit, grown apart: a jerk read above its limit at one blend join
         # must not slow the feed-capped cruise of the whole part
         self.margins = dict.fromkeys(LIMIT_KINDS, margin)
+        # the joint a and j bounded at each interval's midpoint too, once a check found them
+        # above their limits on a grid that was not refined: on keops' flower (nodes 2 ms
+        # apart, T = 250 µs, the 3q″ṡs̈ term moving with s̈ between them) the jerk read 1.04 × at
+        # margin 0.005 and still 1.003 × at 0.04; with them it passes at 0.02 (1.2355 s).  Not
+        # from the start: they doubled the solve time on bird (6 → 11 s), which passes without,
+        # and on test_part's first piece refined to 1200 nodes IPOPT stopped at 600 iterations
+        # (the 0.04 mm blend arcs: the q‴ there jumps between a node and the midpoint)
+        self.midpoints = False
 
     def solve(self, Ns, h0s, S0, V0, A0, U0, max_iter=600):
         """Ns, h0s: intervals and initial interval duration of each phase (the phases are
@@ -203,6 +214,18 @@ class _Piece:
                 base = d3 * vk ** 3 + 3 * d2 * vk * ak
                 opti.subject_to(opti.bounded(-mj, (base + d1 * uL) / Js, mj))
                 opti.subject_to(opti.bounded(-mj, (base + d1 * uR) / Js, mj))
+            if self.midpoints:
+                # the joint a and j at each interval's midpoint too (see _Piece.midpoints)
+                hk = h[n0:n1] / 2
+                sk = sm[n0:n1] + vk[:-1] * hk + ak[:-1] * hk ** 2 / 2 + uk * hk ** 3 / 6
+                SM = ca.fmin(ca.fmax(sk, self.s0), self.s1).T
+                vm, am = v_mid[n0:n1], ak[:-1] + uk * hk
+                for i in range(3):
+                    e1 = fns["q1"][i].map(n - 1)(SM).T
+                    e2 = fns["q2"][i].map(n - 1)(SM).T
+                    e3 = fns["q3"][i].map(n - 1)(SM).T
+                    opti.subject_to(opti.bounded(-ma, (e2 * vm ** 2 + e1 * am) / As, ma))
+                    opti.subject_to(opti.bounded(-mj, (e3 * vm ** 3 + 3 * e2 * vm * am + e1 * uk) / Js, mj))
         opti.minimize(ca.dot(ca.DM(np.asarray(Ns, float) * np.asarray(h0s)), eta) / float(np.sum(np.asarray(Ns) * np.asarray(h0s))))
         opti.set_initial(eta, np.ones(len(Ns)))
         opti.set_initial(sig, (S0 - self.s0) / L)
@@ -317,7 +340,7 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
         margins = [dict(p.margins) for p in problems]
         prof = sample_cubic(sols, T, path, {"pieces": len(pcs), "ipopt": statuses,
                                             "margin": max(max(m.values()) for m in margins),
-                                            "margins": margins,
+                                            "margins": margins, "midpoints": [p.midpoints for p in problems],
                                             "nodes": [int(np.sum(x[0])) for x in starts],
                                             "g1_joins": len(joins)})
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
@@ -330,7 +353,8 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
                                 f"{order} {ratio:.4g} × its limit in the window from s = {prof.s[i]:.6g} mm "
                                 f"(t = {prof.t[i]:.6g} s); joint peak ratios "
                                 f"{ {k: round(v, 4) for k, v in r['joint_peak_ratio'].items()} }, feed / F_max "
-                                f"{r['cartesian_peak_ratio'].get('feed', 0):.6g}")
+                                f"{r['cartesian_peak_ratio'].get('feed', 0):.6g}; IPOPT per piece: "
+                                f"{', '.join(statuses)}")
         # the limits hold at the nodes only: where the node budget spread a piece's grid
         # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine comes before a
         # larger margin, which costs time everywhere.  Warm-started from the feasible seed again:
@@ -344,11 +368,16 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
                     budgets[i] = min(2 * budgets[i], MAX_NODES_REFINED)
                     nxt[i] = _warm_start(warm, b, node_period_s, budgets[i], warm_stretch)
         else:
-            # only the limits read above 1, only in the pieces where they were
+            # only the limits read above 1, only in the pieces where they were: a doubled margin,
+            # and an a or j bounded between the nodes too where the grid was not refined (a
+            # refined grid is dense; test_part's refined pieces read above 1 at a blend join,
+            # where the midpoints do not help, and with them IPOPT took > 5 min)
             broken = broken_limits(machine, path, prof, pcs, limits) or {
                 (g, kind) for g in range(len(pcs)) for kind in LIMIT_KINDS}
             for g, kind in broken:
                 problems[g].margins[kind] *= 2
+                if kind in ("acceleration", "jerk") and budgets[g] == max_nodes_per_piece:
+                    problems[g].midpoints = True
         starts = nxt
     prof.planning_time_s = time.perf_counter() - t0
     return prof

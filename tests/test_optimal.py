@@ -107,3 +107,49 @@ def test_broken_limits_names_the_piece_and_the_limit(fast):
     s = np.concatenate([np.arange(0, 20, k[0] * F * T), np.arange(20, 40, k[1] * F * T), [40.0]])
     out = optimal.broken_limits(KOSSEL, path, SimpleNamespace(T=T, s=s), pcs, KOSSEL.limits)
     assert (fast, "feed") in out and (1 - fast, "feed") not in out
+
+
+@pytest.mark.parametrize("midpoints", [False, True])
+def test_midpoints_bound_a_and_j_between_nodes(midpoints):
+    """keops' flower on 150 nodes (8 ms apart): the joint jerk q‴ṡ³ + 3q″ṡs̈ + q′s⃛ at each
+    interval's midpoint (its state from the cubic, here in numpy) goes above the bound the
+    nodes keep, unless the midpoints are bounded too (as a retry after such a check does).
+    The joint derivatives are the NLP's own interpolants: the kinematics agree with them but
+    where a NURBS knot makes q‴ jump between table rows."""
+    from planners.path import resolve_path
+    from planners.scurve import plan_joint
+    keops = load_machine("keops")
+    path = resolve_path("flower")
+    lim, m = keops.limits, 0.005
+    table = optimal.PathTable(path, keops)
+    piece = optimal._Piece(table, optimal.cap_table(path, table, lim, keops.servo_period_s), 0.0,
+                           path.length, lim, m, optimal.join_jumps(path, table, keops), keops.servo_period_s)
+    piece.midpoints = midpoints
+    start = optimal._warm_start(plan_joint(path, keops, lim), [0.0, path.length], 1e-3, 150, 1.02)
+    (h, s, v, a, u), status, _ = piece.solve(*start)
+    assert status == "Solve_Succeeded"
+    hm = h / 2
+    sm = s[:-1] + v[:-1] * hm + a[:-1] * hm ** 2 / 2 + u * hm ** 3 / 6
+    vm, am = v[:-1] + a[:-1] * hm + u * hm ** 2 / 2, a[:-1] + u * hm
+    fns = piece.phase_fns[0]
+    d1, d2, d3 = (np.array([[float(fns[q][i](x)) for i in range(3)] for x in sm]) for q in ("q1", "q2", "q3"))
+    jerk = np.abs(d3 * vm[:, None] ** 3 + 3 * d2 * (vm * am)[:, None] + d1 * u[:, None]).max() / lim.joint.j
+    acc = np.abs(d2 * vm[:, None] ** 2 + d1 * am[:, None]).max() / lim.joint.a
+    if midpoints:
+        assert max(jerk, acc) <= (1 - m) * (1 + 1e-6)
+    else:
+        assert jerk > 1.0
+
+
+def test_flower_passes_with_a_and_j_bounded_between_nodes():
+    """The whole retry: flower's first solution reads 1.04 × the jerk limit at T between nodes
+    2 ms apart; the retries bound a and j at the midpoints and it passes, between toppra's
+    bound and scurve_joint."""
+    from planners.path import resolve_path
+    keops = load_machine("keops")
+    path = resolve_path("flower")
+    p = plan("optimal", path, keops)
+    assert p.info["midpoints"] == [True]
+    assert command_metrics(keops, path.point(p.s), p.T, p.s)["feasible"]
+    tp, sj = plan("toppra", path, keops), plan("scurve_joint", path, keops)
+    assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
