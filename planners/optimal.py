@@ -24,11 +24,11 @@ as fine (from the seed again) where the node budget had spread the nodes ≥ 3×
 pieces where a limit read above 1: with the margin doubled on each limit read above 1 (each
 piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
 at each interval's midpoint too (keops' flower: the jerk read 1.04 × between nodes 2 ms
-apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (On kossel's bird_kossel, 3 s pieces
-at 600 nodes needed margin 0.04 and ended at 15.936 s, slower than pso; refined to ~1200
-nodes they pass at 0.005 with 15.392 s.  On kossel's test_part one margin for all limits
-passed at 0.02 with 46.61 s, slower than scurve_joint: the feed-capped cruise paid for a
-jerk read 1.007 × at one blend join.)
+apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (On kossel's
+bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and ended at 15.936 s, slower than
+pso; refined to ~1200 nodes they pass at 0.005 with 15.392 s.  On kossel's test_part one
+margin for all limits passed at 0.02 with 46.61 s, slower than scurve_joint: the
+feed-capped cruise paid for a jerk read 1.007 × at one blend join.)
 """
 from __future__ import annotations
 
@@ -132,8 +132,8 @@ class _Piece:
         # apart, T = 250 µs, the 3q″ṡs̈ term moving with s̈ between them) the jerk read 1.04 × at
         # margin 0.005 and still 1.003 × at 0.04; with them it passes at 0.02 (1.2355 s).  Not
         # from the start: they doubled the solve time on bird (6 → 11 s), which passes without,
-        # and on test_part's first piece refined to 1200 nodes IPOPT stopped at 600 iterations
-        # (the 0.04 mm blend arcs: the q‴ there jumps between a node and the midpoint)
+        # and with them IPOPT stopped at its 600 iterations on test_part's first piece refined
+        # to 1200 nodes (from the seed; 58 iterations without)
         self.midpoints = False
 
     def solve(self, Ns, h0s, S0, V0, A0, U0, max_iter=600):

@@ -650,8 +650,8 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     polished = []
     if polish_steps > 0:
         # the swarm finds the shape (which option, which basin); a few SLP steps on a finer
-        # spline converge it (bird: 1.87 s after 800 iterations of the swarm alone, 1.783 s
-        # after 40 and the polish)
+        # spline converge it (bird: 1.87 s after 800 iterations of the swarm alone, 1.7805 s
+        # after 20 and the polish)
         chosen, total = best_options(), swarm_total
         for k, (pr, sw, (g, opt)) in enumerate(zip(probs, swarm, tags)):
             if sw is None or chosen[g][0] != opt:
