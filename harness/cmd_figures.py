@@ -78,7 +78,7 @@ def report(r: dict) -> str:
              "![](keops_bird_feed_over_s.png)", "",
              "Where pso loses to the jerk-limited optimum (execution s: " +
              ", ".join(f"{k} {v:.4f}" for k, v in r["KEOPS feed over arc length"].items()) +
-             "): pso (a 40-iteration swarm, then its best polished by sequential LP on a finer "
+             "): pso (a 20-iteration swarm, then its best polished by sequential LP on a finer "
              "spline) passes the five G1 joins (s ≈ 53, 90, 229, 475, 570 mm) at 97 % of the "
              "largest feed a join allows with s̈ = s⃛ = 0 (its JOIN_FEED_FRACTION; the optimum passes "
              "at 0.97–1.0 of that), and between them follows the optimum's jerk-limited rises and "

@@ -41,7 +41,7 @@ the shape of each stretch — but converges slowly in it (bird: 1.916 s after 40
 particle on each (sub-)piece is re-expressed on a finer spline (`refined`) and improved by
 sequential linear programming (`polish`): per step the limit ratio of every joint at every sample
 is linearised and an LP in a trust region takes the step.  A step is kept only if the swarm's own
-objective falls, so the polish can only improve on the swarm (bird: 1.916 → 1.7805 s).
+objective falls, so the polish can only improve on the swarm (bird: 1.946 → 1.7805 s).
 ``polish_steps=0`` returns the swarm alone.  The swarm runs 20 iterations by default: after the
 polish 40 gave the same bird, bird_flat and helix (1.7805, 1.5922, 1.2500 s), flower 1.2888
 against 1.2788 s, bird_kossel 15.597 against 15.605 s, and cost 1.5–2 s more.
