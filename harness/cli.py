@@ -61,4 +61,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # `python -m harness.cli` runs this file as __main__, but the commands raise
+    # harness.cli.CliError: go through that module so its `except CliError` matches.
+    from harness.cli import main as _main
+    sys.exit(_main())
