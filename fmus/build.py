@@ -6,8 +6,10 @@ the FMI 2.0 headers of the installed fmpy (fmpy/c-code), packed with binaries/li
 its modelDescription.xml (the <SourceFiles> list is filled in here) and sources/ (flat), so
 `fmpy compile` can rebuild it on another platform.
 
-Incremental: a model is rebuilt only when a hash of its inputs changes. The zip is
-deterministic (fixed timestamps, sorted entries): same sources ⇒ same .fmu bytes.
+Incremental: a model is rebuilt when a hash of its inputs changes, or when its .fmu is not
+the one built (its hash differs from the stamp's) or not a whole FMU (a truncated or corrupt
+zip, a modelDescription.xml that does not parse or names another model, no binary). The zip
+is deterministic (fixed timestamps, sorted entries): same sources ⇒ same .fmu bytes.
 
     python fmus/build.py [--force] [Name ...]
 """
@@ -21,6 +23,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
@@ -80,14 +83,61 @@ def model_description(model: Path, sources: list[Path]) -> str:
     return xml[:m.end()] + block + xml[m.end():]
 
 
+def file_hash(f: Path) -> str:
+    return hashlib.sha256(f.read_bytes()).hexdigest()
+
+
+def fmu_problem(fmu: Path, name: str) -> str | None:
+    """What is wrong with the built ``fmu`` of model ``name``, or None when it is a whole FMU."""
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            if z.testzip() is not None:
+                return "corrupt zip"
+            members = set(z.namelist())
+            md = ET.fromstring(z.read("modelDescription.xml")) if "modelDescription.xml" in members else None
+    except ET.ParseError as e:
+        return f"modelDescription.xml does not parse: {e}"
+    except Exception:   # whatever the zip reader raises on damaged bytes (BadZipFile, zlib, lzma…)
+        return "corrupt zip"
+    if md is None:
+        return "no modelDescription.xml"
+    cs = md.find("CoSimulation")
+    if cs is None or cs.get("modelIdentifier") != name or md.get("modelName") != name:
+        return f"modelDescription.xml does not describe model {name}"
+    if f"binaries/linux64/{name}.so" not in members:
+        return f"no binaries/linux64/{name}.so"
+    return None
+
+
+def stale_reason(out: Path, stamp: Path, digest: str) -> str | None:
+    """Why ``out`` must be (re)built, or None when it is up to date. The stamp holds the input
+    hash and the hash of the .fmu written, so a .fmu damaged or replaced since is rebuilt too."""
+    if not out.exists():
+        return "not built yet"
+    if not stamp.exists():
+        return "no build stamp"
+    recorded = stamp.read_text().split()
+    if len(recorded) != 2 or recorded[0] != digest:
+        return "its sources changed"
+    why = fmu_problem(out, out.stem)
+    if why:
+        return f"{out.name} is damaged ({why})"
+    if recorded[1] != file_hash(out):
+        return f"{out.name} changed since it was built"
+    return None
+
+
 def build(model: Path, force: bool = False) -> Path:
     name = model.name
     out = BUILD / f"{name}.fmu"
     stamp = BUILD / f"{name}.stamp"
     digest = input_hash(model)
-    if not force and out.exists() and stamp.exists() and stamp.read_text() == digest:
+    why = "--force" if force else stale_reason(out, stamp, digest)
+    if why is None:
         print(f"  {name}.fmu is up to date")
         return out
+    if out.exists():
+        print(f"  rebuilding {name}.fmu: {why}")
     BUILD.mkdir(exist_ok=True)
     sources = sources_of(model)
     with tempfile.TemporaryDirectory() as tmp:
@@ -106,16 +156,20 @@ def build(model: Path, force: bool = False) -> Path:
             entries[f"sources/{f.name}"] = f.read_bytes()
         for f in resources_of(model):
             entries["resources/" + f.relative_to(model / "resources").as_posix()] = f.read_bytes()
-        part = out.with_suffix(".fmu.part")
-        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-            for arc in sorted(entries):
-                info = zipfile.ZipInfo(arc, date_time=(2000, 1, 1, 0, 0, 0))
-                info.external_attr = (0o755 if arc.endswith(".so") else 0o644) << 16
-                info.compress_type = zipfile.ZIP_DEFLATED
-                z.writestr(info, entries[arc])
-        os.replace(part, out)   # never leave a half-written FMU under the final name
-    stamp.write_text(digest)
-    print(f"  built {out.relative_to(FMUS.parent)}")
+        # never a half-written FMU under the final name; a per-process temporary, removed if interrupted
+        part = out.with_name(f".{out.name}.{os.getpid()}.part")
+        try:
+            with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+                for arc in sorted(entries):
+                    info = zipfile.ZipInfo(arc, date_time=(2000, 1, 1, 0, 0, 0))
+                    info.external_attr = (0o755 if arc.endswith(".so") else 0o644) << 16
+                    info.compress_type = zipfile.ZIP_DEFLATED
+                    z.writestr(info, entries[arc])
+            os.replace(part, out)
+        finally:
+            part.unlink(missing_ok=True)
+    stamp.write_text(f"{digest} {file_hash(out)}\n")
+    print(f"  built {os.path.relpath(out, FMUS.parent)}")
     return out
 
 

@@ -3,6 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from harness.cli import CliError
+from harness.system import SystemError_
+
 REPO = Path(__file__).resolve().parent.parent
 
 
@@ -28,7 +31,10 @@ def main(args) -> int:
     res = {}
     for k, (what, fn) in enumerate(steps, 1):
         print(f"[{k}/{len(steps)}] {what} …", flush=True)
-        res[what] = fn()
+        try:
+            res[what] = fn()
+        except SystemError_ as e:   # a missing or corrupt FMU: one line, naming it
+            raise CliError(str(e)) from None
     (out / "REPORT.md").write_text(report(res))
     print(f"figures and REPORT.md in {out}")
     return compare_csvs(out, Path(args.compare)) if args.compare else 0

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import os
 import shutil
 import subprocess
 import tempfile
@@ -19,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.system import FMU_DIR, System, SystemError_
+from harness.system import FMU_DIR, System, SystemError_, check_fmu
 
 TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "Enumeration": 1}
 NATIVE_SRC = Path(__file__).with_name("native_master.c")
@@ -42,25 +43,23 @@ class Result:
 
 
 def _extract(fmu: Path) -> Path:
-    """Unzip an FMU once per content hash (FMUs are re-used across runs and processes)."""
-    fmu = Path(fmu)
-    if not fmu.exists():
-        raise SystemError_(f"{fmu}: FMU file not found (build with 'make fmus')")
+    """Unzip an FMU once per content hash (FMUs are re-used across runs and processes);
+    a missing or corrupt one is a SystemError_ naming it."""
+    fmu = check_fmu(fmu)
     digest = hashlib.sha256(fmu.read_bytes()).hexdigest()[:16]
     target = EXTRACT_DIR / f"{fmu.stem}-{digest}"
     if not (target / ".complete").exists():
-        tmp = Path(tempfile.mkdtemp(dir=EXTRACT_DIR.parent if EXTRACT_DIR.parent.exists() else None))
+        EXTRACT_DIR.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=EXTRACT_DIR))
         try:
             with zipfile.ZipFile(fmu) as z:
                 z.extractall(tmp)
-        except zipfile.BadZipFile:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise SystemError_(f"{fmu}: not a valid FMU (corrupt zip); rebuild with 'make fmus'") from None
-        (tmp / ".complete").write_text("ok")
-        EXTRACT_DIR.mkdir(parents=True, exist_ok=True)
-        try:
-            tmp.rename(target)
-        except OSError:   # another process got there first
+            (tmp / ".complete").write_text("ok")
+            try:
+                tmp.rename(target)
+            except OSError:   # another process got there first
+                pass
+        finally:   # an interrupted or failed extraction leaves no half-filled folder
             shutil.rmtree(tmp, ignore_errors=True)
     return target
 
@@ -76,7 +75,7 @@ class _Instance:
         try:
             md = read_model_description(str(unzip), validate=False)
         except Exception as e:
-            raise SystemError_(f"{comp.fmu}: unreadable modelDescription.xml: {e}") from None
+            raise SystemError_(f"{comp.fmu}: unreadable modelDescription.xml: {e}; rebuild with 'make fmus'") from None
         self.vars = {v.name: v for v in md.modelVariables}
         self.logs = logs
 
@@ -88,8 +87,13 @@ class _Instance:
         self.callbacks.logger = fmi2CallbackLoggerTYPE(logger)
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(unzip),
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=comp.name)
+        cwd = os.getcwd()
+        try:   # loads the shared library; fmpy raises a bare Exception when it cannot
+            self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(unzip),
+                                 modelIdentifier=md.coSimulation.modelIdentifier, instanceName=comp.name)
+        except Exception as e:
+            os.chdir(cwd)   # fmpy left the process in the FMU's binaries folder
+            raise SystemError_(f"{comp.fmu}: cannot load the FMU's binary ({e}); rebuild with 'make fmus'") from None
         try:
             self.fmu.instantiate(callbacks=self.callbacks, loggingOn=logging_on)
         except Exception as e:
@@ -252,12 +256,15 @@ def native_library() -> ctypes.CDLL:
         so = FMU_DIR / f"native_master-{hashlib.sha256(src).hexdigest()[:12]}.so"
         if not so.exists():
             FMU_DIR.mkdir(parents=True, exist_ok=True)
-            tmp = so.with_suffix(".so.part")
-            r = subprocess.run(["cc", "-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",
-                                "-o", str(tmp), str(NATIVE_SRC)], capture_output=True, text=True)
-            if r.returncode:
-                raise SystemError_(f"compiling {NATIVE_SRC.name} failed:\n{r.stderr}")
-            tmp.rename(so)
+            tmp = so.with_name(f".{so.name}.{os.getpid()}.part")   # two runs may compile it at once
+            try:
+                r = subprocess.run(["cc", "-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",
+                                    "-o", str(tmp), str(NATIVE_SRC)], capture_output=True, text=True)
+                if r.returncode:
+                    raise SystemError_(f"compiling {NATIVE_SRC.name} failed:\n{r.stderr}")
+                tmp.rename(so)
+            finally:
+                tmp.unlink(missing_ok=True)
         lib = ctypes.CDLL(str(so))
         lib.pkm_run.restype = ctypes.c_int
         lib.pkm_run.argtypes = [ctypes.c_int, ctypes.POINTER(_Comp), ctypes.c_int, ctypes.POINTER(ctypes.c_int),

@@ -22,7 +22,7 @@ import numpy as np
 from harness import metrics as M
 from harness.master import CoSimError, simulate
 from harness.record import atomic_write_bytes, write_command_csv, write_mcap, write_rrd
-from harness.system import SystemError_, chain, read_ssp, write_ssp
+from harness.system import SystemError_, chain, check_chain_fmus, read_ssp, write_ssp
 
 # Interpolator output → command; Kinematics → joints; EtherCAT → delivered targets; drives
 RECORD = (["interpolator.x", "interpolator.y", "interpolator.z", "interpolator.s", "interpolator.feed",
@@ -35,7 +35,7 @@ TAIL_S = 0.02   # co-simulate a little past the profile's end, so the drives set
 
 
 class RunError(Exception):
-    """A run cannot start (unknown machine/path/planner, unwritable output…)."""
+    """A run cannot start (unknown machine/path/planner, a missing or corrupt FMU, unwritable output…)."""
 
 
 def _clean(obj):
@@ -114,6 +114,10 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     unknown = [p for p in planner_names if p not in planners.PLANNERS]
     if unknown:
         raise RunError(f"unknown planner(s) {', '.join(unknown)}; valid: {', '.join(planners.PLANNERS)}")
+    try:
+        check_chain_fmus()
+    except SystemError_ as e:   # before anything is planned or removed: every planner would fail alike
+        raise RunError(str(e)) from None
     out_dir = Path(out_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)

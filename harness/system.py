@@ -9,6 +9,7 @@ harness runs what it reads back from those files, so other SSP tools load the sa
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,13 +55,73 @@ class System:
         raise SystemError_(f"no component '{name}' in the system")
 
 
+CHAIN_FMUS = ("Interpolator", "Kinematics", "EtherCAT", "Drive")
+
+
+def _shown(f: Path) -> Path:
+    return f.relative_to(REPO) if f.is_relative_to(REPO) else f
+
+
+def fmu_problem(fmu: Path, model: str | None = None) -> str | None:
+    """Why ``fmu`` is not a loadable FMU, or None: a zip whose members pass their CRC, whose
+    modelDescription.xml parses and names a co-simulation model (``model``, when given) whose
+    binary for this platform is inside."""
+    from fmpy import platform, sharedLibraryExtension
+
+    with open(fmu, "rb") as f:   # an unreadable file: OSError, for the caller to word
+        try:
+            with zipfile.ZipFile(f) as z:
+                if z.testzip() is not None:
+                    return "corrupt zip"
+                names = set(z.namelist())
+                if "modelDescription.xml" not in names:
+                    return "no modelDescription.xml"
+                xml = z.read("modelDescription.xml")
+        except Exception:   # whatever the zip reader raises on damaged bytes (BadZipFile, zlib, lzma…)
+            return "corrupt zip"
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError as e:
+        return f"modelDescription.xml does not parse: {e}"
+    cs = root.find("CoSimulation")
+    ident = cs.get("modelIdentifier") if cs is not None else None
+    if not ident:
+        return "modelDescription.xml has no co-simulation modelIdentifier"
+    if model and ident != model:
+        return f"modelDescription.xml names model '{ident}', not '{model}'"
+    binary = f"binaries/{platform}/{ident}{sharedLibraryExtension}"
+    if binary not in names:
+        return f"no {binary}"
+    return None
+
+
+def check_fmu(fmu: Path, model: str | None = None) -> Path:
+    """``fmu`` if it is a loadable FMU (:func:`fmu_problem`), else SystemError_ in one line:
+    the file, what is wrong and the command that rebuilds it."""
+    fmu = Path(fmu)
+    if not fmu.is_file():
+        raise SystemError_(f"{_shown(fmu)}: FMU file not found (build with 'make fmus')")
+    try:
+        why = fmu_problem(fmu, model)
+    except OSError as e:
+        why = f"cannot read it: {e.strerror}"
+    if why:
+        raise SystemError_(f"{_shown(fmu)}: not a valid FMU ({why}); rebuild with 'make fmus'")
+    return fmu
+
+
 def fmu_file(name: str) -> Path:
     f = FMU_DIR / f"{name}.fmu"
     if not f.exists():
-        shown = f.relative_to(REPO) if f.is_relative_to(REPO) else f
-        raise SystemError_(f"{shown} is missing: build the FMUs with 'make fmus' "
+        raise SystemError_(f"{_shown(f)} is missing: build the FMUs with 'make fmus' "
                            f"(or '.venv/bin/python fmus/build.py {name}')")
-    return f
+    return check_fmu(f, name)
+
+
+def check_chain_fmus() -> None:
+    """SystemError_ naming the first FMU of the chain that is missing or corrupt."""
+    for name in CHAIN_FMUS:
+        fmu_file(name)
 
 
 def kinematics_start(machine) -> dict:
