@@ -18,6 +18,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from harness.cli import CliError
+from harness.outdir import output_dir, output_file
 
 
 def add_arguments(p) -> None:
@@ -59,7 +60,6 @@ def main(args) -> int:
     from harness.sweep.suite import REPO
 
     task_fn = args.task or DEFAULT_TASK
-    out = Path(args.out)
     baseline_file = Path(args.baseline)
     baseline = None if args.update_baseline else _load_baseline(baseline_file)
     try:
@@ -74,6 +74,14 @@ def main(args) -> int:
             tolerances = ci.without_timing(tolerances)
     except SuiteError as e:
         raise CliError(str(e)) from None
+
+    # every file this command writes, checked before the suite runs for minutes
+    out = output_dir(args.out)
+    junit = output_file(args.junit or out / "junit.xml", "JUnit file")
+    mdfile = output_file(args.markdown or out / "summary.md", "summary file")
+    history_file = output_file(args.history or out / "history.sqlite", "history store")
+    if args.update_baseline:
+        output_file(baseline_file, "baseline file")
 
     t0 = time.perf_counter()
     reference_s = ci.reference_workload_s()
@@ -103,7 +111,6 @@ def main(args) -> int:
                    "code_version": version, "reference_s": reference_s, "host": ci.host_info(),
                    "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
                    "entries": entries}
-            baseline_file.parent.mkdir(parents=True, exist_ok=True)
             baseline_file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
             checks = ci.compare(doc, entries, errors, tolerances)
             passed = True
@@ -119,12 +126,9 @@ def main(args) -> int:
 
     md = ci.markdown_summary(checks, reference_s=reference_s, baseline_file=str(baseline_file),
                              suite_file=args.suite, wall_s=wall_s, tolerances=tolerances)
-    junit = Path(args.junit or out / "junit.xml")
-    mdfile = Path(args.markdown or out / "summary.md")
     for f, text in ((junit, ci.junit_xml(checks, wall_s)), (mdfile, md)):
-        f.parent.mkdir(parents=True, exist_ok=True)
         f.write_text(text)
-    with History(args.history or out / "history.sqlite") as h:
+    with History(history_file) as h:
         run_id = h.append(entries=entries, checks=checks, baseline_entries=base_entries,
                           mode="update-baseline" if args.update_baseline else "check",
                           passed=passed, reference_s=reference_s, wall_s=wall_s, suite=args.suite,

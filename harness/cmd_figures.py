@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from harness.cli import CliError
+from harness.outdir import output_dir
 from harness.system import SystemError_
 
 REPO = Path(__file__).resolve().parent.parent
@@ -19,7 +20,7 @@ def add_arguments(p):
 def main(args) -> int:
     from harness.figures import keops_paper, kossel_thesis, tii2022
 
-    out = Path(args.out)
+    out = output_dir(args.out)
     steps = [("KEOPS paper Figs. 5–6", lambda: keops_paper.figures(out, pso=not args.quick)),
              ("KEOPS flat bird at the workspace centre",
               lambda: keops_paper.figures(out / "bird_flat", "bird_flat", pso=False)),

@@ -9,6 +9,7 @@ import fnmatch
 from pathlib import Path
 
 from harness.cli import CliError
+from harness.outdir import output_file
 
 DEFAULT_METRICS = ["execution_time_s", "planning_time_ratio", "joint_peak_ratio.jerk"]
 
@@ -27,6 +28,7 @@ def main(args) -> int:
     hfile = Path(args.history)
     if not hfile.exists():
         raise CliError(f"{hfile}: no history yet; `pkmbench ci` appends to it")
+    out = output_file(args.out or hfile.with_name("trend.png"), "plot file")
     with History(hfile) as h:
         runs = h.runs()
         names = h.metric_names()
@@ -55,7 +57,6 @@ def main(args) -> int:
     if labels:
         fig.legend(handles, labels, loc="upper center", fontsize=6, ncol=2, bbox_to_anchor=(0.5, 1.0))
     fig.tight_layout(rect=(0, 0, 1, 0.9 if labels else 1))
-    out = Path(args.out or hfile.with_name("trend.png"))
     fig.savefig(out, dpi=110)
     plt.close(fig)
     print(f"history: {len(runs)} ci runs, {len(metrics)} metric(s) plotted → {out}")

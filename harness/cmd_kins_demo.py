@@ -2,9 +2,9 @@
 ranges over the workspace box — a first look at each machine's kinematics."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
+
+from harness.outdir import output_dir
 
 
 def add_arguments(p):
@@ -19,8 +19,7 @@ def main(args) -> int:
 
     from kins import available_machines, load_machine
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(args.out)
     names = args.machines.split(",") if args.machines else available_machines()
     for name in names:
         m = load_machine(name)

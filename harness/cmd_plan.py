@@ -2,9 +2,9 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 from harness.cli import CliError
+from harness.outdir import output_dir
 
 
 def add_arguments(p):
@@ -30,6 +30,7 @@ def main(args) -> int:
     bad = [n for n in names if n not in planners.PLANNERS]
     if bad:
         raise CliError(f"unknown planner(s) {', '.join(bad)}; valid: {', '.join(planners.PLANNERS)}")
+    out = output_dir(args.out) if args.out else None
     failed = 0
     print(f"{m.name} / {args.path}: {'planner':14s} {'exec s':>9s} {'plan s':>8s} {'joint v/a/j':>22s} {'feasible':>9s}")
     for name in names:
@@ -43,8 +44,8 @@ def main(args) -> int:
         j = met["joint_peak_ratio"]
         print(f"  {name:14s} {prof.execution_time_s:9.4f} {prof.planning_time_s:8.3f} "
               f"{j['velocity']:6.3f} {j['acceleration']:6.3f} {j['jerk']:7.3f} {'yes' if met['feasible'] else 'NO':>9s}")
-        if args.out:
-            d = Path(args.out) / name
+        if out:
+            d = out / name
             d.mkdir(parents=True, exist_ok=True)
             prof.save_csv(d / "profile.csv")
             prof.path.to_file(d / "path.json")

@@ -15,6 +15,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from harness.cli import CliError
+from harness.outdir import output_dir
 
 COLUMNS = ["planner", "seed", "execution time s", "÷ optimal", "feasible", "joint v", "joint a",
            "joint j", "following µm", "contour µm", "planning s", "status"]
@@ -93,6 +94,7 @@ def main(args) -> int:
     db = sweep / "results.sqlite"
     if not db.exists():
         raise CliError(f"{sweep}: not a sweep folder (no results.sqlite); run `pkmbench sweep` first")
+    out = output_dir(args.out or sweep / "report", "report folder")
     with SweepStore(db) as store:
         rows = store.to_rows()
     if not rows:
@@ -102,8 +104,6 @@ def main(args) -> int:
     for r in rows:
         latest[(r["machine"], r["path"], r["planner"], r["seed"], r["preset"], r["variation"])] = r
     groups = build(list(latest.values()), args.reference)
-    out = Path(args.out or sweep / "report")
-    out.mkdir(parents=True, exist_ok=True)
     n_ok = sum(r["status"] == "ok" for r in latest.values())
     md = [f"# pkmbench sweep report — `{sweep}`", "",
           f"{len(latest)} runs, {n_ok} ok, {len(latest) - n_ok} failed. Joint ratios are peak "

@@ -6,6 +6,7 @@ import tomllib
 from pathlib import Path
 
 from harness.cli import CliError
+from harness.outdir import output_dir
 
 JITTER_PRESETS = ("none", "linuxcnc_rt_preempt", "tuned_rt")
 REPO = Path(__file__).resolve().parent.parent
@@ -101,6 +102,7 @@ def main(args) -> int:
     if args.jitter and args.jitter not in JITTER_PRESETS:
         raise CliError(f"unknown jitter preset '{args.jitter}'; valid: {', '.join(JITTER_PRESETS)}")
     cases, out = cases_of(args)
+    output_dir(out)
     failed = 0
     for machine, path, planners, opts in cases:
         odir = out if len(cases) == 1 else out / f"{Path(machine).stem}_{Path(path).stem}"

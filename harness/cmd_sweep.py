@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from harness.cli import CliError
+from harness.outdir import output_dir
 
 
 def add_arguments(p) -> None:
@@ -38,7 +39,7 @@ def main(args) -> int:
         tasks = tasks_from_suite_file(args.suite)
     except SuiteError as e:
         raise CliError(str(e)) from None
-    out = Path(args.out or Path("results") / "sweeps" / Path(args.suite).stem)
+    out = output_dir(args.out or Path("results") / "sweeps" / Path(args.suite).stem, "sweep folder")
     try:
         res = run_sweep(tasks, out, task_fn=args.task or DEFAULT_TASK, workers=args.workers,
                         scheduler=args.scheduler, processes=not args.threads, force=args.force,

@@ -21,6 +21,7 @@ import numpy as np
 
 from harness import metrics as M
 from harness.master import CoSimError, simulate
+from harness.outdir import OutDirError, output_dir
 from harness.record import atomic_write_bytes, write_command_csv, write_mcap, write_rrd
 from harness.system import SystemError_, chain, check_chain_fmus, read_ssp, write_ssp
 
@@ -120,12 +121,9 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         raise RunError(str(e)) from None
     out_dir = Path(out_dir)
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        probe = out_dir / ".write-test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as e:
-        raise RunError(f"cannot write to output folder {out_dir}: {e.strerror}") from None
+        output_dir(out_dir)
+    except OutDirError as e:
+        raise RunError(str(e)) from None
     for stale in ("summary.json", "timing.json"):
         (out_dir / stale).unlink(missing_ok=True)   # no old result may look like this run's
 

@@ -129,7 +129,7 @@ def test_bad_run_arguments(tmp_path):
             ro.chmod(0o700)
             ro.rmdir()
             ro.write_text("a file")
-        with pytest.raises(RunError, match="cannot write to output folder"):
+        with pytest.raises(RunError, match="cannot (write to|create) output folder .*ro/out"):
             run_case("keops", "bird", ["scurve"], ro / "out")
     finally:
         if ro.is_dir():
