@@ -7,15 +7,30 @@ from __future__ import annotations
 
 import json
 import os
+import uuid
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 
+@contextmanager
+def replacing(path: Path):
+    """A temporary name beside ``path`` for the body to write; renamed to ``path`` when the body
+    ends, removed if it raises (KeyboardInterrupt too). The name is unique per process and call,
+    so two writers of one file never write into each other's temporary."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}.part")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def atomic_write_bytes(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    with replacing(path) as tmp:
+        tmp.write_bytes(data)
 
 
 def write_command_csv(path: Path, t, P, Q) -> None:
@@ -47,8 +62,7 @@ def write_mcap(path: Path, channels: dict[str, dict[str, np.ndarray]]) -> None:
     """
     from mcap.writer import Writer
 
-    tmp = Path(str(path) + ".part")
-    with open(tmp, "wb") as f:
+    with replacing(path) as tmp, open(tmp, "wb") as f:
         w = Writer(f)
         w.start(profile="", library="pkmbench")
         for topic, cols in channels.items():
@@ -63,7 +77,6 @@ def write_mcap(path: Path, channels: dict[str, dict[str, np.ndarray]]) -> None:
                 msg = "{" + ",".join(f'"{k}":{v!r}' for k, v in zip(names, row.tolist())) + "}"
                 w.add_message(channel_id=cid, log_time=ns, data=msg.encode(), publish_time=ns, sequence=seq)
         w.finish()
-    os.replace(tmp, path)
 
 
 def read_mcap(path: Path) -> dict[str, dict[str, np.ndarray]]:
@@ -85,29 +98,28 @@ def write_rrd(path: Path, machine, t, P_cmd, Q_cmd, joint_ratio_per_sample, deri
     import rerun as rr
 
     rec = rr.RecordingStream("pkmbench", recording_id=f"pkmbench-{machine.name}")
-    tmp = Path(str(path) + ".part")
-    rec.save(str(tmp))
-    # toolpath coloured green (ratio 0) → red (ratio ≥ 1)
-    r = np.clip(np.asarray(joint_ratio_per_sample, float), 0, 1)
-    colors = np.column_stack([255 * r, 255 * (1 - r), np.full_like(r, 40)]).astype(np.uint8)
-    rec.log("machine/toolpath", rr.Points3D(P_cmd, colors=colors, radii=0.3), static=True)
-    carriage, effector = machine.joint_points(P_cmd[:: max(1, len(P_cmd) // frames)])
-    idx = np.arange(0, len(P_cmd), max(1, len(P_cmd) // frames))
-    base = np.concatenate([carriage[:, :, :].min(axis=0), carriage.max(axis=0)])  # the rails' extent
-    rec.log("machine/rails", rr.LineStrips3D([[base[k], base[k + 3]] for k in range(3)], colors=[90, 90, 90]), static=True)
-    for f, i in enumerate(idx[: len(carriage)]):
-        rec.set_time("t", duration=float(t[i]))
-        rec.log("machine/carriages", rr.Points3D(carriage[f], radii=4.0, colors=[60, 120, 220]))
-        rec.log("machine/rods", rr.LineStrips3D([[carriage[f, k], effector[f, k]] for k in range(3)], colors=[200, 200, 200]))
-        rec.log("machine/effector", rr.Points3D(P_cmd[i][None], radii=5.0, colors=[230, 160, 30]))
-    lim = {"velocity": machine.limits.joint.v, "acceleration": machine.limits.joint.a, "jerk": machine.limits.joint.j}
-    for order, D in derivs.items():
-        n = len(D)
-        times = rr.TimeColumn("t", duration=np.asarray(t[-n:], float))
-        for k in range(3):
-            rec.send_columns(f"joints/{order}/q{k + 1}", indexes=[times], columns=rr.Scalars.columns(scalars=D[:, k]))
-        rec.send_columns(f"joints/{order}/limit", indexes=[times], columns=rr.Scalars.columns(scalars=np.full(n, lim[order])))
-        rec.send_columns(f"joints/{order}/-limit", indexes=[times], columns=rr.Scalars.columns(scalars=np.full(n, -lim[order])))
-    rec.flush()
-    rec.disconnect()
-    os.replace(tmp, path)
+    with replacing(path) as tmp:
+        rec.save(str(tmp))
+        # toolpath coloured green (ratio 0) → red (ratio ≥ 1)
+        r = np.clip(np.asarray(joint_ratio_per_sample, float), 0, 1)
+        colors = np.column_stack([255 * r, 255 * (1 - r), np.full_like(r, 40)]).astype(np.uint8)
+        rec.log("machine/toolpath", rr.Points3D(P_cmd, colors=colors, radii=0.3), static=True)
+        carriage, effector = machine.joint_points(P_cmd[:: max(1, len(P_cmd) // frames)])
+        idx = np.arange(0, len(P_cmd), max(1, len(P_cmd) // frames))
+        base = np.concatenate([carriage[:, :, :].min(axis=0), carriage.max(axis=0)])  # the rails' extent
+        rec.log("machine/rails", rr.LineStrips3D([[base[k], base[k + 3]] for k in range(3)], colors=[90, 90, 90]), static=True)
+        for f, i in enumerate(idx[: len(carriage)]):
+            rec.set_time("t", duration=float(t[i]))
+            rec.log("machine/carriages", rr.Points3D(carriage[f], radii=4.0, colors=[60, 120, 220]))
+            rec.log("machine/rods", rr.LineStrips3D([[carriage[f, k], effector[f, k]] for k in range(3)], colors=[200, 200, 200]))
+            rec.log("machine/effector", rr.Points3D(P_cmd[i][None], radii=5.0, colors=[230, 160, 30]))
+        lim = {"velocity": machine.limits.joint.v, "acceleration": machine.limits.joint.a, "jerk": machine.limits.joint.j}
+        for order, D in derivs.items():
+            n = len(D)
+            times = rr.TimeColumn("t", duration=np.asarray(t[-n:], float))
+            for k in range(3):
+                rec.send_columns(f"joints/{order}/q{k + 1}", indexes=[times], columns=rr.Scalars.columns(scalars=D[:, k]))
+            rec.send_columns(f"joints/{order}/limit", indexes=[times], columns=rr.Scalars.columns(scalars=np.full(n, lim[order])))
+            rec.send_columns(f"joints/{order}/-limit", indexes=[times], columns=rr.Scalars.columns(scalars=np.full(n, -lim[order])))
+        rec.flush()
+        rec.disconnect()

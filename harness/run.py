@@ -8,6 +8,8 @@ Per planner: plan (offline) → ``NAME/path.json`` + ``NAME/profile.csv`` → th
 ``NAME/command.csv``, ``NAME/run.mcap``, ``NAME/run.rrd``. Then ``summary.json`` (metrics;
 deterministic: same inputs and seed ⇒ same bytes) and ``timing.json`` (wall times).
 A planner or co-simulation that fails is recorded with its reason; the others go on.
+The folder is locked for the run (a second run into it is refused); the summary of an
+earlier run, and its planner folders this run does not redo, are removed first.
 """
 from __future__ import annotations
 
@@ -21,8 +23,8 @@ import numpy as np
 
 from harness import metrics as M
 from harness.master import CoSimError, simulate
-from harness.outdir import OutDirError, output_dir
-from harness.record import atomic_write_bytes, write_command_csv, write_mcap, write_rrd
+from harness.outdir import OutDirError, output_dir, run_lock
+from harness.record import atomic_write_bytes, replacing, write_command_csv, write_mcap, write_rrd
 from harness.system import SystemError_, chain, check_chain_fmus, read_ssp, write_ssp
 
 # Interpolator output → command; Kinematics → joints; EtherCAT → delivered targets; drives
@@ -32,11 +34,15 @@ RECORD = (["interpolator.x", "interpolator.y", "interpolator.z", "interpolator.s
           + [f"ethercat.q{k}_target" for k in (1, 2, 3)]
           + [f"drive{k}.{v}" for k in (1, 2, 3) for v in ("position", "velocity", "current", "following_error", "fault")])
 
+# every file a run writes into a planner folder (stale_planner_dirs removes only such folders)
+PLANNER_FILES = {"path.json", "profile.csv", "SystemStructure.ssd", "SystemStructure.ssv", "lateness.csv",
+                 "command.csv", "run.mcap", "run.rrd"}
 TAIL_S = 0.02   # co-simulate a little past the profile's end, so the drives settle
 
 
 class RunError(Exception):
-    """A run cannot start (unknown machine/path/planner, a missing or corrupt FMU, unwritable output…)."""
+    """A run cannot start (unknown machine/path/planner, a missing or corrupt FMU, an output
+    folder that cannot be written or that another run holds)."""
 
 
 def _clean(obj):
@@ -121,11 +127,23 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         raise RunError(str(e)) from None
     out_dir = Path(out_dir)
     try:
-        output_dir(out_dir)
+        with run_lock(output_dir(out_dir)):
+            return _run(machine, path, path_name, planner_names, out_dir, seed=seed, jitter=jitter, ideal=ideal,
+                        engine=engine, jacobi=jacobi, planner_options=planner_options, recordings=recordings,
+                        progress=progress)
     except OutDirError as e:
         raise RunError(str(e)) from None
-    for stale in ("summary.json", "timing.json"):
-        (out_dir / stale).unlink(missing_ok=True)   # no old result may look like this run's
+
+
+def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter, ideal, engine, jacobi,
+         planner_options, recordings, progress) -> dict:
+    """run_case's work, with the folder locked: nothing of an earlier run may look like this one's."""
+    import planners
+
+    for stale in ("summary.json", "timing.json", "comparison.png"):
+        (out_dir / stale).unlink(missing_ok=True)
+    for d in stale_planner_dirs(out_dir, planner_names):
+        shutil.rmtree(d)
 
     summary = {"machine": machine.name, "path": path_name, "servo_period_s": machine.servo_period_s,
                "seed": seed, "jitter": jitter or "machine default", "ideal_chain": ideal, "planners": {}}
@@ -167,6 +185,22 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     return summary
 
 
+def stale_planner_dirs(out_dir: Path, keep) -> list[Path]:
+    """Planner folders of an earlier run in ``out_dir`` that are not among ``keep``: folders
+    holding a planner's command or profile and nothing but files a run writes (a folder with
+    anything else in it is the user's, and stays)."""
+    out = []
+    for d in sorted(out_dir.iterdir()):
+        if d.name in keep or not d.is_dir() or d.is_symlink():
+            continue
+        files = list(d.iterdir())
+        ours = all(f.is_file() and not f.is_symlink() and (f.name in PLANNER_FILES or f.name.endswith(".part"))
+                   for f in files)
+        if ours and any(f.name in ("command.csv", "profile.csv", "run.mcap") for f in files):
+            out.append(d)
+    return out
+
+
 def comparison_plot(summary: dict, file: Path) -> None:
     """Execution time and worst joint-limit ratios per planner, side by side."""
     import matplotlib
@@ -191,10 +225,11 @@ def comparison_plot(summary: dict, file: Path) -> None:
     for a in (a1, a2):
         a.tick_params(axis="x", rotation=30)
     fig.tight_layout()
-    tmp = file.with_name(file.name + ".part.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(file)
+    try:
+        with replacing(file) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    finally:
+        plt.close(fig)
 
 
 def _recordings(pdir: Path, machine, res, P, Q) -> None:

@@ -1,15 +1,24 @@
-"""Output folders (issue 17, defect 3): every command refuses an output folder it cannot
-write with one line before any work."""
+"""Output folders (issue 17, defects 3 and 4): every command refuses an output folder it cannot
+write with one line before any work; `run` locks its folder, leaves no temporary or stale
+file when interrupted, and removes the planner folders of an earlier run that it did not redo."""
+import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from harness.cli import main
-from harness.outdir import OutDirError, output_dir
+from harness.outdir import LOCK_NAME, OutDirError, output_dir, run_lock
+from harness.record import replacing
+from harness.system import FMU_DIR
 
 ROOT = Path(__file__).resolve().parent.parent
 SHORT_LINE = str(ROOT / "tests" / "data" / "short_line.json")
+needs_fmus = pytest.mark.skipif(not all((FMU_DIR / f"{n}.fmu").exists()
+                                        for n in ("Interpolator", "Kinematics", "EtherCAT", "Drive")),
+                                reason="FMUs not built (make fmus)")
 
 
 def run_argv(out, planners="scurve"):
@@ -93,3 +102,91 @@ def test_unwritable_output_folder(tmp_path, capsys, monkeypatch):
     finally:
         ro.chmod(0o700)
     assert list(ro.iterdir()) == []
+
+
+def test_temporary_names_are_unique_and_removed(tmp_path):
+    f = tmp_path / "summary.json"
+    with replacing(f) as a, replacing(f) as b:       # two writers of one file at once
+        assert a != b and a.parent == b.parent == tmp_path
+        a.write_text("first")
+        b.write_text("second")
+    assert f.read_text() == "first"                   # the outer writer finished last
+    with pytest.raises(KeyboardInterrupt):
+        with replacing(f) as c:
+            c.write_text("half")
+            raise KeyboardInterrupt
+    assert f.read_text() == "first"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
+
+
+def test_lock_is_exclusive_between_processes_and_removed(tmp_path):
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time\nfrom harness.outdir import run_lock\n"
+        f"with run_lock({str(tmp_path)!r}):\n    print('held', flush=True)\n    sys.stdin.readline()\n")],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)})
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(OutDirError, match=f"{tmp_path}: another pkmbench run is writing to this folder "
+                                              rf"\(pid {holder.pid} holds {LOCK_NAME}\)"):
+            with run_lock(tmp_path):
+                pass
+    finally:
+        holder.communicate("\n", timeout=30)
+    assert holder.returncode == 0
+    assert not (tmp_path / LOCK_NAME).exists()
+    with run_lock(tmp_path):                          # free again once the holder is done
+        assert (tmp_path / LOCK_NAME).read_text() == f"{os.getpid()}\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+@needs_fmus
+def test_second_run_into_a_locked_folder_is_refused(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    with run_lock(out):                               # another run holds the folder
+        assert main(run_argv(out)) == 2
+    line = one_error_line(capsys, "run")
+    assert line == (f"pkmbench run: error: {out}: another pkmbench run is writing to this folder "
+                    f"(pid {os.getpid()} holds {LOCK_NAME}); wait for it or choose another --out")
+    assert list(out.iterdir()) == []                  # nothing planned, nothing written
+
+
+@needs_fmus
+def test_interrupted_run_leaves_no_part_and_nothing_complete(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "out"
+    assert main(run_argv(out)) == 0                   # an earlier, complete run
+    assert (out / "summary.json").exists()
+
+    import harness.run
+
+    def interrupted(path, *a, **k):                   # Ctrl-C while command.csv is being written
+        with replacing(path) as tmp:
+            tmp.write_text("t,x,y,z,q1,q2,q3\n0,")
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(harness.run, "write_command_csv", interrupted)
+    assert main(run_argv(out)) == 130
+    assert "pkmbench run: interrupted" in capsys.readouterr().err
+    files = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
+    assert not [f for f in files if f.endswith(".part") or LOCK_NAME in f], files
+    assert "summary.json" not in files and "timing.json" not in files   # the old ones are gone too
+    assert "scurve/command.csv" not in files
+
+
+@needs_fmus
+def test_rerun_with_fewer_planners_removes_their_old_folders(tmp_path):
+    out = tmp_path / "out"
+    assert main(run_argv(out, "scurve,trapezoid")) == 0
+    assert (out / "trapezoid" / "command.csv").exists()
+    mine = out / "notes"                                       # folders a run did not write stay
+    mine.mkdir()
+    (mine / "command.csv").write_text("my own")
+    (mine / "todo.txt").write_text("keep")
+    assert main(run_argv(out, "scurve")) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert list(summary["planners"]) == ["scurve"]
+    dirs = sorted(p.name for p in out.iterdir() if p.is_dir())
+    assert dirs == ["notes", "scurve"]
+    assert (mine / "todo.txt").read_text() == "keep"
+    assert not (out / LOCK_NAME).exists()
