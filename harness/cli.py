@@ -61,4 +61,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # `python -m harness.cli`: this file runs as __main__, but the commands raise the CliError
+    # of the module harness.cli, so run that module's main
+    from harness.cli import main as _main
+    sys.exit(_main())

@@ -97,9 +97,14 @@ def table(summary: dict) -> str:
 
 def main(args) -> int:
     from harness.run import RunError, run_case
+    from harness.seed import SeedError, check_seed
 
     if args.jitter and args.jitter not in JITTER_PRESETS:
         raise CliError(f"unknown jitter preset '{args.jitter}'; valid: {', '.join(JITTER_PRESETS)}")
+    try:
+        check_seed(args.seed, "--seed")
+    except SeedError as e:
+        raise CliError(str(e)) from None
     cases, out = cases_of(args)
     failed = 0
     for machine, path, planners, opts in cases:

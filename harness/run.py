@@ -22,6 +22,7 @@ import numpy as np
 from harness import metrics as M
 from harness.master import CoSimError, simulate
 from harness.record import atomic_write_bytes, write_command_csv, write_mcap, write_rrd
+from harness.seed import SeedError, check_seed
 from harness.system import SystemError_, chain, read_ssp, write_ssp
 
 # Interpolator output → command; Kinematics → joints; EtherCAT → delivered targets; drives
@@ -114,6 +115,13 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     unknown = [p for p in planner_names if p not in planners.PLANNERS]
     if unknown:
         raise RunError(f"unknown planner(s) {', '.join(unknown)}; valid: {', '.join(planners.PLANNERS)}")
+    try:
+        seed = check_seed(seed)
+        for name, opts in (planner_options or {}).items():
+            if "seed" in opts:
+                check_seed(opts["seed"], f"planner_options.{name}.seed")
+    except SeedError as e:
+        raise RunError(str(e)) from None
     out_dir = Path(out_dir)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)

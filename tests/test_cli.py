@@ -1,0 +1,80 @@
+"""Issue 17: seeds, console output, help/version, portable SSP folders."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.cli import main as cli
+from harness.system import FMU_DIR
+
+DATA = Path(__file__).parent / "data"
+LINE = str(DATA / "short_line.json")
+needs_fmus = pytest.mark.skipif(not all((FMU_DIR / f"{n}.fmu").exists()
+                                        for n in ("Interpolator", "Kinematics", "EtherCAT", "Drive")),
+                                reason="FMUs not built (make fmus)")
+
+
+# -- seeds ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", ["-1", str(2**64)])
+def test_run_refuses_a_seed_outside_0_to_2_pow_64(seed, tmp_path, capsys):
+    assert cli(["run", "--machine", "keops", "--path", LINE, "--planners", "scurve",
+                "--seed", seed, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"pkmbench run: error: --seed = {seed}: a seed must be an integer with 0 <= seed < 2**64"
+    assert not (tmp_path / "o").exists()
+
+
+def test_suite_task_and_api_seeds_are_checked(tmp_path, capsys):
+    from harness.run import RunError, run_case
+    from harness.sweep import SuiteError, make_task
+    from harness.sweep.suite import MACHINE_DIR
+
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'[[run]]\nmachine = "keops"\npath = "{LINE}"\nplanners = ["scurve"]\n'
+                     "[sweep]\nseeds = [0, -1]\n")
+    assert cli(["sweep", str(suite), "--workers", "0", "--out", str(tmp_path / "o")]) == 2
+    assert f"{suite}: [sweep] seeds[1] = -1: a seed must be" in capsys.readouterr().err
+    suite.write_text(f'[[run]]\nmachine = "keops"\npath = "{LINE}"\nplanners = ["pso"]\n'
+                     f"[planner_options.pso]\nseed = {2**64}\n")
+    assert cli(["sweep", str(suite), "--workers", "0", "--out", str(tmp_path / "o")]) == 2
+    assert "[planner_options.pso] seed = 18446744073709551616" in capsys.readouterr().err
+    with pytest.raises(SuiteError, match="seed = -3"):
+        make_task(MACHINE_DIR / "keops.toml", Path(LINE), "scurve", seed=-3)
+    with pytest.raises(RunError, match=r"seed = True: a seed must be an integer"):
+        run_case("keops", LINE, ["scurve"], tmp_path / "r", seed=True)
+    with pytest.raises(RunError, match="planner_options.pso.seed = -2"):
+        run_case("keops", LINE, ["pso"], tmp_path / "r", planner_options={"pso": {"seed": -2}})
+
+
+def test_fmu_seed_keeps_32_bit_seeds_and_hashes_larger_ones():
+    from harness.drive_params import ethercat_start_values
+    from harness.seed import fmu_seed
+
+    # < 2³²: the same 32 bits as before (the FMU reads its Integer as unsigned)
+    assert [fmu_seed(s) for s in (0, 1, 2**31 - 1, 2**31, 3_000_000_000, 2**32 - 1)] == \
+        [0, 1, 2**31 - 1, -2**31, 3_000_000_000 - 2**32, -1]
+    # ≥ 2³²: SeedSequence's first 32-bit word, not the low 32 bits (2³² used to wrap to seed 0)
+    big = fmu_seed(2**32)
+    assert big % 2**32 == int(np.random.SeedSequence(2**32).generate_state(1, np.uint32)[0]) != 0
+    assert fmu_seed(2**64 - 1) == fmu_seed(2**64 - 1) and -2**31 <= fmu_seed(2**64 - 1) < 2**31
+    assert ethercat_start_values("keops", seed=2**32)["seed"] == big
+
+
+@needs_fmus
+def test_a_64_bit_seed_reaches_the_bus_and_the_sweep_store(tmp_path):
+    """Seed 2³² drew the bus lateness of seed 0 (ctypes wrapped it); 2⁶⁴ − 1 overflowed SQLite."""
+    from harness.sweep import SweepStore, run_sweep
+    from harness.sweep.suite import expand
+
+    suite = {"run": [{"machine": "keops", "path": LINE, "planners": ["trapezoid"]}],
+             "sweep": {"seeds": [0, 2**32, 2**64 - 1], "presets": ["tuned_rt"]}}
+    res = run_sweep(expand(suite), tmp_path, workers=0, progress=False)
+    assert (res.ok, res.failed) == (3, 0), res.failures
+    rows = SweepStore(tmp_path / "results.sqlite").to_rows()
+    assert sorted(r["seed"] for r in rows) == [0, 2**32, 2**64 - 1]
+    hist = {s: next(tmp_path.glob(f"runs/**/seed{s}/trapezoid/trapezoid/lateness.csv")).read_text()
+            for s in (0, 2**32)}
+    assert hist[0].splitlines()[0] == hist[2**32].splitlines()[0]      # the same cycles …
+    assert hist[0] != hist[2**32]                                      # … other draws
