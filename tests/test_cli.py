@@ -1,12 +1,16 @@
 """Issue 17: seeds, console output, help/version, portable SSP folders."""
 from __future__ import annotations
 
+import json
+import shutil
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from harness.cli import main as cli
+from harness.record import read_command_csv
 from harness.system import FMU_DIR
 
 DATA = Path(__file__).parent / "data"
@@ -78,3 +82,36 @@ def test_a_64_bit_seed_reaches_the_bus_and_the_sweep_store(tmp_path):
             for s in (0, 2**32)}
     assert hist[0].splitlines()[0] == hist[2**32].splitlines()[0]      # the same cycles …
     assert hist[0] != hist[2**32]                                      # … other draws
+
+
+# -- SSP -----------------------------------------------------------------------------------
+@needs_fmus
+def test_a_run_folder_moved_elsewhere_loads_in_the_harness_and_in_fmpy(tmp_path):
+    """The SSP files name the FMUs and the run's files relative to the folder (resources/)."""
+    from fmpy.ssp.ssd import read_ssd
+
+    from harness.master import simulate
+    from harness.run import RECORD
+    from harness.system import read_ssp
+
+    assert cli(["run", "--machine", "keops", "--path", LINE, "--planners", "scurve",
+                "--out", str(tmp_path / "a"), "--no-recordings"]) == 0
+    moved = shutil.move(tmp_path / "a", tmp_path / "elsewhere" / "b")
+    pdir = Path(moved) / "scurve"
+    assert str(tmp_path / "a") not in (pdir / "SystemStructure.ssd").read_text() + \
+        (pdir / "SystemStructure.ssv").read_text()
+    res = simulate(read_ssp(pdir / "SystemStructure.ssd"), RECORD)
+    P = read_command_csv(pdir / "command.csv")[:, 1:4]          # t, x, y, z, q1, q2, q3
+    assert len(P) > 500
+    np.testing.assert_array_equal(np.column_stack([res[f"interpolator.{a}"] for a in "xyz"])[:len(P)], P)
+    # the folder zipped is an .ssp that fmpy reads, every component's FMU inside it
+    ssp = tmp_path / "run.ssp"
+    with zipfile.ZipFile(ssp, "w") as z:
+        for f in pdir.rglob("*"):
+            z.write(f, f.relative_to(pdir).as_posix())
+    names = set(zipfile.ZipFile(ssp).namelist())
+    comps = read_ssd(str(ssp), validate=True).system.elements
+    assert len(comps) == 6 and {c.source for c in comps} == {"resources/Interpolator.fmu", "resources/Kinematics.fmu",
+                                                             "resources/EtherCAT.fmu", "resources/Drive.fmu"}
+    assert all(c.source in names for c in comps)
+    assert json.loads((Path(moved) / "summary.json").read_text())["planners"]["scurve"]["feasible"] is True
