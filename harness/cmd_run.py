@@ -84,7 +84,7 @@ def table(summary: dict) -> str:
              f"  {'planner':14s}" + "".join(f"{c:>11s}" for c in cols)]
     for name, m in summary["planners"].items():
         if "error" in m:
-            lines.append(f"  {name:14s}  {m['error'][:110]}")
+            lines.append(f"  {name:14s}  {m['error']}")
             continue
         j, c = m["joint_peak_ratio"], m["cartesian_peak_ratio"]
         f = lambda v, fmt="{:.3f}": ("—" if v is None else fmt.format(v))  # noqa: E731
@@ -93,6 +93,15 @@ def table(summary: dict) -> str:
                 f(m["max_following_error_um"], "{:.1f}"), f(m["max_contour_error_um"], "{:.1f}")]
         lines.append(f"  {name:14s}" + "".join(f"{v:>11s}" for v in vals))
     return "\n".join(lines)
+
+
+def _written(odir: Path, summary: dict) -> str:
+    """The per-planner files this run wrote (a failed planner or --no-recordings writes fewer)."""
+    names = [f for f in ("command.csv", "run.mcap", "run.rrd")
+             if any((odir / p / f).exists() for p in summary["planners"])]
+    hints = [h for f, h in (("run.rrd", "open the .rrd with 'rerun'"), ("run.mcap", "the .mcap with Foxglove"))
+             if f in names]
+    return (f"; per planner: {', '.join(names)}" if names else "") + (f" ({', '.join(hints)})" if hints else "")
 
 
 def main(args) -> int:
@@ -119,6 +128,5 @@ def main(args) -> int:
         sys.stderr.write("\r" + " " * 60 + "\r")
         print(table(summary))
         failed += sum("error" in m for m in summary["planners"].values())
-        print(f"  results: {odir}/summary.json; per planner: command.csv, run.mcap, run.rrd "
-              f"(open the .rrd with 'rerun', the .mcap with Foxglove)\n")
+        print(f"  results: {odir}/summary.json{_written(odir, summary)}\n")
     return 1 if failed else 0

@@ -115,3 +115,16 @@ def test_a_run_folder_moved_elsewhere_loads_in_the_harness_and_in_fmpy(tmp_path)
                                                              "resources/EtherCAT.fmu", "resources/Drive.fmu"}
     assert all(c.source in names for c in comps)
     assert json.loads((Path(moved) / "summary.json").read_text())["planners"]["scurve"]["feasible"] is True
+
+
+# -- console ---------------------------------------------------------------------------------
+@needs_fmus
+def test_run_prints_whole_errors_and_names_only_the_files_it_wrote(tmp_path, capsys):
+    """The error was cut at 110 characters; mcap/rrd were announced with --no-recordings."""
+    assert cli(["run", "--machine", "kossel", "--path", LINE, "--planners", "trapezoid,scurve",
+                "--out", str(tmp_path), "--no-recordings"]) == 1        # trapezoid fails
+    out = capsys.readouterr().out
+    err = json.loads((tmp_path / "summary.json").read_text())["planners"]["trapezoid"]["error"]
+    assert len(err) > 110 and f"  trapezoid       {err}\n" in out
+    assert f"results: {tmp_path}/summary.json; per planner: command.csv\n" in out
+    assert (tmp_path / "scurve/command.csv").exists() and not list(tmp_path.rglob("run.*"))
