@@ -128,3 +128,34 @@ def test_run_prints_whole_errors_and_names_only_the_files_it_wrote(tmp_path, cap
     assert len(err) > 110 and f"  trapezoid       {err}\n" in out
     assert f"results: {tmp_path}/summary.json; per planner: command.csv\n" in out
     assert (tmp_path / "scurve/command.csv").exists() and not list(tmp_path.rglob("run.*"))
+
+
+# -- help and version --------------------------------------------------------------------------
+def test_help_is_a_whole_sentence_and_lists_every_command(capsys):
+    """The description was the docstring's first line, cut mid-sentence ('… with')."""
+    from harness.cli import COMMANDS, DESCRIPTION
+    with pytest.raises(SystemExit) as e:
+        cli(["--help"])
+    assert e.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert " ".join(DESCRIPTION.split()) in out and DESCRIPTION.endswith(".")
+    assert not out.split("positional arguments")[0].rstrip().endswith(" with")
+    for name, (_, help_, _) in COMMANDS.items():
+        assert f"{name} {' '.join(help_.split())}" in out
+
+
+def test_version_prints_the_package_version_and_git_commit(capsys):
+    import subprocess
+    from importlib.metadata import version
+    repo = Path(__file__).resolve().parent.parent
+    with pytest.raises(SystemExit) as e:
+        cli(["--version"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out.strip()
+    head = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short=12", "HEAD"],
+                          capture_output=True, text=True)
+    expect = f"pkmbench {version('pkmbench')}"
+    if head.returncode == 0:                     # a git checkout: its commit follows
+        assert out.startswith(f"{expect} (git {head.stdout.strip()}") and out.endswith(")")
+    else:
+        assert out == expect
