@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import zipfile
 from pathlib import Path
@@ -159,3 +160,30 @@ def test_version_prints_the_package_version_and_git_commit(capsys):
         assert out.startswith(f"{expect} (git {head.stdout.strip()}") and out.endswith(")")
     else:
         assert out == expect
+
+
+# -- README --------------------------------------------------------------------------------------
+README = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+
+
+def test_readme_lists_every_command_and_reports_on_the_sweeps_default_folder():
+    from harness.cli import COMMANDS
+    commands = README.split("## Commands")[1].split("```")[1]
+    for name in COMMANDS:
+        assert f"\npkmbench {name} " in commands, name
+    # `sweep S.toml` writes results/sweeps/<suite stem>: the report example must read there
+    assert "pkmbench sweep benchmarks/suites/nightly.toml" in commands
+    assert "pkmbench report results/sweeps/nightly " in commands
+
+
+@needs_fmus
+def test_readme_output_files_names_every_file_a_run_writes(tmp_path):
+    assert cli(["run", "--machine", "keops", "--path", LINE, "--planners", "scurve",
+                "--out", str(tmp_path), "--jitter", "tuned_rt"]) == 0
+    section = README.split("## Output files")[1].split("\n## ")[0]
+    written = sorted(f.relative_to(tmp_path).as_posix().replace("scurve/", "<planner>/")
+                     for f in tmp_path.rglob("*") if f.is_file())
+    assert len(written) >= 14
+    for name in written:
+        shown = re.sub(r"resources/\w+\.fmu", "resources/*.fmu", name).replace("SystemStructure.ssv", "SystemStructure.ssd`, `.ssv")
+        assert f"`{shown}`" in section, name
