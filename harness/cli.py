@@ -6,7 +6,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import subprocess
 import sys
+from pathlib import Path
+
+DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics machines through FMI "
+               "co-simulation FMUs (interpolator, kinematics, EtherCAT, drives) and compare their "
+               "execution time, joint-limit ratios and following/contour errors.")
 
 # name → (module, one-line help, issue that builds it)
 COMMANDS = {
@@ -26,8 +32,41 @@ class CliError(Exception):
     """A user-facing error: printed as one line, exit code 2."""
 
 
+def version_string() -> str:
+    """'pkmbench VERSION (git COMMIT)': the installed package's version and, in a git checkout,
+    the commit of this code (``+dirty`` when tracked files differ from it)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        ver = version("pkmbench")
+    except PackageNotFoundError:
+        ver = "(not installed)"
+    repo = Path(__file__).resolve().parent.parent
+    try:
+        git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], capture_output=True,  # noqa: E731
+                                        text=True, timeout=10)
+        head = git("rev-parse", "--short=12", "HEAD")
+        commit = head.stdout.strip() if head.returncode == 0 else ""
+        if commit and git("status", "--porcelain", "--untracked-files=no").stdout.strip():
+            commit += "+dirty"
+    except (OSError, subprocess.TimeoutExpired):     # no git on this machine
+        commit = ""
+    return f"pkmbench {ver}" + (f" (git {commit})" if commit else "")
+
+
+class _Version(argparse.Action):
+    """--version, computed only when asked (it runs git)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="print the version and git commit, then exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_string())
+        parser.exit()
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="pkmbench", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="pkmbench", description=DESCRIPTION)
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = {}
     for name, (modname, help_, issue) in COMMANDS.items():
@@ -61,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    # `python -m harness.cli` runs this file as __main__, but the commands raise
-    # harness.cli.CliError: go through that module so its `except CliError` matches.
+    # `python -m harness.cli`: this file runs as __main__, but the commands raise the CliError
+    # of the module harness.cli, so run that module's main
     from harness.cli import main as _main
     sys.exit(_main())

@@ -11,7 +11,7 @@ def add_arguments(p):
     p.add_argument("--machine", required=True, help="machine id or .toml file")
     p.add_argument("--path", required=True, help="toolpath id or .json/.ngc file")
     p.add_argument("--planners", default="scurve", help="comma-separated planners (default: %(default)s)")
-    p.add_argument("--out", default=None, help="folder for NAME/profile.csv + NAME/path.json (default: print only)")
+    p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
 
 
 def main(args) -> int:

@@ -19,7 +19,7 @@ def add_arguments(p):
     p.add_argument("--planners", default="trapezoid,scurve,scurve_joint,pso,toppra,optimal",
                    help="comma-separated planners (default: %(default)s)")
     p.add_argument("--out", default=None, help="output folder (default: results/<machine>_<path> or results/<suite>)")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random draw (default: 0)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the EtherCAT jitter draws, 0 <= SEED < 2**64 (default: 0)")
     p.add_argument("--jitter", default=None, help=f"EtherCAT preset: {', '.join(JITTER_PRESETS)} (default: the machine file's)")
     p.add_argument("--ideal", action="store_true", help="ideal chain: no jitter, no delay, ideal drives")
     p.add_argument("--engine", choices=("native", "python"), default="native", help="co-simulation master")
@@ -85,7 +85,7 @@ def table(summary: dict) -> str:
              f"  {'planner':14s}" + "".join(f"{c:>11s}" for c in cols)]
     for name, m in summary["planners"].items():
         if "error" in m:
-            lines.append(f"  {name:14s}  {m['error'][:110]}")
+            lines.append(f"  {name:14s}  {m['error']}")
             continue
         j, c = m["joint_peak_ratio"], m["cartesian_peak_ratio"]
         f = lambda v, fmt="{:.3f}": ("—" if v is None else fmt.format(v))  # noqa: E731
@@ -96,11 +96,25 @@ def table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def _written(odir: Path, summary: dict) -> str:
+    """The per-planner files this run wrote (a failed planner or --no-recordings writes fewer)."""
+    names = [f for f in ("command.csv", "run.mcap", "run.rrd")
+             if any((odir / p / f).exists() for p in summary["planners"])]
+    hints = [h for f, h in (("run.rrd", "open the .rrd with 'rerun'"), ("run.mcap", "the .mcap with Foxglove"))
+             if f in names]
+    return (f"; per planner: {', '.join(names)}" if names else "") + (f" ({', '.join(hints)})" if hints else "")
+
+
 def main(args) -> int:
     from harness.run import RunError, run_case
+    from harness.seed import SeedError, check_seed
 
     if args.jitter and args.jitter not in JITTER_PRESETS:
         raise CliError(f"unknown jitter preset '{args.jitter}'; valid: {', '.join(JITTER_PRESETS)}")
+    try:
+        check_seed(args.seed, "--seed")
+    except SeedError as e:
+        raise CliError(str(e)) from None
     cases, out = cases_of(args)
     output_dir(out)
     failed = 0
@@ -116,6 +130,5 @@ def main(args) -> int:
         sys.stderr.write("\r" + " " * 60 + "\r")
         print(table(summary))
         failed += sum("error" in m for m in summary["planners"].values())
-        print(f"  results: {odir}/summary.json; per planner: command.csv, run.mcap, run.rrd "
-              f"(open the .rrd with 'rerun', the .mcap with Foxglove)\n")
+        print(f"  results: {odir}/summary.json{_written(odir, summary)}\n")
     return 1 if failed else 0

@@ -24,8 +24,7 @@ def add_arguments(p) -> None:
     p.add_argument("--threads", action="store_true",
                    help="local workers as threads of this process instead of processes")
     p.add_argument("--task", default=None, metavar="MODULE:FUNCTION",
-                   help="task function (default: the full co-simulation run, or planning only "
-                        "until the harness provides it)")
+                   help="task function (default: harness.sweep.tasks:default_task, the full co-simulation)")
     p.add_argument("--force", action="store_true", help="re-run tasks that are already done")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from harness.seed import fmu_seed
 from kins import load_machine
 from kins.machine import Kinematics, MachineFileError
 
@@ -163,7 +164,9 @@ def ethercat_start_values(machine: str | Path | Kinematics, *, histogram_out: st
             p = Path(__file__).resolve().parent.parent / p
         out["histogram_file"] = str(p)
     if seed is not None:
-        out["seed"] = int(seed)
+        out["seed"] = seed
+    if "seed" in out:   # the FMU's 32-bit Integer (harness/seed.py)
+        out["seed"] = fmu_seed(out["seed"], f"machine '{m.name}' [ethercat] seed" if seed is None else "seed")
     if histogram_out:
         out["histogram_out"] = str(histogram_out)
     return out

@@ -25,6 +25,7 @@ from harness import metrics as M
 from harness.master import CoSimError, simulate
 from harness.outdir import OutDirError, output_dir, run_lock
 from harness.record import atomic_write_bytes, replacing, write_command_csv, write_mcap, write_rrd
+from harness.seed import SeedError, check_seed
 from harness.system import SystemError_, chain, check_chain_fmus, read_ssp, write_ssp
 
 # Interpolator output → command; Kinematics → joints; EtherCAT → delivered targets; drives
@@ -121,6 +122,13 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     unknown = [p for p in planner_names if p not in planners.PLANNERS]
     if unknown:
         raise RunError(f"unknown planner(s) {', '.join(unknown)}; valid: {', '.join(planners.PLANNERS)}")
+    try:
+        seed = check_seed(seed)
+        for name, opts in (planner_options or {}).items():
+            if "seed" in opts:
+                check_seed(opts["seed"], f"planner_options.{name}.seed")
+    except SeedError as e:
+        raise RunError(str(e)) from None
     try:
         check_chain_fmus()
     except SystemError_ as e:   # before anything is planned or removed: every planner would fail alike

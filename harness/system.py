@@ -5,6 +5,10 @@ DESIGN.md chain, every servo period T:
   Drive position ─q_act─► Kinematics (FK)
 A run writes its system as ``SystemStructure.ssd`` + ``SystemStructure.ssv`` (SSP 1.0) and the
 harness runs what it reads back from those files, so other SSP tools load the same system.
+The folder is self-contained, as an unzipped .ssp: the FMUs are copied to ``resources/`` and
+every path in the two files that lies in the folder is relative to it, so the folder can be
+moved, or zipped into an .ssp for ``fmpy.ssp``. (A latency ``histogram_file`` outside the
+folder stays absolute.)
 """
 from __future__ import annotations
 
@@ -19,6 +23,10 @@ FMU_DIR = REPO / "fmus" / "build"
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
       "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues"}
+
+
+# String parameters that name files: relative to the .ssd's folder when they lie in it
+FILE_PARAMS = ("path_file", "profile_file", "histogram_file", "histogram_out")
 
 
 class SystemError_(ValueError):
@@ -183,9 +191,13 @@ def _type_of(value) -> str:
 def write_ssp(system: System, out_dir: Path) -> Path:
     """Write SystemStructure.ssd (components, connectors, connections, experiment) and
     SystemStructure.ssv (every start value). Returns the .ssd path."""
+    import shutil
+
     from fmpy import read_model_description
 
     out_dir = Path(out_dir)
+    resources = out_dir / "resources"
+    resources.mkdir(parents=True, exist_ok=True)
     ET.register_namespace("ssd", NS["ssd"])
     ET.register_namespace("ssc", NS["ssc"])
     ET.register_namespace("ssv", NS["ssv"])
@@ -199,9 +211,12 @@ def write_ssp(system: System, out_dir: Path) -> Path:
     for comp in system.components:
         md = read_model_description(str(comp.fmu), validate=False)
         variables = {v.name: v for v in md.modelVariables}
+        local = resources / Path(comp.fmu).name
+        if not local.exists() or local.resolve() != Path(comp.fmu).resolve():
+            shutil.copyfile(comp.fmu, local)
         el = ET.SubElement(elements, q("ssd", "Component"),
                            {"name": comp.name, "type": "application/x-fmu-sharedlibrary",
-                            "source": str(comp.fmu)})
+                            "source": f"resources/{local.name}"})
         if comp.period_steps != 1:
             el.set("description", f"period_steps={comp.period_steps}")
         cons = ET.SubElement(el, q("ssd", "Connectors"))
@@ -232,6 +247,9 @@ def write_ssp(system: System, out_dir: Path) -> Path:
         for var, value in comp.start.items():
             p = ET.SubElement(params, q("ssv", "Parameter"), {"name": f"{comp.name}.{var}"})
             t = _type_of(value)
+            if var in FILE_PARAMS and value:   # relative to the folder, else absolute (read_ssp's rule)
+                f = Path(value).resolve()
+                value = f.relative_to(out_dir.resolve()).as_posix() if f.is_relative_to(out_dir.resolve()) else str(f)
             text = (("true" if value else "false") if t == "Boolean" else repr(value) if t == "Real" else str(value))
             ET.SubElement(p, q("ssv", t), {"value": text})
     ET.indent(pset)
@@ -251,7 +269,7 @@ def read_ssp(ssd: Path) -> System:
             desc = el.get("description") or ""
             if desc.startswith("period_steps="):
                 k = int(desc.split("=", 1)[1])
-            comps.append(Component(el.get("name"), Path(el.get("source")), {}, k))
+            comps.append(Component(el.get("name"), ssd.parent / el.get("source"), {}, k))
         conns = [Connection(c.get("startElement"), c.get("startConnector"), c.get("endElement"), c.get("endConnector"))
                  for c in sysel.find("ssd:Connections", NS).findall("ssd:Connection", NS)]
         de = root.find("ssd:DefaultExperiment", NS)
@@ -264,6 +282,8 @@ def read_ssp(ssd: Path) -> System:
             (val_el,) = list(p)
             tag = val_el.tag.split("}")[1]
             raw = val_el.get("value")
+            if tag == "String" and var in FILE_PARAMS and raw and not Path(raw).is_absolute():
+                raw = str(ssd.parent / raw)         # the FMUs open files from the process's folder
             by_name[comp].start[var] = (raw == "true" if tag == "Boolean" else int(raw) if tag == "Integer"
                                         else float(raw) if tag == "Real" else raw)
     except (ET.ParseError, AttributeError, KeyError, ValueError, TypeError) as e:

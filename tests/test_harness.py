@@ -11,7 +11,7 @@ import planners
 from harness.master import CoSimError, simulate
 from harness.record import read_command_csv, read_mcap
 from harness.run import RECORD, RunError, cosimulate, run_case
-from harness.system import FMU_DIR, SystemError_, chain, read_ssp, write_ssp
+from harness.system import FILE_PARAMS, FMU_DIR, SystemError_, chain, read_ssp, write_ssp
 from kins import load_machine
 from planners.path import Line, SegmentPath
 
@@ -59,7 +59,8 @@ def test_ssp_round_trip(keops, short_profile, tmp_path):
     back = read_ssp(write_ssp(system, tmp_path))
     assert [c.name for c in back.components] == [c.name for c in system.components]
     for a, b in zip(system.components, back.components):
-        assert a.start == b.start and a.fmu == b.fmu
+        assert a.start == b.start                  # file parameters back to absolute paths
+        assert b.fmu == tmp_path / "resources" / a.fmu.name and b.fmu.read_bytes() == a.fmu.read_bytes()
     assert [(c.src, c.src_var, c.dst, c.dst_var) for c in back.connections] == \
            [(c.src, c.src_var, c.dst, c.dst_var) for c in system.connections]
     assert back.step_size == system.step_size and back.stop_time == system.stop_time
@@ -173,8 +174,8 @@ def test_fmpy_ssp_reproduces_the_jacobi_run(keops, short_profile, tmp_path, monk
     """FMPy's own SSP master, on the SSP the harness writes, gives the harness's Jacobi run.
 
     Two gaps in fmpy.ssp are bridged here, not in the harness: it cannot set String parameters
-    (the Interpolator's files) or Boolean values read from an .ssv, and it starts every
-    connector at 0.0 — so the runs agree once the four-stage pipeline has filled (an ideal
+    (the Interpolator's files, named relative to the SSP's folder) or Boolean values read from
+    an .ssv, and it starts every connector at 0.0 — so the runs agree once the four-stage pipeline has filled (an ideal
     chain, where a 0 mm start target does not fault a drive). fmpy logs row i after step i.
     """
     import fmpy.ssp.simulation as S
@@ -183,22 +184,19 @@ def test_fmpy_ssp_reproduces_the_jacobi_run(keops, short_profile, tmp_path, monk
     short_profile.path.to_file(tmp_path / "p.json")
     short_profile.save_csv(tmp_path / "p.csv")
     system = chain(keops, tmp_path / "p.json", tmp_path / "p.csv", 0.05, ideal=True)
-    ssd = write_ssp(system, tmp_path)
-    text = ssd.read_text()
-    for c in system.components:
-        text = text.replace(f'source="{c.fmu}"', f'source="resources/{c.fmu.name}"')
+    ssd = write_ssp(system, tmp_path)          # the folder as an .ssp: its FMUs are in resources/
     ssp = tmp_path / "chain.ssp"
     with zipfile.ZipFile(ssp, "w") as z:
-        z.writestr("SystemStructure.ssd", text)
+        z.write(ssd, "SystemStructure.ssd")
         z.write(tmp_path / "SystemStructure.ssv", "SystemStructure.ssv")
-        for f in {c.fmu for c in system.components}:
+        for f in (tmp_path / "resources").iterdir():
             z.write(f, f"resources/{f.name}")
     plain = S.set_value
 
     def set_value(component, name, value):
         v = component.variables[name]
-        if v.type == "String":
-            component.fmu.setString([v.valueReference], [str(value)])
+        if v.type == "String":               # file names in the .ssv are relative to its folder
+            component.fmu.setString([v.valueReference], [str(tmp_path / value) if name in FILE_PARAMS else str(value)])
         elif v.type == "Boolean" and isinstance(value, str):
             component.fmu.setBoolean([v.valueReference], [value == "true"])
         else:

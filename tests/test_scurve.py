@@ -178,3 +178,22 @@ def test_helix_one_long_segment_keeps_the_cartesian_limits():
     p = scurve.plan(path, KEOPS)
     r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)
     assert max(r["cartesian_peak_ratio"].values()) <= 1 + 1e-6
+
+
+def test_cruise_over_an_axis_velocity_limit_is_repaired_without_a_numpy_warning():
+    """Issue 17: an axis velocity limit below the feed ceiling makes the middle of three
+    collinear lines a cruise that breaks only v (its a and j ratios are 0). The repair's
+    scale used 0 ** -0.5, a divide-by-zero RuntimeWarning on the console; now the zero ratios
+    bound nothing, and the cruise ends below the checked v limit (200 mm/s × (1 − margin))."""
+    import dataclasses
+    import warnings
+
+    lim = dataclasses.replace(KEOPS.limits, feed_max=400.0,
+                              cartesian=dataclasses.replace(KEOPS.limits.cartesian, v=200.0))
+    path = SegmentPath([Line([x, 0, -400], [x + 40, 0, -400]) for x in (-60.0, -20.0, 20.0)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        p = scurve.plan(path, KEOPS, lim)
+    assert p.info["repairs"] >= 1
+    assert 190.0 < p.sd.max() <= 200.0 * 0.995
+    assert p.execution_time_s > 120.0 / 200.0

@@ -208,3 +208,30 @@ def test_fmus_reach_dask_workers_as_files(tmp_path, monkeypatch):
     row, = SweepStore(tmp_path / "o/results.sqlite").to_rows()
     assert row["metrics"]["execution_time_s"] == 1236.0
     assert row["worker"].rsplit(":", 1)[1] != str(__import__("os").getpid())   # another process
+
+
+def dying_task(task, out_dir):
+    """Kills its worker process the first time it runs (a marker file remembers), then succeeds."""
+    marker = Path(task["planner_options"]["marker"])
+    if not marker.exists():
+        marker.write_text("died once")
+        __import__("os")._exit(1)
+    return {"execution_time_s": 1.0, "feasible": True}
+
+
+def test_a_killed_worker_is_reported_with_its_task_and_the_sweep_completes(tmp_path):
+    """Dask re-ran a dead worker's task silently; now a warning names the task and the worker."""
+    (tmp_path / "line.json").write_text(json.dumps(LINE))
+    suite = {"run": [{"machine": "keops", "path": str(tmp_path / "line.json"), "planners": ["quintic"]}],
+             "planner_options": {"quintic": {"marker": str(tmp_path / "died")}}}
+    from harness.sweep import expand
+    said = []
+    r = run_sweep(expand(suite), tmp_path / "o", task_fn=f"{__name__}:dying_task", workers=2,
+                  progress=False, log=said.append)
+    assert (r.ok, r.failed) == (1, 0), r.failures
+    assert (tmp_path / "died").read_text() == "died once"
+    warn = [s for s in said if "warning" in s]
+    assert len(warn) == 1, said
+    assert warn[0].startswith("sweep: warning: worker tcp://127.0.0.1:")
+    assert warn[0].endswith("died while running keops/line/quintic/seed0/none/base; "
+                            "dask runs that task again on another worker")

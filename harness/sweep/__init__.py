@@ -191,6 +191,15 @@ def _connect(scheduler: str | None, workers: int, processes: bool):
     return Client(cluster), cluster
 
 
+def _worker_lost(msg, labels: dict, log) -> None:
+    """Warn of each sweep task that was running on a worker the scheduler lost."""
+    if not isinstance(msg, dict) or msg.get("action") != "remove-worker" or msg.get("expected"):
+        return
+    for k in sorted(k for k in msg.get("processing-tasks", ()) if k in labels):
+        log(f"sweep: warning: worker {msg.get('worker')} died while running {labels[k]}; "
+            f"dask runs that task again on another worker")
+
+
 def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_TASK,
               workers: int = 2, scheduler: str | None = None, processes: bool = True,
               force: bool = False, progress: bool = True, log=None) -> SweepResult:
@@ -249,11 +258,15 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
                                          f"harness/FMU hash differs from this checkout); update them")
                 fmus = _fmu_payload()
                 fmus_ref = client.scatter([fmus], broadcast=True)[0] if fmus else None
-                futures = {}
+                futures, labels = {}, {}
+                # dask re-runs the tasks of a worker that died without telling the client:
+                # the scheduler's remove-worker event names them, so the user hears of it
+                client.subscribe_topic("all", lambda event: _worker_lost(event[1], labels, log))
                 for key, task in todo:
                     f = client.submit(execute_task, task_fn, task, fmus_ref, pure=False,
                                       key=f"pkmbench-{key[:16]}-{uuid.uuid4().hex[:8]}")
                     futures[f] = (key, task)
+                    labels[f.key] = task_label(task)
                 from distributed import as_completed
                 for f in as_completed(futures):
                     key, task = futures[f]

@@ -21,7 +21,7 @@ CREATE TABLE IF NOT EXISTS results (
     machine       TEXT NOT NULL,
     path          TEXT NOT NULL,
     planner       TEXT NOT NULL,
-    seed          INTEGER NOT NULL,
+    seed          INTEGER NOT NULL,   -- signed 64-bit: a seed >= 2**63 is stored as seed - 2**64
     preset        TEXT NOT NULL,
     variation     TEXT NOT NULL,      -- variation name
     task          TEXT NOT NULL,      -- the whole task, JSON
@@ -50,6 +50,11 @@ def _finite_json(obj) -> str:
                 check(v, f"{where}[{i}]")
     check(obj, "")
     return json.dumps(obj, sort_keys=True, allow_nan=False)
+
+
+def _sql_int64(n: int) -> int:
+    """SQLite integers are signed 64-bit; seeds go up to 2**64 - 1 (the task JSON keeps them exact)."""
+    return n - 2**64 if n >= 2**63 else n
 
 
 class SweepStore:
@@ -88,7 +93,7 @@ class SweepStore:
         with self.db:
             self.db.execute(
                 "INSERT OR REPLACE INTO results VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-                (key, task["machine"], task["path"], task["planner"], int(task["seed"]),
+                (key, task["machine"], task["path"], task["planner"], _sql_int64(int(task["seed"])),
                  task["preset"], task["variation"]["name"], json.dumps(task, sort_keys=True),
                  status, error, tb, metrics_json, result.get("elapsed_s"), result.get("worker"),
                  code_version, run_dir))
@@ -102,6 +107,7 @@ class SweepStore:
         for r in cur:
             row = dict(zip(cols, r))
             row["task"] = json.loads(row["task"])
+            row["seed"] = row["task"]["seed"]          # exact, whatever the column holds
             row["metrics"] = json.loads(row["metrics"]) if row["metrics"] else None
             rows.append(row)
         return rows

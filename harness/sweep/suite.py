@@ -10,7 +10,7 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
     [planner_options.pso]        # optional, passed to the planner
     iterations = 40
     [sweep]                      # optional axes, crossed with every run
-    seeds = [0, 1]               # default [0]
+    seeds = [0, 1]               # default [0]; each 0 <= seed < 2**64
     presets = ["none", "tuned_rt"]  # EtherCAT jitter presets ("machine" = the machine file's), default ["none"]
     [[sweep.variation]]          # default: one variation "base" that changes nothing
     name = "jerk_half"
@@ -25,6 +25,8 @@ import hashlib
 import json
 import tomllib
 from pathlib import Path
+
+from harness.seed import SeedError, check_seed
 
 REPO = Path(__file__).resolve().parents[2]
 MACHINE_DIR = REPO / "benchmarks" / "machines"
@@ -103,8 +105,16 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     seeds = sweep.get("seeds", [0])
     presets = sweep.get("presets", ["none"])
     variations = sweep.get("variation", [{"name": "base"}])
-    if not (isinstance(seeds, list) and seeds and all(isinstance(s, int) and not isinstance(s, bool) for s in seeds)):
+    if not (isinstance(seeds, list) and seeds):
         raise SuiteError(f"{src}: [sweep] seeds must be a non-empty list of integers, got {seeds!r}")
+    try:
+        for i, s in enumerate(seeds):
+            check_seed(s, f"{src}: [sweep] seeds[{i}]")
+        for name, opts in suite.get("planner_options", {}).items():
+            if isinstance(opts, dict) and "seed" in opts:
+                check_seed(opts["seed"], f"{src}: [planner_options.{name}] seed")
+    except SeedError as e:
+        raise SuiteError(str(e)) from None
     if not (isinstance(presets, list) and presets and all(isinstance(s, str) for s in presets)):
         raise SuiteError(f"{src}: [sweep] presets must be a non-empty list of names, got {presets!r}")
     names = set()
@@ -145,6 +155,10 @@ def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
               preset: str = "none", variation: dict | None = None,
               planner_options: dict | None = None) -> dict:
     """One task dict (the task-function interface, see harness.sweep)."""
+    try:
+        seed = check_seed(seed)
+    except SeedError as e:
+        raise SuiteError(str(e)) from None
     return {
         "machine": machine_file.stem, "machine_file": _rel(machine_file),
         "path": path_file.stem, "path_file": _rel(path_file),
