@@ -183,9 +183,11 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
             rep.findings += _group("singularity", vals > 0, vals, lines, machine.cond_max, "",
                                    "Jacobian condition number")
             continue
-        for ln in sorted({int(lines[f.index]) for f in fs}):
-            mine = [f for f in fs if lines[f.index] == ln]
-            worst = max(mine, key=lambda f: abs(f.value - f.limit))
+        by_line: dict[int, list] = {}          # one pass (a scan of fs per line was quadratic)
+        for f in fs:
+            by_line.setdefault(int(lines[f.index]), []).append(f)
+        for ln in sorted(by_line):
+            worst = max(by_line[ln], key=lambda f: abs(f.value - f.limit))
             at = P[worst.index]
             where = f"at ({at[0]:.4g}, {at[1]:.4g}, {at[2]:.4g}) mm"
             if kind == "unreachable":
