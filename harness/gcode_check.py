@@ -65,7 +65,7 @@ class Report:
             if _badness(f) > _badness(r["worst"]):
                 r["worst"] = f
         out = []
-        for r in sorted(rows.values(), key=lambda r: (r["severity"] != "error", -_badness(r["worst"]), r["kind"])):
+        for r in sorted(rows.values(), key=lambda r: (r["severity"] != "error", -_badness(r["worst"])[0], r["kind"])):
             w = r["worst"]
             out.append({"kind": r["kind"], "severity": r["severity"], "count": r["count"],
                         "lines": len(r["lines"]), "worst_value": w.value, "limit": w.limit, "unit": w.unit,
@@ -90,7 +90,7 @@ class Report:
                                            for f in self.findings if f.kind == "compile")
         if not self.findings:
             return head + f"\n  clean: {self.stats.get('moves', 0)} moves, {self.stats.get('samples', 0)} samples checked"
-        n_lines = len({ln for f in self.findings for ln in (f.lines or [0])})
+        n_lines = len({ln for f in self.findings for ln in f.lines})
         out = [head, f"  {self.errors} error(s), {len(self.findings) - self.errors} warning(s) "
                      f"on {n_lines} line(s)"]
         for r in self.summary():
@@ -98,9 +98,9 @@ class Report:
                      f", worst {abs(r['worst_value']):.6g} {r['unit']} against {r['limit']:g} {r['unit']}"
                      + (f" (ratio {r['worst_ratio']:.3f})" if r["worst_ratio"] is not None else ""))
             out.append(f"    {r['kind']:<22} {r['severity']:<7} {r['count']:>7} on {r['lines']} line(s)"
-                       f"{worst} at line {r['worst_line']}")
+                       + worst + (f" at line {r['worst_line']}" if r["worst_line"] else ""))
         entries = _runs(self.findings) if limit is not None else [[f] for f in self.findings]
-        entries.sort(key=lambda run: (-max(_badness(f) for f in run), _first_line(run[0]), run[0].kind))
+        entries.sort(key=lambda run: (tuple(-x for x in max(_badness(f) for f in run)), _first_line(run[0]), run[0].kind))
         shown = entries if limit is None else entries[:limit]
         out.append("  worst first:" if limit is None or len(entries) <= limit else
                    f"  worst first ({len(shown)} of {len(entries)} entries):")
@@ -114,10 +114,11 @@ class Report:
 
 
 
-def _badness(f: Finding) -> float:
-    """Ratio of the worst value to its limit (1 when the finding has no such ratio)."""
+def _badness(f: Finding) -> tuple[float, float]:
+    """Ratio of the worst value to its limit (1 when the finding has no such ratio), then the
+    value itself (a box excess in mm has a limit of 0: no ratio, but a larger one is worse)."""
     r = _ratio(f)
-    return 1.0 if r is None else r
+    return (1.0 if r is None else r, 0.0 if f.value is None else abs(f.value))
 
 
 def _ratio(f: Finding) -> float | None:
@@ -229,7 +230,7 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
         raise CheckError(f"{file}: no such file")
     # 1. compile
     try:
-        prog = read_gcode(file)
+        prog = read_gcode(file, home=machine.home)      # a one-move program starts there
         path = program_path(prog)
     except GCodeError as e:
         rep.invalid = True
@@ -246,6 +247,7 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
     P = path.point(s)
     lines = _lines_of(path, s)
     found = machine.check(P)
+    box_excess = np.maximum(np.maximum(machine.workspace_min - P, P - machine.workspace_max), 0.0).max(axis=1)
     bad_geometry = False
     for kind in ("unreachable", "stroke", "singularity", "box"):
         fs = [f for f in found if f.kind == kind]
@@ -263,7 +265,10 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
         for f in fs:
             by_line.setdefault(int(lines[f.index]), []).append(f)
         for ln in sorted(by_line):
-            worst = max(by_line[ln], key=lambda f: abs(f.value - f.limit))
+            if kind == "box":      # kins gives no distance: the farthest point outside is the worst
+                worst = max(by_line[ln], key=lambda f: box_excess[f.index])
+            else:
+                worst = max(by_line[ln], key=lambda f: abs(f.value - f.limit))
             at = P[worst.index]
             where = f"at ({at[0]:.4g}, {at[1]:.4g}, {at[2]:.4g}) mm"
             if kind == "unreachable":
@@ -274,8 +279,8 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
                        f"{worst.limit:g} mm by {abs(worst.value - worst.limit):.4g} mm {where}")
                 val, lim = worst.value, worst.limit
             else:
-                msg = f"outside the workspace box {where}"
-                val, lim = None, None
+                val, lim = float(box_excess[worst.index]), 0.0
+                msg = f"outside the workspace box by {val:.4g} mm {where}"
             rep.findings.append(Finding(kind, "error", [ln], val, lim, "mm", msg))
     if bad_geometry:
         rep.stats["dynamics"] = "skipped: the path leaves the workspace"
