@@ -8,6 +8,10 @@ from and the worst value against the limit.
 
     report = check_program("part.ngc", load_machine("kossel"))
     print(report.text()); exit(report.exit_code)      # 0 clean, 1 findings, 2 invalid
+
+The text report gives a summary per kind first, then the 50 worst entries (text(limit=None):
+every finding); report.to_json() holds every finding, "parsed" (it compiled) and "valid"
+(parsed and no error finding: exit code 0).
 """
 from __future__ import annotations
 
