@@ -8,6 +8,10 @@ from and the worst value against the limit.
 
     report = check_program("part.ngc", load_machine("kossel"))
     print(report.text()); exit(report.exit_code)      # 0 clean, 1 findings, 2 invalid
+
+The text report gives a summary per kind first, then the 50 worst entries (text(limit=None):
+every finding); report.to_json() holds every finding, "parsed" (it compiled) and "valid"
+(parsed and no error finding: exit code 0).
 """
 from __future__ import annotations
 
@@ -21,6 +25,7 @@ import numpy as np
 from harness import metrics as M
 
 EXIT_CLEAN, EXIT_FINDINGS, EXIT_INVALID = 0, 1, 2
+TEXT_LIMIT = 50          # entries of the default text report (--all: every finding)
 
 
 @dataclass
@@ -47,35 +52,111 @@ class Report:
     def exit_code(self) -> int:
         if self.invalid:
             return EXIT_INVALID
-        return EXIT_FINDINGS if any(f.severity == "error" for f in self.findings) else EXIT_CLEAN
+        return EXIT_FINDINGS if self.errors else EXIT_CLEAN
+
+    @property
+    def errors(self) -> int:
+        return sum(f.severity == "error" for f in self.findings)
+
+    def summary(self) -> list[dict]:
+        """Per (kind, severity): count, lines, and the worst finding (value against limit)."""
+        rows: dict[tuple, dict] = {}
+        for f in self.findings:
+            r = rows.setdefault((f.kind, f.severity), {"kind": f.kind, "severity": f.severity, "count": 0,
+                                                       "lines": set(), "worst": f})
+            r["count"] += 1
+            r["lines"].update(f.lines)
+            if _badness(f) > _badness(r["worst"]):
+                r["worst"] = f
+        out = []
+        for r in sorted(rows.values(), key=lambda r: (r["severity"] != "error", -_badness(r["worst"])[0], r["kind"])):
+            w = r["worst"]
+            out.append({"kind": r["kind"], "severity": r["severity"], "count": r["count"],
+                        "lines": len(r["lines"]), "worst_value": w.value, "limit": w.limit, "unit": w.unit,
+                        "worst_ratio": _ratio(w), "worst_line": w.lines[0] if w.lines else 0})
+        return out
 
     def to_json(self) -> str:
+        # every finding, and fields that cannot be misread: "valid" means no error at all
         d = {"program": self.program, "machine": self.machine, "planner": self.planner,
-             "valid": not self.invalid, "exit_code": self.exit_code, "stats": self.stats,
+             "parsed": not self.invalid, "valid": self.exit_code == EXIT_CLEAN,
+             "errors": self.errors, "warnings": len(self.findings) - self.errors,
+             "exit_code": self.exit_code, "stats": self.stats, "summary": self.summary(),
              "findings": [asdict(f) for f in self.findings]}
         return json.dumps(d, indent=2, sort_keys=True)
 
-    def text(self) -> str:
+    def text(self, limit: int | None = TEXT_LIMIT) -> str:
+        """Summary per kind, then the findings worst first: consecutive lines of one kind merged
+        into a range and at most ``limit`` entries (None: every finding, one per line)."""
         head = f"{self.program}: {self.machine}, planner {self.planner}"
         if self.invalid:
             return head + "\n" + "\n".join(f"  {self.program}:{f.lines[0] if f.lines else 0}: error: {f.message}"
                                            for f in self.findings if f.kind == "compile")
         if not self.findings:
             return head + f"\n  clean: {self.stats.get('moves', 0)} moves, {self.stats.get('samples', 0)} samples checked"
-        by_line: dict[int, list[Finding]] = {}
-        for f in self.findings:
-            by_line.setdefault(f.lines[0] if f.lines else 0, []).append(f)
-        # lines ordered by their worst finding (ratio to the limit), worst first
-        def badness(f):
-            if f.value is None or not f.limit:
-                return 1.0
-            return abs(f.value) / abs(f.limit)
-        order = sorted(by_line, key=lambda ln: (-max(badness(f) for f in by_line[ln]), ln))
-        out = [head, f"  {len(self.findings)} finding(s) on {len(order)} line(s), worst first:"]
-        for ln in order:
-            for f in sorted(by_line[ln], key=lambda f: -badness(f)):
-                out.append(f"  {self.program}:{ln}: {f.severity}: {f.message}")
+        n_lines = len({ln for f in self.findings for ln in f.lines})
+        out = [head, f"  {self.errors} error(s), {len(self.findings) - self.errors} warning(s) "
+                     f"on {n_lines} line(s)"]
+        for r in self.summary():
+            worst = ("" if r["worst_value"] is None or r["limit"] is None else
+                     f", worst {abs(r['worst_value']):.6g} {r['unit']} against {r['limit']:g} {r['unit']}"
+                     + (f" (ratio {r['worst_ratio']:.3f})" if r["worst_ratio"] is not None else ""))
+            out.append(f"    {r['kind']:<22} {r['severity']:<7} {r['count']:>7} on {r['lines']} line(s)"
+                       + worst + (f" at line {r['worst_line']}" if r["worst_line"] else ""))
+        entries = _runs(self.findings) if limit is not None else [[f] for f in self.findings]
+        entries.sort(key=lambda run: (tuple(-x for x in max(_badness(f) for f in run)), _first_line(run[0]), run[0].kind))
+        shown = entries if limit is None else entries[:limit]
+        out.append("  worst first:" if limit is None or len(entries) <= limit else
+                   f"  worst first ({len(shown)} of {len(entries)} entries):")
+        for run in shown:
+            out.append("  " + _entry(self.program, run))
+        if len(shown) < len(entries):
+            rest = sum(len(r) for r in entries[len(shown):])
+            out.append(f"  … {rest} more finding(s) in {len(entries) - len(shown)} more entries: "
+                       "--all prints every one (--json too)")
         return "\n".join(out)
+
+
+
+def _badness(f: Finding) -> tuple[float, float]:
+    """Ratio of the worst value to its limit (1 when the finding has no such ratio), then the
+    value itself (a box excess in mm has a limit of 0: no ratio, but a larger one is worse)."""
+    r = _ratio(f)
+    return (1.0 if r is None else r, 0.0 if f.value is None else abs(f.value))
+
+
+def _ratio(f: Finding) -> float | None:
+    if f.value is None or not f.limit:
+        return None
+    return abs(f.value) / abs(f.limit)
+
+
+def _first_line(f: Finding) -> int:
+    return f.lines[0] if f.lines else 0
+
+
+def _runs(findings: list[Finding]) -> list[list[Finding]]:
+    """Findings of one kind and severity on consecutive lines, grouped (file order)."""
+    runs: list[list[Finding]] = []
+    last: dict[tuple, list[Finding]] = {}
+    for f in sorted(findings, key=lambda f: (f.kind, f.severity, _first_line(f))):
+        key = (f.kind, f.severity)
+        run = last.get(key)
+        if run is not None and f.lines and run[-1].lines and _first_line(f) - _first_line(run[-1]) == 1:
+            run.append(f)
+        else:
+            run = [f]
+            runs.append(run)
+            last[key] = run
+    return runs
+
+
+def _entry(program: str, run: list[Finding]) -> str:
+    worst = max(run, key=_badness)
+    if len(run) == 1:
+        return f"{program}:{_first_line(worst)}: {worst.severity}: {worst.message}"
+    return (f"{program}:{_first_line(run[0])}-{_first_line(run[-1])}: {worst.severity}: {len(run)} lines, "
+            f"worst at line {_first_line(worst)}: {worst.message}")
 
 
 class CheckError(Exception):
@@ -153,7 +234,7 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
         raise CheckError(f"{file}: no such file")
     # 1. compile
     try:
-        prog = read_gcode(file)
+        prog = read_gcode(file, home=machine.home)      # a one-move program starts there
         path = program_path(prog)
     except GCodeError as e:
         rep.invalid = True
@@ -170,6 +251,7 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
     P = path.point(s)
     lines = _lines_of(path, s)
     found = machine.check(P)
+    box_excess = np.maximum(np.maximum(machine.workspace_min - P, P - machine.workspace_max), 0.0).max(axis=1)
     bad_geometry = False
     for kind in ("unreachable", "stroke", "singularity", "box"):
         fs = [f for f in found if f.kind == kind]
@@ -183,9 +265,14 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
             rep.findings += _group("singularity", vals > 0, vals, lines, machine.cond_max, "",
                                    "Jacobian condition number")
             continue
-        for ln in sorted({int(lines[f.index]) for f in fs}):
-            mine = [f for f in fs if lines[f.index] == ln]
-            worst = max(mine, key=lambda f: abs(f.value - f.limit))
+        by_line: dict[int, list] = {}          # one pass (a scan of fs per line was quadratic)
+        for f in fs:
+            by_line.setdefault(int(lines[f.index]), []).append(f)
+        for ln in sorted(by_line):
+            if kind == "box":      # kins gives no distance: the farthest point outside is the worst
+                worst = max(by_line[ln], key=lambda f: box_excess[f.index])
+            else:
+                worst = max(by_line[ln], key=lambda f: abs(f.value - f.limit))
             at = P[worst.index]
             where = f"at ({at[0]:.4g}, {at[1]:.4g}, {at[2]:.4g}) mm"
             if kind == "unreachable":
@@ -196,8 +283,8 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
                        f"{worst.limit:g} mm by {abs(worst.value - worst.limit):.4g} mm {where}")
                 val, lim = worst.value, worst.limit
             else:
-                msg = f"outside the workspace box {where}"
-                val, lim = None, None
+                val, lim = float(box_excess[worst.index]), 0.0
+                msg = f"outside the workspace box by {val:.4g} mm {where}"
             rep.findings.append(Finding(kind, "error", [ln], val, lim, "mm", msg))
     if bad_geometry:
         rep.stats["dynamics"] = "skipped: the path leaves the workspace"

@@ -126,8 +126,12 @@ def _words(body: str, src: str, ln: int) -> list[tuple[str, float, str]]:
     return words
 
 
-def parse_gcode(text: str, source: str = "<gcode>", start=None) -> GCodeProgram:
-    """Read G-code text into moves (lines/arcs in mm, absolute, each with its line number)."""
+def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None) -> GCodeProgram:
+    """Read G-code text into moves (lines/arcs in mm, absolute, each with its line number).
+
+    ``home``: where the tool is before a program whose only motion is its positioning move;
+    that move is then the program (from ``home``), instead of leaving nothing to plan.
+    """
     pos = None if start is None else np.asarray(start, float).copy()
     prog = GCodeProgram(source, None if pos is None else pos.copy())
     motion = None            # modal state, LinuxCNC defaults: G17 G21 G90 G64, no motion mode
@@ -135,6 +139,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None) -> GCodeProgram:
     blend: float | None = math.inf
     feed = None              # mm/s
     ended = False
+    positioning = None       # (line, motion, feed, blend) of the move that set the start point
     for ln, raw in enumerate(text.splitlines(), start=1):
         body = _strip_comments(raw, source, ln).strip()
         if not body or body == "%":
@@ -230,6 +235,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None) -> GCodeProgram:
             pos = np.array([seen[k][0] * unit for k in "XYZ"])
             prog.start = pos.copy()
             prog.notes.append((ln, f"start point {pos.tolist()} (positioning move, no segment)"))
+            positioning = (ln, motion, feed, blend)
             continue
         target = pos.copy()
         for k in axes:
@@ -247,6 +253,19 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None) -> GCodeProgram:
             seg = _arc(source, ln, motion, plane, pos, target, seen, unit)
         prog.moves.append(Move(seg, ln, motion == 0, None if motion == 0 else feed, blend))
         pos = seg.end.copy() if motion in (2, 3) else target
+    if not prog.moves and positioning is not None:
+        ln, motion, feed, blend = positioning
+        if home is None:
+            raise GCodeError(source, ln, "the program's only move positions the tool: nothing to plan "
+                                         "without the point it starts from (pass home=)")
+        home = np.asarray(home, float)
+        if np.linalg.norm(prog.start - home) <= ZERO_MOVE_MM:
+            raise GCodeError(source, ln, f"the program's only move goes to {home.tolist()}, where the tool "
+                                         "already is: nothing to plan")
+        target, prog.start = prog.start, home.copy()
+        prog.notes.append((ln, f"the only move: planned from home {home.tolist()}"))
+        prog.moves.append(Move(Line(home, target, ln, f"{source}:{ln}"), ln, motion == 0,
+                               None if motion == 0 else feed, blend))
     if not prog.moves:
         raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
     return prog
@@ -319,15 +338,25 @@ def _arc(src, ln, motion, plane, pos, target, seen, unit) -> Arc:
         raise GCodeError(src, ln, str(e)) from None
 
 
-def read_gcode(file, start=None) -> GCodeProgram:
+def read_gcode(file, start=None, home=None) -> GCodeProgram:
     file = FsPath(file)
     try:
-        text = file.read_text()
+        data = file.read_bytes()
     except OSError as e:
         raise GCodeError(str(file), 0, f"cannot read G-code file: {e.strerror}") from None
+    if b"\0" in data:
+        raise GCodeError(str(file), data[:data.index(b"\0")].count(b"\n") + 1, "not a text file (NUL byte)")
+    try:
+        text = data.decode("utf-8")
+        latin1 = False
     except UnicodeDecodeError:
-        raise GCodeError(str(file), 0, "not a text file") from None
-    return parse_gcode(text, str(file), start)
+        # CAM posts and old editors write Latin-1 comments (é, °, µ); LinuxCNC reads them:
+        # every byte is a Latin-1 character, and the G-code words themselves are ASCII
+        text, latin1 = data.decode("latin-1"), True
+    prog = parse_gcode(text, str(file), start, home)
+    if latin1:
+        prog.notes.insert(0, (0, "not UTF-8: read as Latin-1"))
+    return prog
 
 
 def program_path(prog: GCodeProgram) -> SegmentPath:

@@ -204,7 +204,12 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
         # joins are known: compare the one-sided values there (no search needed)
         known = np.array(breakpoints(path))
         if len(corners) and len(known):
-            known = np.array([b for b in known if np.min(np.abs(corners - b)) >= 1e-9])
+            # distance to the nearest corner from its two sorted neighbours (a scan of every
+            # corner per join was quadratic on a CAM program)
+            cs = np.sort(corners)
+            j = np.searchsorted(cs, known)
+            near = np.minimum(np.abs(cs[np.maximum(j - 1, 0)] - known), np.abs(cs[np.minimum(j, len(cs) - 1)] - known))
+            known = known[near >= 1e-9]
         if len(known) == 0:
             return []
         lo = hi = known

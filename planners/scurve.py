@@ -153,6 +153,7 @@ class _Planner:
             check_workspace(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s
         self.F = self.F_at(self.grid)
+        self._reachable = {}            # memo of reachable() across the repair rounds
 
     def F_at(self, s):
         """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
@@ -181,8 +182,13 @@ class _Planner:
             is_min &= (Fs < Fp[m - k:m - k + n]) & (Fs < Fp[m + k:m + k + n])
         h = float(self.table.hs.max())
         cs = np.array(sorted(pts))
-        for i in np.nonzero(is_min)[0]:
-            if np.min(np.abs(cs - g[i])) < 2 * m * h:      # a corner's own dip: it stops there
+        # nearest critical point of each minimum: its two neighbours in the sorted cs (a scan
+        # of all of cs per minimum was quadratic in the corner count)
+        mins = np.nonzero(is_min)[0]
+        j = np.searchsorted(cs, g[mins])
+        near = np.minimum(np.abs(cs[np.maximum(j - 1, 0)] - g[mins]), np.abs(cs[np.minimum(j, len(cs) - 1)] - g[mins]))
+        for i, d in zip(mins, near):
+            if d < 2 * m * h:      # a corner's own dip: it stops there
                 continue
             lo, hi = g[max(i - 1, 0)], g[min(i + 1, n - 1)]
             r = minimize_scalar(lambda x: float(self.F_at(x)[0]), bounds=(lo, hi), method="bounded",
@@ -227,11 +233,22 @@ class _Planner:
     # -- segments -----------------------------------------------------------------
     def consistent(self, v, Ls, A, J):
         v = v.copy()
+        memo = self._reachable
         for i in range(len(Ls) - 1, -1, -1):
-            v[i] = min(v[i], reachable(v[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], v[i]))
+            v[i] = min(v[i], self.reach(memo, v[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], v[i]))
         for i in range(len(Ls)):
-            v[i + 1] = min(v[i + 1], reachable(v[i], Ls[i] * (1 - 1e-9), A[i], J[i], v[i + 1]))
+            v[i + 1] = min(v[i + 1], self.reach(memo, v[i], Ls[i] * (1 - 1e-9), A[i], J[i], v[i + 1]))
         return v
+
+    @staticmethod
+    def reach(memo, v0, L, A, J, vmax):
+        # each repair round changes a few segments: the rest of both passes repeats the same
+        # bisections, which made every round cost the whole path again
+        key = (v0, L, A, J, vmax)
+        r = memo.get(key)
+        if r is None:
+            r = memo[key] = reachable(v0, L, A, J, vmax)
+        return r
 
     def fit_peak(self, seg: Segment, vcap: float) -> bool:
         """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection)."""
@@ -360,9 +377,11 @@ def sample(segs, path, T, planner, info) -> Profile:
     s = np.empty(N + 1)
     sd, sdd, sddd = np.zeros(N + 1), np.zeros(N + 1), np.zeros(N + 1)
     k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(segs) - 1)
+    # k is sorted: each segment's samples are one slice (a mask per segment was O(segments × N))
+    bounds = np.searchsorted(k, np.arange(len(segs) + 1), side="left")
     for i, g in enumerate(segs):
-        m = k == i
-        if m.any():
+        m = slice(bounds[i], bounds[i + 1])
+        if m.stop > m.start:
             p, v, a, j = g.at(t[m] - starts[i])
             s[m], sd[m], sdd[m], sddd[m] = g.s0 + p, v, a, j
     L = path.length

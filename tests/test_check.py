@@ -111,3 +111,77 @@ def test_gcode_reader_fuzz_short():
     from tests.fuzz_gcode import fuzz
     counts = fuzz(3000, seed=1)
     assert counts["GCodeError"] > 500 and counts["parsed"] > 50   # both paths really exercised
+
+
+def excursions(tmp_path, n):
+    """kossel, G61: from X45 out to X55 (beyond the ±50 mm box) and back on even k, to X49
+    (inside) and back on odd k. Excursion k is on lines 3 + 2k and 4 + 2k."""
+    body = ["G21 G90 G61", "G1 X45 Y0 Z-250 F1200"]
+    for k in range(n):
+        body += ["G1 X55" if k % 2 == 0 else "G1 X49", "G1 X45"]
+    return prog(tmp_path, "\n".join(body) + "\n")
+
+
+def test_box_findings_are_exactly_the_lines_that_leave_it(tmp_path):
+    f = excursions(tmp_path, 120)
+    rep = check_program(f, KOSSEL)
+    box = sorted(x.lines[0] for x in rep.findings if x.kind == "box")
+    assert box == sorted(ln for k in range(0, 120, 2) for ln in (3 + 2 * k, 4 + 2 * k))   # 120 lines
+    assert not [x for x in rep.findings if x.kind in ("unreachable", "stroke")]
+
+
+def test_text_report_summary_cap_and_all(tmp_path, capsys):
+    f = excursions(tmp_path, 120)
+    rep = check_program(f, KOSSEL)
+    assert main(["check", str(f), "--machine", "kossel"]) == 1
+    out = capsys.readouterr().out.splitlines()
+    n_err = sum(x.severity == "error" for x in rep.findings)
+    assert out[1] == f"  {n_err} error(s), 0 warning(s) on {len({ln for x in rep.findings for ln in x.lines})} line(s)"
+    # summary before the findings: one row per kind, box with its 120 findings on 120 lines
+    box_row = [ln for ln in out if ln.split()[:2] == ["box", "error"]]
+    assert len(box_row) == 1 and " 120 on 120 line(s), worst 5 mm" in box_row[0]   # X55: 5 mm out
+    assert out.index(box_row[0]) < min(i for i, ln in enumerate(out) if ln.startswith(f"  {f}:"))
+    entries = [ln for ln in out if ln.startswith(f"  {f}:")]
+    assert len(entries) == 50
+    # an excursion's two box lines (out and back) are consecutive: one entry "3-4", 60 in all
+    assert sum(e.startswith(f"  {f}:{3 + 4 * k}-{4 + 4 * k}: error: 2 lines") for e in entries for k in range(60)) \
+        == sum(": error: 2 lines" in e for e in entries) > 0
+    more = out[-1]
+    assert more.startswith("  … ") and "--all prints every one" in more
+    n_more, n_more_entries = int(more.split()[1]), int(more.split()[5])
+    n_entries = 60 + (len(rep.findings) - 120)          # box runs + every other finding alone
+    assert n_more_entries == n_entries - 50
+    shown = sum(2 if ": error: 2 lines" in e else 1 for e in entries)
+    assert shown + n_more == len(rep.findings)
+    assert main(["check", str(f), "--machine", "kossel", "--all"]) == 1
+    every = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith(f"  {f}:")]
+    assert len(every) == len(rep.findings)
+    assert sum(": error: outside the workspace box" in ln for ln in every) == 120
+
+
+def test_json_is_complete_and_valid_is_false_beside_errors(tmp_path, capsys):
+    f = excursions(tmp_path, 120)
+    rep = check_program(f, KOSSEL)
+    assert main(["check", str(f), "--machine", "kossel", "--json"]) == 1
+    d = json.loads(capsys.readouterr().out)
+    assert d["parsed"] is True and d["valid"] is False and d["exit_code"] == 1
+    assert len(d["findings"]) == len(rep.findings) and d["errors"] == len(rep.findings)
+    assert sum(x["kind"] == "box" for x in d["findings"]) == 120
+    assert {r["kind"]: r["count"] for r in d["summary"]}["box"] == 120
+    clean = prog(tmp_path, "G21 G90 G61\nG1 X0 Y0 Z-400 F600\nG1 X10\n", "c.ngc")
+    assert main(["check", str(clean), "--machine", "keops", "--planner", "scurve_joint", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["parsed"] is True and d["valid"] is True and d["errors"] == 0 and d["findings"] == []
+    bad = prog(tmp_path, "G1 X0 Y0 Z-400 F600\nG1 X10 Q5\n", "b.ngc")
+    assert main(["check", str(bad), "--machine", "keops", "--json"]) == 2
+    d = json.loads(capsys.readouterr().out)
+    assert d["parsed"] is False and d["valid"] is False and d["exit_code"] == 2
+
+
+def test_one_move_program_is_checked_from_home(tmp_path):
+    # kossel home (0, 0, -200): the only move goes to (30, 40, -250), 50√2 mm away
+    f = prog(tmp_path, "G21 G90\nG1 X30 Y40 Z-250 F600\nM2\n")
+    rep = check_program(f, KOSSEL, "scurve_joint")
+    assert not rep.invalid and rep.stats["moves"] == 1
+    assert rep.stats["length_mm"] == pytest.approx(50 * 2 ** 0.5)
+    assert rep.stats["samples"] > 1000          # ≥ 70.7 mm at ≤ 20 mm/s: > 3.5 s at 1 ms

@@ -155,6 +155,9 @@ def test_start_errors_and_empty_program(tmp_path):
     with pytest.raises(GCodeError, match="no motion mode"):
         parse_gcode("X1 Y2 Z3\n", "a.ngc")
     with pytest.raises(GCodeError, match="empty path"):
+        parse_gcode("G21\n(no motion)\nM2\n", "a.ngc")
+    # a positioning move alone is a move (test_one_move_program_is_a_move_from_home)
+    with pytest.raises(GCodeError, match="only move positions the tool"):
         parse_gcode("G21\nG0 X0 Y0 Z0\nM2\n", "a.ngc")
     with pytest.raises(GCodeError, match="cannot read G-code file"):
         read_gcode(tmp_path / "missing.ngc")
@@ -196,3 +199,46 @@ def test_write_read_round_trip(tmp_path):
     write_gcode(helix, f, 100.0)
     h = load_path(f)
     assert h.segments[0].angle == pytest.approx(6 * math.pi) and h.length == pytest.approx(helix.length, rel=1e-9)
+
+
+def test_latin1_comment_is_read_like_utf8(tmp_path):
+    # "(pièce à 90°)" written by a Latin-1 editor: é, à, ° are single bytes that are not UTF-8
+    body = "G21 G90 G61 (pi{e}ce {a} 90{d})\nG0 X0 Y0 Z0\nG1 X10 F600 ; r{e}glage\nG1 Y5\n"
+    f_latin, f_utf = tmp_path / "l.ngc", tmp_path / "u.ngc"
+    f_latin.write_bytes(body.format(e="\xe9", a="\xe0", d="\xb0").encode("latin-1"))
+    f_utf.write_text(body.format(e="é", a="à", d="°"), encoding="utf-8")
+    pl, pu = read_gcode(f_latin), read_gcode(f_utf)
+    assert np.array_equal(ends(pl), ends(pu)) and [m.line for m in pl.moves] == [3, 4]
+    assert "Latin-1" in pl.notes[0][1] and not any("Latin-1" in n for _, n in pu.notes)
+
+
+def test_non_ascii_outside_a_comment_and_nul_name_their_line(tmp_path):
+    f = tmp_path / "x.ngc"
+    f.write_bytes(b"G0 X0 Y0 Z0\nG1 X\xe9 F600\n")
+    with pytest.raises(GCodeError) as e:
+        read_gcode(f)
+    assert e.value.line == 2 and "cannot read" in e.value.message
+    f.write_bytes(b"G0 X0 Y0 Z0\nG1 X1 F600\n\x00\x01")
+    with pytest.raises(GCodeError) as e:
+        read_gcode(f)
+    assert e.value.line == 3 and "not a text file" in e.value.message
+
+
+def test_one_move_program_is_a_move_from_home():
+    text = "G21 G90\nG1 X3 Y4 Z-12 F600\nM2\n"
+    p = parse_gcode(text, "t.ngc", home=[0.0, 0.0, 0.0])
+    assert len(p.moves) == 1 and p.moves[0].line == 2 and not p.moves[0].rapid
+    assert p.moves[0].segment.length == pytest.approx(13.0)            # 3-4-12 → 13
+    assert np.allclose(p.start, 0.0) and np.allclose(p.moves[0].segment.end, [3, 4, -12])
+    assert p.moves[0].feed_mm_s == pytest.approx(10.0)
+    assert program_path(p).length == pytest.approx(13.0)
+    # without a home the reader says what is missing, on the move's line (not "no moves")
+    with pytest.raises(GCodeError) as e:
+        parse_gcode(text, "t.ngc")
+    assert e.value.line == 2 and "only move positions the tool" in e.value.message
+    with pytest.raises(GCodeError) as e:
+        parse_gcode(text, "t.ngc", home=[3, 4, -12])
+    assert e.value.line == 2 and "already is" in e.value.message
+    # a program with two moves is read as before: home does not change it
+    two = "G0 X0 Y0 Z0\nG1 X1 F60\n"
+    assert np.array_equal(ends(parse_gcode(two, "t", home=[5, 5, 5])), ends(parse_gcode(two, "t")))

@@ -1,50 +1,96 @@
-"""`pkmbench check` on a generated 3-D surfacing job (issue 7 target: 10⁵ lines in ≤ 10 s).
+"""`pkmbench check` on generated CAM programs: time and peak RSS per program size and planner.
 
-The job is generated at run time (not committed): a zig-zag raster over a gently curved
-surface inside the keops workspace, one G1 per ~0.5 mm.
-    .venv/bin/python benchmarks/perf/bench_check.py [LINES]
+Issue 17 target: linear scaling, ≤ 10 s and ≤ 1 GB peak RSS for a 10⁵-line program with
+trapezoid and with scurve. The programs come from cam_program.make_cam_program (kossel
+workspace, seed 1, generated at run time, not committed). Each case runs in its own child
+process so that its peak RSS (os.wait4's ru_maxrss) is its own, not the largest so far.
+
+    .venv/bin/python benchmarks/perf/bench_check.py [--lines 1000 10000 100000]
+                                                    [--planners trapezoid scurve] [--timeout 900]
 """
 from __future__ import annotations
 
+import argparse
+import json
+import os
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+sys.path.insert(0, str(HERE))
+
+from cam_program import make_cam_program  # noqa: E402
+
+LINES = (1_000, 10_000, 100_000)
+PLANNERS = ("trapezoid", "scurve")
+
+# the child: check one program, print its wall time and counts as one JSON line
+_CHILD = """
+import json, sys, time
+from harness.gcode_check import check_program
+from kins import load_machine
+m = load_machine("kossel")
+t0 = time.perf_counter()
+rep = check_program(sys.argv[1], m, sys.argv[2])
+text = rep.text()
+dt = time.perf_counter() - t0
+print(json.dumps({"seconds": dt, "samples": rep.stats.get("samples", 0), "findings": len(rep.findings),
+                  "errors": sum(f.severity == "error" for f in rep.findings), "text_bytes": len(text.encode())}))
+"""
 
 
-def surfacing_job(lines: int) -> str:
-    rows = max(2, int(np.sqrt(lines / 2)))
-    per_row = max(2, lines // rows)
-    out = ["G21 G90 G64 P0.01", "G1 X-60 Y-60 Z-400 F6000"]
-    for r in range(rows):
-        y = -60 + 120 * r / (rows - 1)
-        xs = np.linspace(-60, 60, per_row)
-        if r % 2:
-            xs = xs[::-1]
-        for x in xs[1:] if r == 0 else xs:
-            z = -400 + 10 * np.sin(x / 25) * np.cos(y / 25)
-            out.append(f"G1 X{x:.4f} Y{y:.4f} Z{z:.4f}")
-    return "\n".join(out[: lines + 2]) + "\nM2\n"
+def run_case(program: Path, planner: str, timeout: float) -> dict:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]))
+    with tempfile.TemporaryFile("w+") as out:
+        p = subprocess.Popen([sys.executable, "-c", _CHILD, str(program), planner], stdout=out,
+                             stderr=subprocess.DEVNULL, env=env, cwd=REPO)
+        # reap it with wait4 ourselves (Popen.wait would discard the child's rusage)
+        t_end = time.monotonic() + timeout
+        while True:
+            pid, status, ru = os.wait4(p.pid, os.WNOHANG)
+            if pid:
+                break
+            if time.monotonic() > t_end:
+                p.kill()
+                _, status, ru = os.wait4(p.pid, 0)
+                break
+            time.sleep(0.05)
+        p.returncode = status        # reaped: keep Popen from waiting on it again
+        out.seek(0)
+        lines = out.read().strip().splitlines()
+    res = {"peak_rss_mb": round(ru.ru_maxrss / 1024.0, 1)}
+    if os.WIFSIGNALED(status):
+        res["error"] = f"killed after the {timeout:g} s timeout"
+    elif os.WEXITSTATUS(status) != 0 or not lines:
+        res["error"] = f"exit status {os.WEXITSTATUS(status)}"
+    else:
+        res.update(json.loads(lines[-1]))
+    return res
 
 
-def main(lines: int = 100_000) -> dict:
-    from harness.gcode_check import check_program
-    from kins import load_machine
-
-    m = load_machine("keops")
+def main(lines=LINES, planners=PLANNERS, timeout: float = 900.0) -> dict:
+    results = {}
     with tempfile.TemporaryDirectory() as d:
-        f = Path(d) / "surface.ngc"
-        f.write_text(surfacing_job(lines))
-        t0 = time.perf_counter()
-        rep = check_program(f, m)
-        dt = time.perf_counter() - t0
-    n = sum(1 for _ in surfacing_job(lines).splitlines())
-    print(f"check: {n} lines, {rep.stats.get('samples', 0)} samples, {len(rep.findings)} findings "
-          f"in {dt:.2f} s (target ≤ 10 s for 10⁵ lines)")
-    return {"lines": n, "seconds": dt, "samples": rep.stats.get("samples", 0)}
+        for n in lines:
+            f = Path(d) / f"cam_{n}.ngc"
+            make_cam_program(n, seed=1, file=f)
+            for planner in planners:
+                r = run_case(f, planner, timeout)
+                results[f"{planner}@{n}"] = r
+                what = r.get("error") or (f"{r['seconds']:8.2f} s  {r['samples']:>8} samples  "
+                                          f"{r['findings']:>7} findings  text {r['text_bytes'] / 1e3:.1f} kB")
+                print(f"check {planner:<10} {n:>7} lines: {what}  peak RSS {r['peak_rss_mb']:.0f} MB", flush=True)
+    return results
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 100_000)
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--lines", type=int, nargs="+", default=list(LINES))
+    ap.add_argument("--planners", nargs="+", default=list(PLANNERS))
+    ap.add_argument("--timeout", type=float, default=900.0, help="seconds per case (default %(default)s)")
+    a = ap.parse_args()
+    main(a.lines, a.planners, a.timeout)
