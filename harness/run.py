@@ -193,6 +193,14 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
     return summary
 
 
+def _is_run_file(f: Path) -> bool:
+    if f.is_symlink():
+        return False
+    if f.is_dir():   # the SSP's copies of the chain's FMUs (system.write_ssp)
+        return f.name == "resources" and all(g.is_file() and g.suffix == ".fmu" for g in f.iterdir())
+    return f.name in PLANNER_FILES or f.name.endswith(".part")
+
+
 def stale_planner_dirs(out_dir: Path, keep) -> list[Path]:
     """Planner folders of an earlier run in ``out_dir`` that are not among ``keep``: folders
     holding a planner's command or profile and nothing but files a run writes (a folder with
@@ -202,8 +210,7 @@ def stale_planner_dirs(out_dir: Path, keep) -> list[Path]:
         if d.name in keep or not d.is_dir() or d.is_symlink():
             continue
         files = list(d.iterdir())
-        ours = all(f.is_file() and not f.is_symlink() and (f.name in PLANNER_FILES or f.name.endswith(".part"))
-                   for f in files)
+        ours = all(_is_run_file(f) for f in files)
         if ours and any(f.name in ("command.csv", "profile.csv", "run.mcap") for f in files):
             out.append(d)
     return out
