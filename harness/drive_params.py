@@ -141,6 +141,20 @@ def drive_start_values(machine: str | Path | Kinematics) -> dict[str, Any]:
     return out
 
 
+def encoder_increment_mm(machine: str | Path | Kinematics) -> float | None:
+    """One encoder increment of the machine's drives in mm (None for ideal drives): the
+    resolution of every measured position, so of the following and contour errors too."""
+    m = _machine(machine)
+    sec = _section(m, "drive")
+    if sec.get("ideal", False):
+        return None
+    if "encoder_resolution_mm" in sec:
+        return float(sec["encoder_resolution_mm"])
+    if "encoder_increments_per_rev" in sec and "pulley_mm_per_rev" in sec:
+        return float(sec["pulley_mm_per_rev"]) / float(sec["encoder_increments_per_rev"])
+    return None
+
+
 _ECAT_KEYS = ("preset", "distribution", "sigma_s", "tail_probability", "tail_scale_s",
               "tail_shape", "cap_s", "startup_lateness_s", "histogram_file", "sync0_shift_s",
               "frame_bytes", "slaves", "forward_delay_s", "on_lost", "extrapolate_cycles",

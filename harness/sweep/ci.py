@@ -36,9 +36,13 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     ("feasible", {"exact": True}),
     ("*peak_ratio.*", {"abs": 1e-6}),
     ("*violation_time_s.*", {"abs": 1e-6}),
-    ("*_error_um", {"rel": 0.005, "abs": 1e-3}),
+    ("*_error_um", {"rel": 0.005, "abs": 1e-3, "increments": 1}),
     ("*", {"rel": 0.005, "abs": 1e-9}),
 ]
+
+
+# Figure and command CSVs across machines: each cell within CSV_REL × its column's largest value.
+CSV_REL = 1e-6
 
 
 def rule_for(metric: str, tolerances=DEFAULT_TOLERANCES, entry: str = "") -> dict:
@@ -48,6 +52,24 @@ def rule_for(metric: str, tolerances=DEFAULT_TOLERANCES, entry: str = "") -> dic
         if fnmatch.fnmatchcase(metric, mp) and (not sep or fnmatch.fnmatchcase(entry, ep)):
             return rule
     return {"exact": True}
+
+
+def resolve_rule(rule: dict, entry: str) -> dict:
+    """``increments: N`` → an absolute tolerance of N encoder increments (in µm) of the entry's
+    machine (the first part of the label): a quantised position read moves by a whole
+    increment when its input crosses a step, however small the input's change."""
+    if "increments" not in rule:
+        return rule
+    from harness.drive_params import encoder_increment_mm
+    from kins.machine import MachineFileError
+    try:
+        inc_mm = encoder_increment_mm(entry.split("/", 1)[0])
+    except (MachineFileError, OSError, KeyError, ValueError):
+        inc_mm = None
+    out = {k: v for k, v in rule.items() if k != "increments"}
+    if inc_mm:
+        out["abs"] = max(out.get("abs", 0.0), rule["increments"] * inc_mm * 1e3)
+    return out
 
 
 def describe(rule: dict) -> str:
@@ -63,6 +85,8 @@ def describe(rule: dict) -> str:
         parts.append(f"±{100 * rule['rel']:g} %")
     if rule.get("abs"):
         parts.append(f"±{rule['abs']:g}")
+    if rule.get("increments"):
+        parts.append(f"±{rule['increments']:g} encoder increment(s) of the machine")
     return " or ".join(parts) or "exact"
 
 
@@ -222,7 +246,7 @@ def compare(baseline: dict, entries: dict, errors: dict, tolerances=DEFAULT_TOLE
             elif metric not in b:
                 checks.append(Check(label, metric, None, v[metric], tol, False, f"{metric} not in the baseline"))
             else:
-                ok, msg = _compare_value(metric, b[metric], v[metric], rule)
+                ok, msg = _compare_value(metric, b[metric], v[metric], resolve_rule(rule, label))
                 checks.append(Check(label, metric, b[metric], v[metric], tol, ok, msg))
     return checks
 

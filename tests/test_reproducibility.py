@@ -1,0 +1,70 @@
+"""The reproducibility contract (docs/REPRODUCIBILITY.md) under other SIMD code paths.
+
+Machines of one kind differ in their SIMD, and numpy's per-ISA kernels differ in the last
+bits; NPY_DISABLE_CPU_FEATURES makes this machine take another machine's code path. A
+solver-based planner (CasADi/IPOPT) and a quantised drive (the Kossel's steppers, one
+encoder increment 1.96 µm) both run here, so the two places where last bits grow are covered.
+On a CPU without AVX-512 or AVX2 a setting changes nothing and the contract holds trivially.
+"""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from harness.cmd_figures import csv_difference
+from harness.sweep import ci, flatten
+from harness.system import FMU_DIR
+
+REPO = Path(__file__).resolve().parent.parent
+PROGRAM = REPO / "tests" / "data" / "repro_part.ngc"
+PLANNERS = ["optimal", "scurve_joint"]
+# numpy's x86-64 dispatch levels above the baseline X86_V2: AVX2 and AVX-512 off
+OTHER_SIMD = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
+
+pytestmark = pytest.mark.skipif(not (FMU_DIR / "Drive.fmu").exists(), reason="make fmus")
+
+
+def _run(out: Path, disable: str) -> dict:
+    env = dict(os.environ, NPY_DISABLE_CPU_FEATURES=disable)
+    r = subprocess.run([sys.executable, "-m", "harness.cli", "run", "--machine", "kossel",
+                        "--path", str(PROGRAM), "--planners", ",".join(PLANNERS), "--out", str(out),
+                        "--no-recordings"], env=env, cwd=REPO, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return json.loads((out / "summary.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    base = tmp_path_factory.mktemp("repro")
+    return base, _run(base / "native", ""), _run(base / "other", OTHER_SIMD)
+
+
+def test_metrics_agree_within_the_contract_under_other_simd(runs):
+    _, native, other = runs
+    entries = lambda s: {f"kossel/repro_part/{p}": flatten(m) for p, m in s["planners"].items()}  # noqa: E731
+    checks = ci.compare({"entries": entries(native)}, entries(other), {},
+                        ci.without_timing(ci.DEFAULT_TOLERANCES))
+    assert checks and all(c.ok for c in checks), [c.message for c in checks if not c.ok]
+    for p in PLANNERS:
+        assert native["planners"][p]["feasible"] and other["planners"][p]["feasible"], p
+
+
+def test_commands_agree_within_the_contract_under_other_simd(runs):
+    base, _, _ = runs
+    for p in PLANNERS:
+        a, b = base / "native" / p / "command.csv", base / "other" / p / "command.csv"
+        assert csv_difference(a, b, ci.CSV_REL) is None, p
+
+
+def test_contract_is_not_vacuous():
+    # the comparison fails where a number really moved: 1e-6 of a column's scale in a command
+    # file, or two encoder increments of contour error on the Kossel
+    rule = ci.resolve_rule(ci.rule_for("max_contour_error_um", ci.DEFAULT_TOLERANCES, "kossel/x/optimal"),
+                           "kossel/x/optimal")
+    ok, _ = ci._compare_value("max_contour_error_um", 40.0, 40.0 + 2 * 1.9635, rule)
+    assert not ok
+    ok, _ = ci._compare_value("max_contour_error_um", 40.0, 40.0 + 0.9 * 1.9635, rule)
+    assert ok
