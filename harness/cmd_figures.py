@@ -55,15 +55,17 @@ def _read_csv(f: Path) -> tuple[list[str], list[list[str]]]:
 
 def csv_difference(a: Path, b: Path, rel: float) -> str | None:
     """Why CSV b is not a's within the contract (None when it is): the same header and shape,
-    non-numeric cells equal, each numeric cell within rel × the largest magnitude in a's column
-    (a third difference at T magnifies a last-bit change of a position by 1/T³, so the scale
-    that matters is the column's, not the cell's)."""
+    non-numeric cells equal, each numeric cell within rel × the largest magnitude in a's columns
+    of its quantity (jerk_x, jerk_y, jerk_z: 'jerk'). A third difference at T magnifies a
+    last-bit change of a position by 1/T³, so the scale that matters is the quantity's: a
+    column that is zero but for round-off (jerk_z of a flat path) has none of its own."""
     ha, ra = _read_csv(a)
     hb, rb = _read_csv(b)
     if ha != hb:
         return f"header differs: {','.join(hb)}"
     if len(ra) != len(rb) or any(len(x) != len(y) for x, y in zip(ra, rb)):
         return f"shape differs: {len(rb)} rows against {len(ra)}"
+    numeric: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for j, name in enumerate(ha):
         col_a, col_b = [r[j] for r in ra], [r[j] for r in rb]
         try:
@@ -76,12 +78,18 @@ def csv_difference(a: Path, b: Path, rel: float) -> str | None:
             continue
         if not np.array_equal(np.isnan(va), np.isnan(vb)):
             return f"column {name}: empty cells differ"
-        scale = np.nanmax(np.abs(va), initial=0.0)
+        numeric[name] = (va, vb)
+    scale: dict[str, float] = {}
+    for name, (va, _) in numeric.items():
+        q = name.rsplit("_", 1)[0]
+        scale[q] = max(scale.get(q, 0.0), float(np.nanmax(np.abs(va), initial=0.0)))
+    for name, (va, vb) in numeric.items():
+        sc = scale[name.rsplit("_", 1)[0]]
         diff = np.nan_to_num(np.abs(vb - va))
         k = int(np.argmax(diff)) if len(diff) else 0
-        if len(diff) and diff[k] > rel * scale:
-            return (f"column {name}, row {k + 2}: {vb[k]!r} against {va[k]!r} "
-                    f"(|Δ| {diff[k]:.3g} > {rel:g} × {scale:.6g})")
+        if len(diff) and diff[k] > rel * sc:
+            return (f"column {name}, row {k + 2}: {float(vb[k])!r} against {float(va[k])!r} "
+                    f"(|Δ| {diff[k]:.3g} > {rel:g} × {sc:.6g})")
     return None
 
 
@@ -98,7 +106,7 @@ def compare_csvs(out: Path, ref: Path, rel: float = 0.0) -> int:
             why = csv_difference(g, f, rel) if rel > 0 else "differs byte for byte"
             if why:
                 bad.append(f"{f.relative_to(out)}: {why}")
-    how = "byte for byte" if rel == 0 else f"within {rel:g} × each column's largest value"
+    how = "byte for byte" if rel == 0 else f"within {rel:g} × each quantity's largest value"
     print(f"compared {len(files)} CSVs with {ref} ({how}): " + ("all agree" if not bad else f"{len(bad)} differ"))
     for b in bad:
         print("  " + b)

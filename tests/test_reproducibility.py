@@ -68,3 +68,17 @@ def test_contract_is_not_vacuous():
     assert not ok
     ok, _ = ci._compare_value("max_contour_error_um", 40.0, 40.0 + 0.9 * 1.9635, rule)
     assert ok
+
+
+def test_csv_difference_scales_by_quantity_and_names_the_cell(tmp_path):
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    a.write_text("t_s,jerk_x,jerk_z\n0,100000,1e-9\n1,-200000,-2e-9\n")
+    # jerk_z is round-off around zero: its scale is the jerk's (2e5), not its own
+    b.write_text("t_s,jerk_x,jerk_z\n0,100000,5e-9\n1,-200000,3e-9\n")
+    assert csv_difference(a, b, 1e-5) is None
+    b.write_text("t_s,jerk_x,jerk_z\n0,100003,1e-9\n1,-200000,-2e-9\n")   # 1.5e-5 of 2e5
+    assert "column jerk_x, row 2" in csv_difference(a, b, 1e-5)
+    b.write_text("t_s,jerk_x,jerk_y\n0,100000,1e-9\n1,-200000,-2e-9\n")
+    assert "header differs" in csv_difference(a, b, 1e-5)
+    b.write_text("t_s,jerk_x,jerk_z\n0,100000,1e-9\n")
+    assert "shape differs" in csv_difference(a, b, 1e-5)

@@ -25,9 +25,12 @@ import numpy as np
 
 FORMAT = "pkmbench-ci-baseline/1"
 
-# (pattern, rule), first match wins. rel/abs: |value − baseline| ≤ max(rel·|baseline|, abs).
-# Issue 9: execution time ±0.5 %, peak ratios ±1e-6, feasibility exact; planning time as a ratio
-# to the reference workload, one-sided and generous because CI machines are noisy.
+# (pattern, rule), first match wins. rel/abs: |value − baseline| ≤ max(rel·|baseline|, abs);
+# increments: N encoder increments of the entry's machine. This is the cross-machine contract of
+# docs/REPRODUCIBILITY.md: each rule is ≥ 10× the spread measured between numpy's SIMD code
+# paths (benchmarks/repro/cross_cpu.py), but for the drive-quantised errors, which move by up to
+# one increment however small the change upstream. Planning time is a ratio to the reference
+# workload, one-sided and generous because CI machines are noisy.
 DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     ("planning_time_s", {"ignore": True}),                      # wall time: only its ratio counts
     ("reference_s", {"ignore": True}),
@@ -36,13 +39,16 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     ("feasible", {"exact": True}),
     ("*peak_ratio.*", {"abs": 1e-6}),
     ("*violation_time_s.*", {"abs": 1e-6}),
+    ("max_chord_error_um", {"rel": 0.005, "abs": 1e-3}),          # geometry: no quantisation
     ("*_error_um", {"rel": 0.005, "abs": 1e-3, "increments": 1}),
     ("*", {"rel": 0.005, "abs": 1e-9}),
 ]
 
 
-# Figure and command CSVs across machines: each cell within CSV_REL × its column's largest value.
-CSV_REL = 1e-6
+# Figure and command CSVs across machines: each cell within CSV_REL × the largest value of its
+# quantity (harness.cmd_figures.csv_difference); 38× the largest spread measured (2.6e-7, a
+# joint jerk at T = 250 µs, docs/REPRODUCIBILITY.md).
+CSV_REL = 1e-5
 
 
 def rule_for(metric: str, tolerances=DEFAULT_TOLERANCES, entry: str = "") -> dict:
