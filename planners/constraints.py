@@ -1,4 +1,13 @@
-"""Joint and Cartesian derivatives along a path, shared by scurve_joint, pso, toppra, optimal.
+"""The one constraint set of the planners, and the joint and Cartesian derivatives it needs.
+
+Constraints (shared by scurve_joint, pso, toppra and optimal; scurve and trapezoid use the
+Cartesian part): joint v/a/j limits, F_max, the chord-error feed cap (:func:`chord_feed_cap`),
+and at a G1 join, where q″ jumps, the jerk that jump reads as at T (:data:`JUMP_READ_FACTOR`,
+:func:`join_jumps`). The limits themselves are checked once (:func:`check_limits`), the path
+against the workspace by :func:`check_path_in_workspace` (the machine's findings) or
+:func:`ik_along` (IK of given points). The check of a sampled profile at T is
+:mod:`planners.verify`.
+
 
 Every planner that limits the joints of a PKM needs q(s) and its arc-length derivatives
 q′, q″, q‴ (the chain rule then gives joint velocity, acceleration and jerk for any
@@ -16,40 +25,56 @@ import math
 
 import numpy as np
 
-try:
-    from . import PlanningError  # the registry's error type (planners/__init__.py)
-except ImportError:  # pragma: no cover - only until the registry lands
-    class PlanningError(ValueError):
-        """A planner cannot produce a profile (the message says why)."""
-
 from kins import WorkspaceError
+from planners.errors import PlanningError
 
 STENCIL_H_MM = 0.02
+# A jump Δq″ of the joint acceleration at speed ṡ reads, as a third difference at T, as at
+# most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
+# difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
+JUMP_READ_FACTOR = 0.75
 
 
-def check_limits(limits, who: str) -> None:
-    """Raise PlanningError if a limit is not a finite positive number."""
-    for group in ("joint", "cartesian"):
-        lim = getattr(limits, group)
-        for k in ("v", "a", "j"):
-            val = getattr(lim, k)
-            if not (np.isfinite(val) and val > 0):
-                raise PlanningError(f"{who}: {group} limit {k} = {val} must be > 0")
-    for k in ("feed_max", "chord_error_mm"):
-        val = getattr(limits, k)
-        if not (np.isfinite(val) and val > 0):
-            raise PlanningError(f"{who}: limit {k} = {val} must be > 0")
+def check_limits(limits, planner: str = "planner") -> None:
+    """Raise PlanningError unless every limit is a finite number > 0."""
+    vals = {f"{group} limit {k}": getattr(getattr(limits, group), k)
+            for group in ("joint", "cartesian") for k in ("v", "a", "j")}
+    vals |= {"limit feed_max": limits.feed_max, "limit chord_error_mm": limits.chord_error_mm}
+    for name, v in vals.items():
+        try:
+            ok = v > 0 and v < float("inf")
+        except TypeError:      # a string or None in a hand-made Limits
+            ok = False
+        if not ok:
+            raise PlanningError(f"{planner}: {name} = {v!r} must be a finite number > 0")
 
 
 def check_path(path, who: str) -> None:
-    L = getattr(path, "length", None)
-    if L is None or not np.isfinite(L) or L <= 0:
+    L = path.length
+    if not np.isfinite(L) or L <= 0:
         raise PlanningError(f"{who}: path has length {L!r}; need a non-empty path")
 
 
-def check_workspace(machine, s, P) -> np.ndarray:
+def check_path_in_workspace(path, machine, step_mm: float = 0.5) -> None:
+    """Raise PlanningError naming the first path point (arc length, G-code line, xyz and the
+    joint or box side) that ``machine.check`` flags — out of reach, beyond a joint stroke,
+    outside the workspace box or near a singularity — sampling the path every ≤ step_mm."""
+    s, P = path.sample(step_mm)
+    findings = machine.check(P)
+    if not findings:
+        return
+    f = findings[0]
+    ln = int(path.line_at(s[f.index])[0])
+    where = f" (G-code line {ln})" if ln >= 0 else ""
+    joint = f" [joint {f.joint}]" if f.joint is not None else ""
+    raise PlanningError(f"{path.source}: the path leaves the workspace of {machine.name} at "
+                        f"s = {s[f.index]:.6g} mm{where}{joint}: {f.message}")
+
+
+def ik_along(machine, s, P) -> np.ndarray:
     """IK of path points P at arc lengths s; PlanningError naming the arc length, the point and
-    the joint (the kins message) if one leaves the workspace."""
+    the joint (the kins message) if one is out of reach (reach and stroke only: for the
+    workspace box and singularities see check_path_in_workspace)."""
     try:
         return machine.ik(P)
     except WorkspaceError as e:
@@ -68,7 +93,7 @@ def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
     workspace (the kins message names the point and the joint)."""
     s = np.asarray(s, float)
     P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
-    Q0 = check_workspace(machine, s, P)
+    Q0 = ik_along(machine, s, P)
     Q = {0: Q0}
     for k in (-2, -1, 1, 2):
         d = k * h
@@ -106,12 +131,33 @@ def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
     F_clim = (2/T)√(ρ² − (ρ − ε)²) of Erwinski et al., TII 2022 (the chord of one period
     deviates ≤ ε from an arc of radius ρ)."""
     kappa = np.asarray(path.curvature(s) if kappa is None else kappa, float)
-    eps = limits.chord_error_mm
-    with np.errstate(divide="ignore"):
+    return np.minimum(limits.feed_max, chord_feed_cap(kappa, limits.chord_error_mm, T))
+
+
+def chord_feed_cap(kappa, eps: float, T: float) -> np.ndarray:
+    """F_clim = (2/T)√(ρ² − (ρ − ε)²) at curvatures κ ≥ 0 (ρ = 1/κ; straight: inf): the feed at
+    which the chord of one period deviates ε from an arc of radius ρ (TII 2022)."""
+    kappa = np.asarray(kappa, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
         rho = np.where(kappa > 0, 1.0 / np.maximum(kappa, 1e-300), np.inf)
-    # ρ ≤ ε: any chord is within ε; cap by the diameter per period
-    fc = np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)), 2 * rho / T)
-    return np.minimum(limits.feed_max, fc)
+        # ρ² − (ρ − ε)² = 2ρε − ε² (no inf − inf on straight parts); ρ ≤ ε: any chord is within
+        # ε, the cap is the diameter per period
+        return np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)), 2 * rho / T)
+
+
+def table_feed_cap(path, table, limits, T: float) -> np.ndarray:
+    """min(F_max, F_clim) on a PathTable's grid (κ = |P′ × P″| of the arc-length parametrisation)."""
+    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
+    return feed_cap(path, table.s, limits, T, kappa=kappa)
+
+
+def join_jumps(path, table, machine):
+    """[(s, Δq″ per joint)] at the G1 joins where q″ jumps (second_derivative_jumps)."""
+    out = []
+    for sj, _ in second_derivative_jumps(path, table, machine, corner_list(path)):
+        q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))[2]
+        out.append((sj, np.abs(q2[1] - q2[0])))
+    return out
 
 
 class PathTable:
@@ -200,7 +246,7 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
     every jerk-limited planner caps the feed there at √(c·J·T/max|Δx″|).
     """
     corners = np.asarray(list(corners), float)
-    if hasattr(path, "seg_start"):
+    if path.segment_joins() is not None:
         # joins are known: compare the one-sided values there (no search needed)
         known = np.array(breakpoints(path))
         if len(corners) and len(known):
@@ -251,7 +297,8 @@ def breakpoints(path) -> list[float]:
     line/arc path (its curvature jumps there) and the corners.  A NURBS's derivatives jump
     only at its corners (multiple knots, found by `corners()`); elsewhere they are searched."""
     L = path.length
-    out = [float(x) for x in np.asarray(path.seg_start)[1:-1]] if hasattr(path, "seg_start") else []
+    joins = path.segment_joins()
+    out = [] if joins is None else [float(x) for x in np.asarray(joins)]
     out += corner_list(path)
     out = sorted(x for x in out if 1e-9 < x < L - 1e-9)
     merged = []
@@ -262,5 +309,13 @@ def breakpoints(path) -> list[float]:
 
 
 def corner_list(path):
+    """The path's exact-stop corners strictly inside it (1 nm from the ends)."""
     L = path.length
-    return [float(c) for c in (path.corners() if hasattr(path, "corners") else []) if 1e-9 < c < L - 1e-9]
+    return [float(c) for c in path.corners() if 1e-9 < c < L - 1e-9]
+
+
+def rest_pieces(path):
+    """[(s0, s1)] between the path ends and its exact-stop corners: the rest-to-rest pieces
+    (ṡ = s̈ = 0 at both ends, so planners solve them independently)."""
+    edges = [0.0] + corner_list(path) + [path.length]
+    return list(zip(edges[:-1], edges[1:]))

@@ -60,13 +60,11 @@ import time
 import numpy as np
 from scipy.interpolate import BSpline
 
-from .joint_limits import (PathTable, PlanningError, check_limits, check_path, corner_list,
-                           feed_cap, joint_derivs, second_derivative_jumps)
+from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, check_limits, check_path,
+                          join_jumps, rest_pieces, table_feed_cap)
 from .profile import Profile
-from . import toppra_ref
 
 DEGREE = 2                   # ṡ quadratic per knot span ⇒ s⃛ piecewise constant, as in an s-curve
-JUMP_READ_FACTOR = 0.75      # see optimal.py: a jump Δq″ reads as ≤ 0.75·Δq″·ṡ²/T at T
 MIN_KNOT_GAP_T = 2           # seed switch times < 2 servo periods apart share a knot (see _seed_window)
 # A piece with G1 joins is cut there into sub-pieces (see _SubPiece).  Their join feed, as a
 # fraction of the largest feed at which the join, passed with s̈ = s⃛ = 0, meets every limit
@@ -521,7 +519,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     proportion to the seed's time on each); ``polish_steps``: SLP steps per piece after the
     swarm (POLISH_ITERATIONS if None, 0: none); ``target_time_s``: record when the best total
     (swarm, then polished) first reaches it (``info['time_to_target_s']``), for the benchmark."""
-    from harness.metrics import command_metrics, differences
+    from planners.verify import command_metrics, stretch_need
     from .scurve import plan_joint
 
     t0 = time.perf_counter()
@@ -534,14 +532,10 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
     table = PathTable(path, machine)
-    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
-    cap = feed_cap(path, table.s, limits, T, kappa=kappa)
-    joins = []
-    for sj, _ in second_derivative_jumps(path, table, machine, corner_list(path)):
-        q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))[2]
-        joins.append((sj, np.abs(q2[1] - q2[0])))
+    cap = table_feed_cap(path, table, limits, T)
+    joins = join_jumps(path, table, machine)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
-    pcs = toppra_ref.pieces(path)
+    pcs = rest_pieces(path)
     # control points in proportion to the seed's time on each piece
     tp = np.array([max(np.count_nonzero((seed_prof.s > a) & (seed_prof.s < b)), 1) for a, b in pcs], float)
     Ks = np.maximum(8, np.round(control_points * tp / tp.sum()).astype(int))
@@ -695,18 +689,12 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
             "time_to_target_s": time_to_target}
     # check at T with the independent metrics; stretch the pieces whose samples at T read
     # above a limit (the swarm saw only its own samples) by just that excess
-    lim = limits.joint
     for _ in range(8):
         prof = _sample(pieces, T, path, info)
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
         if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
             break
-        D = {o: np.abs(x).max(axis=1) for o, x in differences(machine.ik(path.point(prof.s)), T).items()}
-        feed = np.diff(prof.s) / T / limits.feed_max
-        need = np.zeros(len(prof.s))
-        need[1:] = np.maximum(D["velocity"] / lim.v, feed)
-        need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
-        need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
         k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
         grp = np.array([p["group"] for p in pieces])[k]

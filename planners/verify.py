@@ -1,4 +1,6 @@
-"""The metrics of a run (DESIGN.md "The metrics"): one module for the CLI, tests and planners.
+"""The one check of a profile at the servo period T (DESIGN.md "The metrics"), used by the
+planners themselves (pso and optimal check their result with it), by the harness's run
+metrics, by `pkmbench plan`, the sweeps and the tests.
 
 Peak ratios are read on the commanded trajectory exactly as a drive would see it: the
 positions at period T, derivatives by backward finite differences at T (velocity a first
@@ -85,31 +87,15 @@ def chord_error_mm(P: np.ndarray, path, s: np.ndarray) -> float:
     return float(np.linalg.norm(mid - on_path, axis=1).max()) if len(mid) else 0.0
 
 
-def following_error_um(targets: np.ndarray, actual: np.ndarray) -> float:
-    """Largest |joint target − actual joint position| over joints and samples, in µm."""
-    d = np.abs(np.asarray(targets, float) - np.asarray(actual, float))
-    return float(d.max() * 1e3) if d.size else 0.0
-
-
-def contour_error_um(P_act: np.ndarray, P_cmd: np.ndarray, window: int = 50) -> float:
-    """Largest distance of the actual tool points from the commanded path, in µm.
-
-    The commanded path is the polyline of the commanded samples (its own chord error is
-    reported separately); each actual point is measured against the segments within
-    ``window`` samples behind and ahead of its own index, which covers any realistic lag.
-    """
-    P_act = np.asarray(P_act, float)
-    A, B = np.asarray(P_cmd[:-1], float), np.asarray(P_cmd[1:], float)
-    if len(A) == 0:
-        return float(np.linalg.norm(P_act - P_cmd, axis=1).max() * 1e3)
-    n = len(P_act)
-    best = np.full(n, np.inf)
-    idx = np.arange(n)
-    for off in range(-window, window + 1):
-        j = np.clip(idx + off, 0, len(A) - 1)
-        a, ab = A[j], B[j] - A[j]
-        L2 = np.einsum("ij,ij->i", ab, ab)
-        u = np.where(L2 > 0, np.einsum("ij,ij->i", P_act - a, ab) / np.where(L2 > 0, L2, 1.0), 0.0)
-        d = np.linalg.norm(P_act - (a + np.clip(u, 0, 1)[:, None] * ab), axis=1)
-        np.minimum(best, d, out=best)
-    return float(best.max() * 1e3)
+def stretch_need(Q: np.ndarray, s: np.ndarray, T: float, limits) -> np.ndarray:
+    """Per sample, the time stretch λ ≥ its ratios that brings joint samples Q (N, 3) and the
+    feed of arc lengths s back within ``limits`` at T: velocity and feed scale as 1/λ,
+    acceleration as 1/λ², jerk as 1/λ³; a difference window counts at its last sample."""
+    lim = limits.joint
+    D = {o: np.abs(x).max(axis=1) for o, x in differences(Q, T).items()}
+    feed = np.diff(s) / T / limits.feed_max
+    need = np.zeros(len(s))
+    need[1:] = np.maximum(D["velocity"] / lim.v, feed)
+    need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
+    need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
+    return need

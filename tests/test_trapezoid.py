@@ -5,10 +5,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from harness.metrics import command_metrics
+from planners.verify import command_metrics
 from kins import load_machine
 from planners import PlanningError, get_planner, plan
-from planners.path import Arc, Line, SegmentPath, resolve_path
+from planners.paths import Arc, Line, SegmentPath, resolve_path
 
 
 @pytest.fixture(scope="module")

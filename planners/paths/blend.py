@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from planners.path import CORNER_ANGLE, Arc, Line, Path, PathError, SegmentPath, cross3, norm3
+from planners.paths.base import CORNER_ANGLE, Path, PathError, cross3, norm3
+from planners.paths.segments import Arc, Line, SegmentPath
 
 REVERSAL_ANGLE = math.pi - 1e-6
 
@@ -139,7 +140,6 @@ def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.05):
     P = path.point(sv)
     lines = [Line(P[i], P[i + 1], None, f"{path.source}: chord {i}") for i in range(len(P) - 1)]
     out = SegmentPath(lines, f"{path.source} (G1 lines, chord ≤ {chord_tol:g} mm)")
-    out.vertex_s = sv
     return out, float(dev.max())
 
 

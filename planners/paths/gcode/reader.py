@@ -17,7 +17,7 @@ Corners: the path-control mode in force when a move is read governs the corner a
 (LinuxCNC's term_cond): G61/G61.1 → exact stop; G64 P p → blended within p mm;
 G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tolerance other
 than the room available (half of each adjoining segment). Blending is done by
-:mod:`planners.blend`, the one module all planners share. The default mode is G64 (as in
+:mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
 """
 from __future__ import annotations
@@ -29,7 +29,9 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from planners.path import Arc, Line, PathError, SegmentPath
+from planners.paths.base import PathError
+from planners.paths.blend import blend_corners
+from planners.paths.segments import Arc, Line, SegmentPath
 
 INCH_MM = 25.4
 ARC_RADIUS_ABS_TOL = 0.002     # mm (LinuxCNC rs274ngc: radius mismatch tolerances, abs …
@@ -86,7 +88,7 @@ class GCodeProgram:
         return [m.blend_mm for m in self.moves[:-1]]
 
 
-def _strip_comments(text: str, src: str, ln: int) -> str:
+def strip_comments(text: str, src: str, ln: int) -> str:
     if "(" not in text and ")" not in text and ";" not in text:
         return text                     # most lines of a CAM program: nothing to strip
     out, i = [], 0
@@ -141,7 +143,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None) -> GC
     ended = False
     positioning = None       # (line, motion, feed, blend) of the move that set the start point
     for ln, raw in enumerate(text.splitlines(), start=1):
-        body = _strip_comments(raw, source, ln).strip()
+        body = strip_comments(raw, source, ln).strip()
         if not body or body == "%":
             continue
         if ended:
@@ -361,11 +363,8 @@ def read_gcode(file, start=None, home=None) -> GCodeProgram:
 
 def program_path(prog: GCodeProgram) -> SegmentPath:
     """The blended path of a program (G61 corners kept sharp, G64 corners rounded)."""
-    from planners.blend import blend_corners
     segs, _ = blend_corners(prog.segments(), prog.blend_tolerances())
-    path = SegmentPath(segs, prog.source)
-    path.program = prog
-    return path
+    return SegmentPath(segs, prog.source, program=prog)
 
 
 def load_gcode_path(file, start=None) -> SegmentPath:
