@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from harness.cli import main as cli
-from harness.sweep import ci
-from harness.sweep.history import History
+from harness.ci import baseline as ci
+from harness.ci.history import History
 from harness.sweep.suite import REPO
 
 LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],

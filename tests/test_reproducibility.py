@@ -14,9 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from harness.cmd_figures import csv_difference
-from harness.sweep import ci, flatten
-from harness.system import FMU_DIR
+from harness.cli.figures import csv_difference
+from harness.ci import baseline as ci
+from harness.sweep import flatten
+from harness.cosim.system import FMU_DIR
 
 REPO = Path(__file__).resolve().parent.parent
 PROGRAM = REPO / "tests" / "data" / "repro_part.ngc"

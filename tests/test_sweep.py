@@ -165,7 +165,7 @@ def test_sweep_through_a_real_scheduler_with_two_worker_processes(tmp_path, caps
 
 
 def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("harness.sweep.CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr("harness.sweep.engine.CONNECT_TIMEOUT", "1s")
     suite = write_suite(tmp_path, planners=["quintic"])
     t0 = time.perf_counter()
     assert cli(["sweep", str(suite), "--scheduler", f"tcp://127.0.0.1:{_free_port()}",
@@ -201,7 +201,7 @@ def test_fmus_reach_dask_workers_as_files(tmp_path, monkeypatch):
     fmus = tmp_path / "fmus"
     fmus.mkdir()
     (fmus / "Fake.fmu").write_bytes(b"PK" + bytes(1234))
-    monkeypatch.setattr("harness.sweep.FMU_DIR", fmus)
+    monkeypatch.setattr("harness.sweep.engine.FMU_DIR", fmus)
     tasks = tasks_from_suite_file(write_suite(tmp_path, planners=["quintic"]))
     r = run_sweep(tasks, tmp_path / "o", task_fn=f"{__name__}:fmu_size_task", workers=1, progress=False)
     assert (r.ok, r.failed) == (1, 0), r.failures

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import metrics as M
+from planners import verify as M
 
 EXIT_CLEAN, EXIT_FINDINGS, EXIT_INVALID = 0, 1, 2
 TEXT_LIMIT = 50          # entries of the default text report (--all: every finding)
@@ -168,12 +168,12 @@ _N_WORD = re.compile(r"^\s*[Nn]\s*(\d+)")
 
 def _n_number_warnings(text: str, source: str) -> list[Finding]:
     """N numbers must increase (a warning: LinuxCNC ignores them, but a reordered program is suspect)."""
-    from planners.gcode import GCodeError, _strip_comments
+    from planners.paths.gcode import GCodeError, strip_comments
 
     out, last = [], None
     for ln, raw in enumerate(text.splitlines(), start=1):
         try:
-            body = _strip_comments(raw, source, ln)
+            body = strip_comments(raw, source, ln)
         except GCodeError:
             continue
         m = _N_WORD.match(body)
@@ -224,7 +224,7 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
 
 def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5) -> Report:
     import planners
-    from planners.gcode import GCodeError, program_path, read_gcode
+    from planners.paths.gcode import GCodeError, program_path, read_gcode
 
     file = Path(file)
     rep = Report(str(file), machine.name, planner)

@@ -60,7 +60,7 @@ def resolve_rule(rule: dict, entry: str) -> dict:
     increment when its input crosses a step, however small the input's change."""
     if "increments" not in rule:
         return rule
-    from harness.drive_params import encoder_increment_mm
+    from harness.cosim.drive_params import encoder_increment_mm
     from kins.machine import MachineFileError
     try:
         inc_mm = encoder_increment_mm(entry.split("/", 1)[0])
@@ -145,7 +145,7 @@ def reference_timed_task(task: dict, out_dir) -> dict:
     import statistics
     from pathlib import Path
 
-    from . import flatten, resolve_task_fn
+    from harness.sweep import flatten, resolve_task_fn
     inner = resolve_task_fn(task["ci_inner_task"])
     refs, runs = [reference_workload_s(3, "mean")], []
     for i in range(CI_REPEAT):
@@ -185,7 +185,7 @@ class Check:
 
 def entries_from_rows(rows: list[dict], reference_s: float) -> tuple[dict, dict]:
     """(entries {label: flat metrics}, errors {label: error}) from a sweep's store rows."""
-    from . import flatten, task_label
+    from harness.sweep import flatten, task_label
     entries, errors = {}, {}
     for row in rows:
         label = task_label(row["task"])

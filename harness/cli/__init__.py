@@ -1,6 +1,7 @@
-"""The `pkmbench` command line. Each command is a module ``harness.cmd_<name>`` with
-``add_arguments(parser)`` and ``main(args) -> int``; a command whose module is not there yet
-says so instead of failing obscurely.
+"""The `pkmbench` command line. Each command is a thin module ``harness.cli.<name>`` with
+``add_arguments(parser)`` and ``main(args) -> int`` that parses, calls the library
+(harness.cosim, harness.sweep, harness.ci, harness.report, harness.check, planners) and
+prints; a command whose module is not there says so instead of failing obscurely.
 """
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ import argparse
 import importlib
 import subprocess
 import sys
-from pathlib import Path
 
 DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics machines through FMI "
                "co-simulation FMUs (interpolator, kinematics, EtherCAT, drives) and compare their "
@@ -16,15 +16,15 @@ DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics m
 
 # name → (module, one-line help, issue that builds it)
 COMMANDS = {
-    "run": ("harness.cmd_run", "co-simulate a suite or machine × path × planners and compare", 6),
-    "plan": ("harness.cmd_plan", "plan a feed profile only (no co-simulation)", 6),
-    "check": ("harness.cmd_check", "offline G-code checker for a PKM (workspace, singularities, joint limits)", 7),
-    "sweep": ("harness.cmd_sweep", "run a suite on Dask (in-process, or --scheduler ADDRESS)", 9),
-    "report": ("harness.cmd_report", "Markdown/HTML comparison of a sweep", 9),
-    "figures": ("harness.cmd_figures", "reproduce the published figures", 8),
-    "ci": ("harness.cmd_ci", "nightly performance CI against a committed baseline", 9),
-    "history": ("harness.cmd_history", "plot the CI history trend", 9),
-    "kins-demo": ("harness.cmd_kins_demo", "workspace and joint-range plots for every machine", 2),
+    "run": ("harness.cli.run", "co-simulate a suite or machine × path × planners and compare", 6),
+    "plan": ("harness.cli.plan", "plan a feed profile only (no co-simulation)", 6),
+    "check": ("harness.cli.check", "offline G-code checker for a PKM (workspace, singularities, joint limits)", 7),
+    "sweep": ("harness.cli.sweep", "run a suite on Dask (in-process, or --scheduler ADDRESS)", 9),
+    "report": ("harness.cli.report", "Markdown/HTML comparison of a sweep", 9),
+    "figures": ("harness.cli.figures", "reproduce the published figures", 8),
+    "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline", 9),
+    "history": ("harness.cli.history", "plot the CI history trend", 9),
+    "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine", 2),
 }
 
 
@@ -40,7 +40,7 @@ def version_string() -> str:
         ver = version("pkmbench")
     except PackageNotFoundError:
         ver = "(not installed)"
-    repo = Path(__file__).resolve().parent.parent
+    from kins.resources import REPO as repo
     try:
         git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], capture_output=True,  # noqa: E731
                                         text=True, timeout=10)
@@ -98,9 +98,3 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pkmbench {args.command}: interrupted", file=sys.stderr)
         return 130
 
-
-if __name__ == "__main__":
-    # `python -m harness.cli`: this file runs as __main__, but the commands raise the CliError
-    # of the module harness.cli, so run that module's main
-    from harness.cli import main as _main
-    sys.exit(_main())

@@ -15,7 +15,7 @@ def add_arguments(p):
 
 
 def main(args) -> int:
-    from harness.gcode_check import TEXT_LIMIT, CheckError, check_program
+    from harness.check.gcode import TEXT_LIMIT, CheckError, check_program
     from kins import load_machine
     from kins.machine import MachineFileError
 

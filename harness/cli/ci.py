@@ -19,17 +19,18 @@ from pathlib import Path
 
 from harness.cli import CliError
 from harness.outdir import output_dir, output_file
+from kins.resources import BASELINE, CI_DIR, REPO, SUITE_DIR, repo_relative
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--suite", default="benchmarks/suites/nightly.toml", help="suite file")
-    p.add_argument("--baseline", default="results/baseline.json", help="baseline file")
+    p.add_argument("--suite", default=None, help="suite file (default: benchmarks/suites/nightly.toml of the checkout)")
+    p.add_argument("--baseline", default=str(BASELINE), help="baseline file (default: %(default)s)")
     p.add_argument("--update-baseline", action="store_true",
                    help="write the current numbers as the baseline instead of comparing")
     p.add_argument("--no-timing", action="store_true",
                    help="compare every metric but planning time (a check that the numbers reproduce, "
                         "on a machine that is not the nightly runner)")
-    p.add_argument("--out", default="results/ci", help="folder for junit.xml, summary.md and the run")
+    p.add_argument("--out", default=str(CI_DIR), help="folder for junit.xml, summary.md and the run (default: %(default)s)")
     p.add_argument("--junit", help="JUnit XML file (default OUT/junit.xml)")
     p.add_argument("--markdown", help="Markdown summary file (default OUT/summary.md)")
     p.add_argument("--history", help="history store (default OUT/history.sqlite)")
@@ -40,7 +41,7 @@ def add_arguments(p) -> None:
 
 
 def _load_baseline(file: Path) -> dict:
-    from harness.sweep.ci import FORMAT
+    from harness.ci.baseline import FORMAT
     if not file.exists():
         raise CliError(f"{file}: no baseline; create it with --update-baseline")
     try:
@@ -55,10 +56,14 @@ def _load_baseline(file: Path) -> dict:
 def main(args) -> int:
     from harness.sweep import (DEFAULT_TASK, SuiteError, SweepError, SweepStore, code_version,
                                expand, load_suite, resolve_task_fn, run_sweep)
-    from harness.sweep import ci
-    from harness.sweep.history import History
-    from harness.sweep.suite import REPO
+    from harness.ci import baseline as ci
+    from harness.ci.history import History
 
+    if args.suite is None:           # recorded as the checkout-relative name, read from the checkout
+        args.suite = repo_relative(SUITE_DIR / "nightly.toml")
+        suite_file = SUITE_DIR / "nightly.toml"
+    else:
+        suite_file = Path(args.suite)
     task_fn = args.task or DEFAULT_TASK
     baseline_file = Path(args.baseline)
     baseline = None if args.update_baseline else _load_baseline(baseline_file)
@@ -67,7 +72,7 @@ def main(args) -> int:
     except SweepError as e:
         raise CliError(str(e)) from None
     try:
-        suite = load_suite(args.suite)
+        suite = load_suite(suite_file)
         tasks = expand(suite, src=args.suite, base=Path.cwd())
         tolerances = ci.tolerances_from_suite(suite)
         if args.no_timing:
@@ -89,7 +94,7 @@ def main(args) -> int:
     shutil.rmtree(run_dir, ignore_errors=True)            # CI measures afresh: nothing skipped
     try:
         tasks = [t | {"ci_inner_task": task_fn} for t in tasks]
-        res = run_sweep(tasks, run_dir, task_fn="harness.sweep.ci:reference_timed_task", workers=args.workers,
+        res = run_sweep(tasks, run_dir, task_fn="harness.ci.baseline:reference_timed_task", workers=args.workers,
                         scheduler=args.scheduler, force=True, progress=sys.stderr.isatty())
     except SweepError as e:
         raise CliError(str(e)) from None

@@ -7,13 +7,13 @@ import numpy as np
 
 from harness.cli import CliError
 from harness.outdir import output_dir
-from harness.system import SystemError_
+from kins.resources import FIGURES_DIR
+from harness.cosim.system import SystemError_
 
-REPO = Path(__file__).resolve().parent.parent
 
 
 def add_arguments(p):
-    p.add_argument("--out", default=str(REPO / "results" / "figures"), help="output folder (default: %(default)s)")
+    p.add_argument("--out", default=str(FIGURES_DIR), help="output folder (default: %(default)s)")
     p.add_argument("--compare", metavar="DIR", help="afterwards compare every CSV with DIR's (e.g. the "
                    "committed results/figures) within the cross-machine contract (docs/REPRODUCIBILITY.md); "
                    "exit 1 if any differs or is missing")
@@ -22,8 +22,8 @@ def add_arguments(p):
 
 
 def main(args) -> int:
-    from harness.figures import keops_paper, kossel_thesis, tii2022
-    from harness.sweep import ci
+    from harness.report.figures import keops_paper, kossel_thesis, tii2022
+    from harness.ci import baseline as ci
 
     out = output_dir(args.out)
     steps = [("KEOPS paper Figs. 5–6", lambda: keops_paper.figures(out, pso=not args.quick)),

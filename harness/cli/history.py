@@ -10,12 +10,13 @@ from pathlib import Path
 
 from harness.cli import CliError
 from harness.outdir import output_file
+from kins.resources import CI_DIR
 
 DEFAULT_METRICS = ["execution_time_s", "planning_time_ratio", "joint_peak_ratio.jerk"]
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--history", default="results/ci/history.sqlite", help="history store of pkmbench ci")
+    p.add_argument("--history", default=str(CI_DIR / "history.sqlite"), help="history store of pkmbench ci")
     p.add_argument("--metric", action="append", metavar="PATTERN",
                    help=f"metric name or glob, repeatable (default: {', '.join(DEFAULT_METRICS)})")
     p.add_argument("--entry", default="*", metavar="PATTERN", help="runs to plot (glob on machine/path/planner/…)")
@@ -24,7 +25,7 @@ def add_arguments(p) -> None:
 
 
 def main(args) -> int:
-    from harness.sweep.history import History
+    from harness.ci.history import History
     hfile = Path(args.history)
     if not hfile.exists():
         raise CliError(f"{hfile}: no history yet; `pkmbench ci` appends to it")

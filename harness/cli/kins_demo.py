@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from harness.outdir import output_dir
+from kins.resources import RESULTS
 
 
 def add_arguments(p):
-    p.add_argument("--out", default="results/kins", help="output folder (default: %(default)s)")
+    p.add_argument("--out", default=str(RESULTS / "kins"), help="output folder (default: %(default)s)")
     p.add_argument("--machines", default=None, help="comma-separated machine ids (default: all)")
 
 

@@ -1,8 +1,6 @@
 """`pkmbench plan`: plan feed profiles only (no co-simulation), write them, print their metrics."""
 from __future__ import annotations
 
-import json
-
 from harness.cli import CliError
 from harness.outdir import output_dir
 
@@ -16,10 +14,11 @@ def add_arguments(p):
 
 def main(args) -> int:
     import planners
-    from harness.metrics import command_metrics
+    from planners.verify import command_metrics
     from kins import load_machine
+    from harness.cosim.record import write_json
     from kins.machine import MachineFileError
-    from planners.path import PathError, resolve_path
+    from planners.paths import PathError, resolve_path
 
     try:
         m = load_machine(args.machine)
@@ -49,5 +48,5 @@ def main(args) -> int:
             d.mkdir(parents=True, exist_ok=True)
             prof.save_csv(d / "profile.csv")
             prof.path.to_file(d / "path.json")
-            (d / "metrics.json").write_text(json.dumps(met, indent=2, sort_keys=True) + "\n")
+            write_json(d / "metrics.json", met)
     return 1 if failed else 0

@@ -7,9 +7,9 @@ from pathlib import Path
 
 from harness.cli import CliError
 from harness.outdir import output_dir
+from kins.resources import run_dir, suite_run_dir
 
 JITTER_PRESETS = ("none", "linuxcnc_rt_preempt", "tuned_rt")
-REPO = Path(__file__).resolve().parent.parent
 
 
 def add_arguments(p):
@@ -71,11 +71,11 @@ def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
                     cases.append((m, p, list(r["planners"]), suite.get("planner_options", {})))
         if not cases:
             raise CliError(f"{f}: no [[run]] tables")
-        return cases, Path(args.out or REPO / "results" / f.stem)
+        return cases, Path(args.out or suite_run_dir(f))
     if not (args.machine and args.path):
         raise CliError("give a suite file, or --machine and --path")
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
-    out = Path(args.out) if args.out else REPO / "results" / f"{Path(args.machine).stem}_{Path(args.path).stem}"
+    out = Path(args.out) if args.out else run_dir(args.machine, args.path)
     return [(args.machine, args.path, planners, {})], out
 
 
@@ -106,7 +106,7 @@ def _written(odir: Path, summary: dict) -> str:
 
 
 def main(args) -> int:
-    from harness.run import RunError, run_case
+    from harness.cosim.run import RunError, run_case
     from harness.seed import SeedError, check_seed
 
     if args.jitter and args.jitter not in JITTER_PRESETS:

@@ -9,15 +9,15 @@ Exit 0 when every task succeeded, 1 when some failed (they are listed), 2 on a u
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 from harness.cli import CliError
 from harness.outdir import output_dir
+from kins.resources import sweep_dir
 
 
 def add_arguments(p) -> None:
     p.add_argument("suite", help="suite file (benchmarks/suites/*.toml) with optional [sweep] axes")
-    p.add_argument("--out", help="sweep folder (results.sqlite + runs/); default results/sweeps/<suite>")
+    p.add_argument("--out", help="sweep folder (results.sqlite + runs/); default results/sweeps/<suite> of the checkout")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="local worker processes (default: the number of cores; 0 = no Dask, serial)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="use an existing dask cluster")
@@ -38,7 +38,7 @@ def main(args) -> int:
         tasks = tasks_from_suite_file(args.suite)
     except SuiteError as e:
         raise CliError(str(e)) from None
-    out = output_dir(args.out or Path("results") / "sweeps" / Path(args.suite).stem, "sweep folder")
+    out = output_dir(args.out or sweep_dir(args.suite), "sweep folder")
     try:
         res = run_sweep(tasks, out, task_fn=args.task or DEFAULT_TASK, workers=args.workers,
                         scheduler=args.scheduler, processes=not args.threads, force=args.force,

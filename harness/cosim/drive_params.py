@@ -1,6 +1,6 @@
 """Machine-file values → start values of Drive.fmu and EtherCAT.fmu (issue 4).
 
-    from harness.drive_params import drive_start_values, ethercat_start_values
+    from harness.cosim.drive_params import drive_start_values, ethercat_start_values
     drive = drive_start_values("kossel")          # {FMU variable name: value}
     bus = ethercat_start_values("kossel", histogram_out="out/lateness.csv")
 
@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.seed import fmu_seed
+from kins.resources import REPO
 from kins import load_machine
 from kins.machine import Kinematics, MachineFileError
 
@@ -175,7 +176,7 @@ def ethercat_start_values(machine: str | Path | Kinematics, *, histogram_out: st
     if out.get("histogram_file"):
         p = Path(out["histogram_file"])
         if not p.is_absolute():
-            p = Path(__file__).resolve().parent.parent / p
+            p = REPO / p
         out["histogram_file"] = str(p)
     if seed is not None:
         out["seed"] = seed

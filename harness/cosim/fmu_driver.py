@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.master import _Instance
-from harness.system import Component
+from harness.cosim.master import _Instance
+from harness.cosim.system import Component
 
 
 class SteppedFmu:

@@ -1,6 +1,6 @@
 """Co-simulation masters: a native stepping loop (default) and a plain-Python reference.
 
-Both take a :class:`harness.system.System`, instantiate every component with fmpy (start
+Both take a :class:`harness.cosim.system.System`, instantiate every component with fmpy (start
 values, logging), then step at the system's fixed step in Gauss–Seidel order (the order of
 the components) or Jacobi, and record the requested variables after every macro step
 (row 0 = after initialisation). An fmi2Error from any FMU ends the run with a
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.system import FMU_DIR, System, SystemError_, check_fmu
+from harness.cosim.system import FMU_DIR, System, SystemError_, check_fmu
 
 TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "Enumeration": 1}
 NATIVE_SRC = Path(__file__).with_name("native_master.c")

@@ -6,6 +6,7 @@ leaves a file that looks finished.
 from __future__ import annotations
 
 import json
+import math
 import os
 import uuid
 from contextlib import contextmanager
@@ -31,6 +32,27 @@ def replacing(path: Path):
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     with replacing(path) as tmp:
         tmp.write_bytes(data)
+
+
+def _clean(obj):
+    """JSON-safe and NaN-free: a non-finite number becomes null (DESIGN: no NaN in results)."""
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def write_json(path: Path, obj) -> None:
+    """A JSON file of a run (summary.json, timing.json, metrics.json): sorted keys, indent 2,
+    NaN-free, written atomically. The one writer of these contract files."""
+    atomic_write_bytes(path, (json.dumps(_clean(obj), indent=2, sort_keys=True, allow_nan=False) + "\n").encode())
 
 
 def write_command_csv(path: Path, t, P, Q) -> None:

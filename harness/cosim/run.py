@@ -1,6 +1,6 @@
 """One run: a machine × a toolpath × planners, each profile through the full FMU chain.
 
-    from harness.run import run_case
+    from harness.cosim.run import run_case
     summary = run_case("keops", "bird", ["scurve", "pso"], "results/keops_bird")
 
 Per planner: plan (offline) → ``NAME/path.json`` + ``NAME/profile.csv`` → the system as SSP
@@ -13,7 +13,6 @@ earlier run, and its planner folders this run does not redo, are removed first.
 """
 from __future__ import annotations
 
-import json
 import math
 import shutil
 import time
@@ -21,12 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import metrics as M
-from harness.master import CoSimError, simulate
+from harness.cosim.master import CoSimError, simulate
+from harness.cosim.measure import measure
+from harness.cosim.record import replacing, write_command_csv, write_json, write_mcap, write_rrd
+from harness.cosim.system import SystemError_, chain, check_chain_fmus, read_ssp, write_ssp
 from harness.outdir import OutDirError, output_dir, run_lock
-from harness.record import atomic_write_bytes, replacing, write_command_csv, write_mcap, write_rrd
 from harness.seed import SeedError, check_seed
-from harness.system import SystemError_, chain, check_chain_fmus, read_ssp, write_ssp
+from planners.verify import differences
 
 # Interpolator output → command; Kinematics → joints; EtherCAT → delivered targets; drives
 RECORD = (["interpolator.x", "interpolator.y", "interpolator.z", "interpolator.s", "interpolator.feed",
@@ -46,25 +46,6 @@ class RunError(Exception):
     folder that cannot be written or that another run holds)."""
 
 
-def _clean(obj):
-    """JSON-safe and NaN-free: a non-finite number becomes null (DESIGN: no NaN in results)."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
-
-
-def write_json(path: Path, obj) -> None:
-    atomic_write_bytes(path, (json.dumps(_clean(obj), indent=2, sort_keys=True, allow_nan=False) + "\n").encode())
-
-
 def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None = None, ideal: bool = False,
                engine: str = "native", jacobi: bool = False):
     """Write the profile's files and system, run it, return the master's Result."""
@@ -80,36 +61,13 @@ def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None
     return simulate(read_ssp(ssd), RECORD, engine=engine, jacobi=jacobi)
 
 
-def measure(machine, profile, res) -> dict:
-    """DESIGN.md metrics of one co-simulated profile."""
-    T = machine.servo_period_s
-    n = len(profile.s)                      # the commanded motion: rows 0 … n-1
-    P = np.column_stack([res[f"interpolator.{a}"] for a in "xyz"])
-    s = res["interpolator.s"]
-    out = M.command_metrics(machine, P[:n], T, s[:n])
-    Q_act = np.column_stack([res[f"drive{k}.position"] for k in (1, 2, 3)])
-    Q_tgt = np.column_stack([res[f"ethercat.q{k}_target"] for k in (1, 2, 3)])
-    out["max_following_error_um"] = M.following_error_um(Q_tgt, Q_act)
-    try:
-        P_act = machine.fk(Q_act)
-        out["max_contour_error_um"] = M.contour_error_um(P_act, P)
-    except Exception as e:   # an actual joint vector with no assembly: say so, no NaN
-        out["max_contour_error_um"] = None
-        out["contour_error_note"] = f"FK of the actual joints failed: {e}"
-    geom = float(profile.info.get("geometry_deviation_mm", 0.0))
-    out["max_chord_error_um"] = (M.chord_error_mm(P[:n], profile.path, s[:n]) + geom) * 1e3
-    out["lost_frames"] = int(res["ethercat.lost_frames"][-1])
-    out["faulted_drives"] = int(sum(res[f"drive{k}.fault"].max() > 0 for k in (1, 2, 3)))
-    return out
-
-
 def run_case(machine_name: str, path_name: str, planner_names: list[str], out_dir, *, seed: int = 0,
              jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
              planner_options: dict | None = None, recordings: bool = True, progress=None) -> dict:
     from kins import load_machine
     from kins.machine import MachineFileError
     import planners
-    from planners.path import PathError, resolve_path
+    from planners.paths import PathError, resolve_path
 
     try:
         machine = load_machine(machine_name)
@@ -262,7 +220,7 @@ def _recordings(pdir: Path, machine, res, P, Q) -> None:
     }
     write_mcap(pdir / "run.mcap", ch)
     T = machine.servo_period_s
-    d = M.differences(Q, T)
+    d = differences(Q, T)
     lim = machine.limits.joint
     ratio = np.zeros(len(Q))
     for order, L in (("velocity", lim.v), ("acceleration", lim.a), ("jerk", lim.j)):

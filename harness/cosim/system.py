@@ -17,8 +17,7 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
-FMU_DIR = REPO / "fmus" / "build"
+from kins.resources import FMU_DIR, REPO
 
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
@@ -147,7 +146,7 @@ def chain(machine, path_file: Path, profile_file: Path, duration_s: float, *, se
     ``ideal``: zero-jitter bus, no transport delay and ideal drives (position = target), so the
     chain must reproduce the commanded joint trajectory exactly (a test).
     """
-    from harness.drive_params import drive_start_values, ethercat_start_values
+    from harness.cosim.drive_params import drive_start_values, ethercat_start_values
 
     T = machine.servo_period_s
     comps = [

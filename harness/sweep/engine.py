@@ -34,13 +34,9 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .store import SweepStore, flatten
-from .suite import (FMU_DIR, REPO, SuiteError, code_version, expand, load_suite, make_task,
-                    task_key, task_label)
-
-__all__ = ["run_sweep", "SweepResult", "SweepError", "SweepStore", "flatten", "expand",
-           "load_suite", "make_task", "task_key", "task_label", "code_version", "SuiteError",
-           "execute_task", "DEFAULT_TASK", "tasks_from_suite_file"]
+from harness.sweep.store import SweepStore
+from harness.sweep.suite import code_version, expand, load_suite, task_key, task_label
+from kins.resources import FMU_DIR, REPO
 
 DEFAULT_TASK = "harness.sweep.tasks:default_task"
 CONNECT_TIMEOUT = "10s"       # to an existing scheduler

@@ -27,14 +27,11 @@ import tomllib
 from pathlib import Path
 
 from harness.seed import SeedError, check_seed
+from kins.resources import FMU_DIR, MACHINE_DIR, PATH_DIR, REPO, repo_relative
 
-REPO = Path(__file__).resolve().parents[2]
-MACHINE_DIR = REPO / "benchmarks" / "machines"
-PATH_DIR = REPO / "benchmarks" / "paths"
 PATH_SUFFIXES = (".json", ".ngc")
 # Sources whose change can change a result: every task key depends on their hash.
 CODE_DIRS = ("kins", "planners", "harness")
-FMU_DIR = REPO / "fmus" / "build"
 
 
 class SuiteError(ValueError):
@@ -75,13 +72,6 @@ def resolve_path(name: str, base: Path = REPO) -> Path:
     known = ", ".join(sorted(q.stem for q in PATH_DIR.iterdir() if q.suffix in PATH_SUFFIXES)) \
         if PATH_DIR.exists() else ""
     raise SuiteError(f"path '{name}': no file found (looked in {PATH_DIR}; known: {known or 'none'})")
-
-
-def _rel(p: Path) -> str:
-    try:
-        return str(p.resolve().relative_to(REPO))
-    except ValueError:
-        return str(p)
 
 
 def load_suite(file: str | Path) -> dict:
@@ -160,8 +150,8 @@ def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
     except SeedError as e:
         raise SuiteError(str(e)) from None
     return {
-        "machine": machine_file.stem, "machine_file": _rel(machine_file),
-        "path": path_file.stem, "path_file": _rel(path_file),
+        "machine": machine_file.stem, "machine_file": repo_relative(machine_file),
+        "path": path_file.stem, "path_file": repo_relative(path_file),
         "planner": planner, "planner_options": dict(planner_options or {}),
         "seed": int(seed), "preset": preset,
         "variation": {"name": "base", "set": {}} | dict(variation or {}),
@@ -174,7 +164,7 @@ def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
 def _hash_files(files) -> str:
     """Hash of (repo-relative name, content) pairs: equal across clones of the repository."""
     h = hashlib.sha256()
-    for name, f in sorted((_rel(f), f) for f in files):
+    for name, f in sorted((repo_relative(f), f) for f in files):
         h.update(name.encode() + b"\0")
         h.update(hashlib.sha256(f.read_bytes()).digest())
     return h.hexdigest()

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.figures import pyplot, save
-from harness.metrics import command_metrics, differences
+from harness.report.figures import pyplot, save
+from planners.verify import command_metrics, differences
 
 ORDERS = (("velocity", "mm/s", "v"), ("acceleration", "mm/s²", "a"), ("jerk", "mm/s³", "j"))
 
@@ -35,7 +35,7 @@ def _panels(plt, title, t, D, lim, labels):
 def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
     import planners
     from kins import load_machine
-    from planners.path import resolve_path
+    from planners.paths import resolve_path
 
     plt = pyplot()
     m = load_machine("keops")
@@ -76,7 +76,7 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     and optimal over arc length, all three within the joint limits."""
     import planners
     from kins import load_machine
-    from planners.path import resolve_path
+    from planners.paths import resolve_path
 
     plt = pyplot()
     m = load_machine("keops")

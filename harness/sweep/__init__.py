@@ -1,0 +1,16 @@
+"""Sweeps: a suite's tasks (machine × path × planner × seed × preset × variation) on Dask.
+
+- :mod:`.suite` — the one suite-file parser (``pkmbench run`` and ``sweep`` alike) and the
+  task keys; :mod:`.engine` — running tasks (in-process or on a Dask cluster);
+  :mod:`.store` — the results table (SQLite); :mod:`.tasks` — the task functions.
+
+The task-function interface is described in :mod:`.engine`.
+"""
+from harness.sweep.engine import (DEFAULT_TASK, SweepError, SweepResult, execute_task, resolve_task_fn,
+                                  run_sweep, tasks_from_suite_file)
+from harness.sweep.store import SweepStore, flatten
+from harness.sweep.suite import SuiteError, code_version, expand, load_suite, make_task, task_key, task_label
+
+__all__ = ["run_sweep", "SweepResult", "SweepError", "SweepStore", "flatten", "expand",
+           "load_suite", "make_task", "task_key", "task_label", "code_version", "SuiteError",
+           "execute_task", "resolve_task_fn", "DEFAULT_TASK", "tasks_from_suite_file"]
