@@ -235,3 +235,28 @@ def test_a_killed_worker_is_reported_with_its_task_and_the_sweep_completes(tmp_p
     assert warn[0].startswith("sweep: warning: worker tcp://127.0.0.1:")
     assert warn[0].endswith("died while running keops/line/quintic/seed0/none/base; "
                             "dask runs that task again on another worker")
+
+
+def test_run_and_sweep_read_a_suite_with_the_one_parser(tmp_path):
+    """`planner = "x"` (one planner) is accepted by `run` and `sweep` alike, and an unknown key
+    is refused by both with the same message: they share harness.sweep.suite."""
+    from argparse import Namespace
+
+    from harness.cli import CliError
+    from harness.cli.run import cases_of
+    from harness.sweep import SuiteError, tasks_from_suite_file
+
+    one = tmp_path / "one.toml"
+    one.write_text('[[run]]\nmachine = "keops"\npath = "bird"\nplanner = "scurve"\n')
+    cases, _ = cases_of(Namespace(suite=str(one), out=str(tmp_path / "o")))
+    assert [(m, p, pl) for m, p, pl, _ in cases] == [("keops", "bird", ["scurve"])]
+    assert [t["planner"] for t in tasks_from_suite_file(one)] == ["scurve"]
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[run]]\nmachine = "keops"\npath = "bird"\nplanners = ["scurve"]\nplaners = ["x"]\n')
+    with pytest.raises(CliError) as run_err:
+        cases_of(Namespace(suite=str(bad), out=str(tmp_path / "o")))
+    with pytest.raises(SuiteError) as sweep_err:
+        tasks_from_suite_file(bad)
+    assert str(run_err.value) == str(sweep_err.value)
+    assert "bad.toml:line 5: [[run]] #1: unknown key 'planers'" in str(sweep_err.value)

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import sys
-import tomllib
 from pathlib import Path
 
 from harness.cli import CliError
@@ -33,45 +32,18 @@ def _progress(k, n, name):
     sys.stderr.flush()
 
 
-def _line_of(text: str, key: str) -> str:
-    """'line N' of the first assignment to key (tomllib reports no positions)."""
-    import re
-    for i, line in enumerate(text.splitlines(), start=1):
-        if re.match(rf"\s*\"?{re.escape(key)}\"?\s*=", line):
-            return f"line {i}"
-    return "line ?"
-
-
 def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
+    """(machine, path, planners, planner options) of each run, and the output folder."""
     if args.suite:
-        f = Path(args.suite)
-        if not f.exists():
-            raise CliError(f"{f}: no such suite file")
+        from harness.sweep.suite import SuiteError, load_suite, suite_runs
         try:
-            text = f.read_text()
-            suite = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as e:
-            raise CliError(f"{f}: not valid TOML: {e}") from None
-        known = {"name", "description", "run", "sweep", "planner_options", "ci"}
-        for key in suite:
-            if key not in known:
-                raise CliError(f"{f}:{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(known))})")
-        cases = []
-        for i, r in enumerate(suite.get("run", [])):
-            for key in r:
-                if key not in {"machine", "machines", "path", "paths", "planners"}:
-                    raise CliError(f"{f}:{_line_of(text, key)}: [[run]] #{i + 1}: unknown key '{key}' "
-                                   f"(valid: machine(s), path(s), planners)")
-            machines = r.get("machines") or ([r["machine"]] if "machine" in r else [])
-            paths = r.get("paths") or ([r["path"]] if "path" in r else [])
-            if not machines or not paths or not r.get("planners"):
-                raise CliError(f"{f}: [[run]] #{i + 1} needs machine(s), path(s) and planners")
-            for m in machines:
-                for p in paths:
-                    cases.append((m, p, list(r["planners"]), suite.get("planner_options", {})))
-        if not cases:
-            raise CliError(f"{f}: no [[run]] tables")
-        return cases, Path(args.out or suite_run_dir(f))
+            suite = load_suite(args.suite)
+            runs = suite_runs(suite, args.suite)
+        except SuiteError as e:
+            raise CliError(str(e)) from None
+        cases = [(m, p, list(planners), suite.get("planner_options", {}))
+                 for machines, paths, planners in runs for m in machines for p in paths]
+        return cases, Path(args.out or suite_run_dir(args.suite))
     if not (args.machine and args.path):
         raise CliError("give a suite file, or --machine and --path")
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
