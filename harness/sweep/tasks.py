@@ -45,11 +45,11 @@ def machine_raw(task: dict) -> dict:
 
 
 def task_machine(task: dict):
-    from kins import _build            # the loader's validation, on the varied dict
+    from kins import machine_from_dict     # the loader's validation, on the varied dict
     src = task["machine_file"]
     if task["variation"].get("set"):
         src += f" (variation {task['variation']['name']})"
-    return _build(machine_raw(task), src)
+    return machine_from_dict(machine_raw(task), src)
 
 
 def write_toml(d: dict, file: Path) -> None:
