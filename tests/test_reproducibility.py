@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from harness.cli.figures import csv_difference
+from harness.report.compare import csv_difference
 from harness.ci import baseline as ci
 from harness.sweep import flatten
 from harness.cosim.system import FMU_DIR

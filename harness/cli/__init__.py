@@ -1,7 +1,7 @@
 """The `pkmbench` command line. Each command is a thin module ``harness.cli.<name>`` with
 ``add_arguments(parser)`` and ``main(args) -> int`` that parses, calls the library
 (harness.cosim, harness.sweep, harness.ci, harness.report, harness.check, planners) and
-prints; a command whose module is not there says so instead of failing obscurely.
+prints.
 """
 from __future__ import annotations
 
@@ -14,17 +14,17 @@ DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics m
                "co-simulation FMUs (interpolator, kinematics, EtherCAT, drives) and compare their "
                "execution time, joint-limit ratios and following/contour errors.")
 
-# name → (module, one-line help, issue that builds it)
+# name → (module, one-line help)
 COMMANDS = {
-    "run": ("harness.cli.run", "co-simulate a suite or machine × path × planners and compare", 6),
-    "plan": ("harness.cli.plan", "plan a feed profile only (no co-simulation)", 6),
-    "check": ("harness.cli.check", "offline G-code checker for a PKM (workspace, singularities, joint limits)", 7),
-    "sweep": ("harness.cli.sweep", "run a suite on Dask (in-process, or --scheduler ADDRESS)", 9),
-    "report": ("harness.cli.report", "Markdown/HTML comparison of a sweep", 9),
-    "figures": ("harness.cli.figures", "reproduce the published figures", 8),
-    "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline", 9),
-    "history": ("harness.cli.history", "plot the CI history trend", 9),
-    "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine", 2),
+    "run": ("harness.cli.run", "co-simulate a suite or machine × path × planners and compare"),
+    "plan": ("harness.cli.plan", "plan a feed profile only (no co-simulation)"),
+    "check": ("harness.cli.check", "offline G-code checker for a PKM (workspace, singularities, joint limits)"),
+    "sweep": ("harness.cli.sweep", "run a suite on Dask (in-process, or --scheduler ADDRESS)"),
+    "report": ("harness.cli.report", "Markdown/HTML comparison of a sweep"),
+    "figures": ("harness.cli.figures", "reproduce the published figures"),
+    "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline"),
+    "history": ("harness.cli.history", "plot the CI history trend"),
+    "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine"),
 }
 
 
@@ -69,26 +69,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = {}
-    for name, (modname, help_, issue) in COMMANDS.items():
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as e:
-            if e.name != modname:
-                raise
-            mod = None
-        p = sub.add_parser(name, help=help_ if mod else f"{help_} (coming soon: issue {issue})",
-                           description=help_)
-        if mod:
-            mod.add_arguments(p)
+    for name, (modname, help_) in COMMANDS.items():
+        mod = importlib.import_module(modname)
+        mod.add_arguments(sub.add_parser(name, help=help_, description=help_))
         modules[name] = mod
     args = parser.parse_args(argv)
     if not args.command:
         parser.print_help()
         return 2
     mod = modules[args.command]
-    if mod is None:
-        print(f"pkmbench {args.command}: coming soon (issue {COMMANDS[args.command][2]})", file=sys.stderr)
-        return 2
     try:
         return int(mod.main(args) or 0)
     except CliError as e:

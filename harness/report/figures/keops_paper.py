@@ -73,7 +73,9 @@ def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
 
 def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     """Where pso loses to the jerk-limited optimum: the feed of scurve_joint (pso's seed), pso
-    and optimal over arc length, all three within the joint limits."""
+    and optimal over arc length, all three within the joint limits. Returns the execution
+    times and, per stretch between corners and G1 joins, how pso compares with the optimum
+    (the numbers REPORT.md quotes)."""
     import planners
     from kins import load_machine
     from planners.paths import resolve_path
@@ -82,10 +84,11 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     m = load_machine("keops")
     path = resolve_path(path_name)
     s = np.linspace(0.0, path.length, int(path.length / 0.25) + 1)
-    cols, result = {"s_mm": s}, {}
+    cols, result, profs = {"s_mm": s}, {}, {}
     fig, ax = plt.subplots(figsize=(10, 3.6))
     for name in ("scurve_joint", "pso", "optimal"):
         prof = planners.plan(name, path, m)
+        profs[name] = prof
         result[name] = prof.execution_time_s
         cols[f"{name}_feed_mm_s"] = np.interp(s, prof.s, prof.sd)
         ax.plot(s, cols[f"{name}_feed_mm_s"], lw=1, label=f"{name}: {prof.execution_time_s:.4f} s")
@@ -94,4 +97,33 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     ax.legend(fontsize=8)
     fig.tight_layout()
     save(fig, out, f"keops_{path_name}_feed_over_s", cols)
-    return result
+    return {"execution_time_s": result, **_stretches(path, m, profs, s, cols)}
+
+
+def _stretches(path, m, profs, s, cols) -> dict:
+    """pso against the optimum on each stretch between the path's ends, corners and G1 joins:
+    its time in excess and its peak-feed shortfall, in %, and the seed's highest feed."""
+    from planners.constraints import PathTable, corner_list, join_jumps
+
+    joins = [sj for sj, _ in join_jumps(path, PathTable(path, m), m)]
+    bounds = sorted([0.0, path.length] + corner_list(path) + joins)
+
+    def time_at(prof, x):
+        sg, i = np.unique(prof.s, return_index=True)
+        return np.interp(x, sg, prof.t[i])
+
+    excess, gap, peaks = [], [], []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        dt = {n: float(time_at(profs[n], b) - time_at(profs[n], a)) for n in ("pso", "optimal")}
+        inside = (s > a) & (s < b)
+        if dt["optimal"] <= 0 or not inside.any():
+            continue
+        excess.append(100 * (dt["pso"] - dt["optimal"]) / dt["optimal"])
+        fp, fo = cols["pso_feed_mm_s"][inside].max(), cols["optimal_feed_mm_s"][inside].max()
+        gap.append(100 * (fo - fp) / fo)
+        peaks.append((float(fo), float(fp), float(s[inside][np.argmax(cols["optimal_feed_mm_s"][inside])])))
+    top = max(peaks)
+    return {"joins_mm": joins, "stretch_excess_pct": [min(excess), max(excess)],
+            "peak_shortfall_pct": [min(gap), max(gap)],
+            "top_peak": {"optimal_mm_s": top[0], "pso_mm_s": top[1], "s_mm": top[2]},
+            "seed_peak_mm_s": float(cols["scurve_joint_feed_mm_s"].max())}
