@@ -52,6 +52,7 @@ def test_empty_path():
         optimal.plan(Empty(), KOSSEL)
 
 
+@pytest.mark.slow
 def test_g64_blend_arc_between_toppra_and_scurve_joint():
     """Two lines blended by a 0.038 mm G64 arc (two G1 joins where q″ jumps): IPOPT starts from
     the feasible scurve_joint plan, ends feasible, no slower than it and no faster than toppra.
@@ -65,6 +66,7 @@ def test_g64_blend_arc_between_toppra_and_scurve_joint():
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
 
 
+@pytest.mark.slow
 def test_thin_grid_is_refined_before_the_margin_grows():
     """bird_kossel's 3 s pieces get 600 nodes (5 ms apart, 5× node_period_s): the first
     solution reads above the jerk limit at T between nodes.  Doubling the margin until it
@@ -80,6 +82,7 @@ def test_thin_grid_is_refined_before_the_margin_grows():
     assert tp.execution_time_s <= p.execution_time_s <= 1.03 * tp.execution_time_s
 
 
+@pytest.mark.slow
 def test_a_stop_at_a_blend_join_leaves_forward():
     """Blended within 0.04 mm, the corner's arc is so tight that the optimum stops at a join
     (ṡ = 0 at the node) and leaves it with s̈ < 0, s⃛ > 0: without ṡ ≥ 0 at the quarter points of
@@ -109,6 +112,7 @@ def test_broken_limits_names_the_piece_and_the_limit(fast):
     assert (fast, "feed") in out and (1 - fast, "feed") not in out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("midpoints", [False, True])
 def test_midpoints_bound_a_and_j_between_nodes(midpoints):
     """keops' flower on 150 nodes (8 ms apart): the joint jerk q‴ṡ³ + 3q″ṡs̈ + q′s⃛ at each
@@ -141,6 +145,7 @@ def test_midpoints_bound_a_and_j_between_nodes(midpoints):
         assert jerk > 1.0
 
 
+@pytest.mark.slow
 def test_flower_passes_with_a_and_j_bounded_between_nodes():
     """The whole retry: flower's first solution reads 1.04 × the jerk limit at T between nodes
     2 ms apart; the retries bound a and j at the midpoints and it passes, between toppra's

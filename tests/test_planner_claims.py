@@ -9,6 +9,8 @@ from kins import load_machine
 from planners import plan
 from planners.paths import Arc, Line, SegmentPath
 
+pytestmark = pytest.mark.slow      # every planner on the standard paths: minutes
+
 TOL = 1 + 1e-6
 
 

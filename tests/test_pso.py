@@ -71,6 +71,7 @@ def test_bad_options():
         plan("pso", PATH, KEOPS, particles=1)
 
 
+@pytest.mark.slow
 def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
     """Fitted with the seed's jerk switch times as knots, each piece's start particle needs no
     stretch beyond the seed's own duration (±1 %).  A knot span holding no seed sample once
@@ -91,6 +92,7 @@ def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
         assert lam[0] == pytest.approx(D, rel=0.01), (s0, s1)
 
 
+@pytest.mark.slow
 def test_never_slower_than_a_feasible_seed():
     """With no search, no polish and a 5 % margin the swarm's best is the seed stretched to 95 %
     of every limit, slower than the seed: pso then returns the seed itself (feasible), and says so."""
@@ -137,6 +139,7 @@ def test_sub_piece_duration_and_ratio_at_constant_feed():
     assert need[0] == pytest.approx(np.abs(dq).max() * c / m.limits.joint.v, rel=1e-4)
 
 
+@pytest.mark.slow
 def test_cut_piece_passes_each_join_at_its_join_feed():
     """PATH's piece is searched cut at its two G1 joins (line–arc–line): the profile passes
     each join at JOIN_FEED_FRACTION of the join's feed (divided by the T-check stretch), with
@@ -159,6 +162,7 @@ def test_cut_piece_passes_each_join_at_its_join_feed():
         assert abs(p.sd[i] - p.sd[i - 1]) < a_max * T
 
 
+@pytest.mark.slow
 def test_polish_climbs_to_the_feed_cap():
     """Under a feed cap c alone (joint limits out of reach, ends fixed at c) the fastest
     sub-piece moves at ṡ ≡ c and lasts L/c.  From ṡ = c/2 inside, the polish's LP steps get there

@@ -25,7 +25,7 @@ PLANNERS = ["optimal", "scurve_joint"]
 # numpy's x86-64 dispatch levels above the baseline X86_V2: AVX2 and AVX-512 off
 OTHER_SIMD = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
 
-pytestmark = pytest.mark.skipif(not (FMU_DIR / "Drive.fmu").exists(), reason="make fmus")
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(not (FMU_DIR / "Drive.fmu").exists(), reason="make fmus")]
 
 
 def _run(out: Path, disable: str) -> dict:
