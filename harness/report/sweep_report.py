@@ -90,6 +90,7 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal") -> tuple[in
     db = sweep / "results.sqlite"
     if not db.exists():
         raise ReportError(f"{sweep}: not a sweep folder (no results.sqlite); run `pkmbench sweep` first")
+    out.mkdir(parents=True, exist_ok=True)
     with SweepStore(db) as store:
         rows = store.to_rows()
     if not rows:
