@@ -24,11 +24,12 @@ as fine (from the seed again) where the node budget had spread the nodes ≥ 3×
 pieces where a limit read above 1: with the margin doubled on each limit read above 1 (each
 piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
 at each interval's midpoint too (keops' flower: the jerk read 1.04 × between nodes 2 ms
-apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (On kossel's
-bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and ended at 15.936 s, slower than
-pso; refined to ~1200 nodes they pass at 0.005 with 15.392 s.  On kossel's test_part one
-margin for all limits passed at 0.02 with 46.61 s, slower than scurve_joint: the
-feed-capped cruise paid for a jerk read 1.007 × at one blend join.)
+apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (Why refining
+comes first and why margins are per piece and per limit: the measurements in docs/TUNING.md.)
+
+Size: _Piece.solve (~115 lines) is over the project's 80-line guide on purpose this time:
+another branch is changing this module's internals for memory on long programs (issue 18
+left them alone).
 """
 from __future__ import annotations
 

@@ -21,9 +21,8 @@ each join passed at a fixed feed with s̈ = s⃛ = 0, each sub-piece a feed spli
 those ends, in its own normalised time.  The feed must dip at a join (bird: to 57–207 mm/s
 from ~850 mm/s between them); a whole-piece spline spends its few control points on that dip
 and one time stretch couples all of it, while the cut search shapes each dip-to-dip stretch on
-its own.  Per piece the faster of the two is kept (bird: cut on its three pieces with joins,
-1.878 s against 2.132 s whole, swarm alone, 150 iterations; kossel's bird_kossel: whole, its
-seconds-long sub-pieces need more than 10 control points).
+its own.  Per piece the faster of the two is kept (measured on bird and bird_kossel:
+docs/TUNING.md).
 
 Objective.  Stretching time by λ divides joint velocity by λ, acceleration by λ², jerk by
 λ³ and the feed by λ.  So each whole piece's shape is scaled to the smallest λ at which every
@@ -36,21 +35,23 @@ checked with the independent metrics; a discretisation excess is removed by a fu
 stretch of the whole piece (with its join feeds).
 
 Polish (a memetic step, after the swarm).  A swarm finds the basin — which pieces to cut,
-the shape of each stretch — but converges slowly in it (bird: 1.916 s after 40 iterations,
-1.873 s after 150, 1.870 s after 800, against the jerk-limited optimum's 1.766 s).  So its best
+the shape of each stretch — but converges slowly in it (docs/TUNING.md).  So its best
 particle on each (sub-)piece is re-expressed on a finer spline (`refined`) and improved by
 sequential linear programming (`polish`): per step the limit ratio of every joint at every sample
 is linearised and an LP in a trust region takes the step.  A step is kept only if the swarm's own
-objective falls, so the polish can only improve on the swarm (bird: 1.946 → 1.7805 s).
-``polish_steps=0`` returns the swarm alone.  The swarm runs 20 iterations by default: after the
-polish 40 gave the same bird, bird_flat and helix (1.7805, 1.5922, 1.2500 s), flower 1.2888
-against 1.2788 s, bird_kossel 15.597 against 15.605 s, and cost 1.5–2 s more.
+objective falls, so the polish can only improve on the swarm.
+``polish_steps=0`` returns the swarm alone.  The swarm runs 20 iterations by default (why:
+docs/TUNING.md).
 
 Seeded: the swarm starts around the `scurve_joint` profile (its feed fitted by least
 squares), ``seed`` drives all random numbers and the iteration count ends the search, so the
 same inputs give the same profile on any machine.  An optional wall-clock ``time_budget_s``
 (off by default: it would make the result depend on the machine's speed) is reported in
 ``info['stopped_by']`` when it ends the search.
+
+Size: this module (~730 lines) and its plan() (~215 lines) are over the project's 400/80-line
+guides on purpose this time: another branch is changing its internals for memory on long
+programs (issue 18 left them alone; its split into a pso/ package is a later step).
 """
 from __future__ import annotations
 

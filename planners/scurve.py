@@ -23,6 +23,9 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
 
 The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
 lands on s = L at rest.
+
+Size: ~415 lines, the FLF, the 1-D pieces and the repair loop of one method (TII 2022) kept
+together; another branch is speeding it up, so issue 18 left it whole.
 """
 from __future__ import annotations
 
