@@ -141,7 +141,7 @@ def test_help_is_a_whole_sentence_and_lists_every_command(capsys):
     out = " ".join(capsys.readouterr().out.split())
     assert " ".join(DESCRIPTION.split()) in out and DESCRIPTION.endswith(".")
     assert not out.split("positional arguments")[0].rstrip().endswith(" with")
-    for name, (_, help_, _) in COMMANDS.items():
+    for name, (_, help_) in COMMANDS.items():
         assert f"{name} {' '.join(help_.split())}" in out
 
 
