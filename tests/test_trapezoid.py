@@ -94,7 +94,7 @@ def test_registry_and_bad_input(keops):
     with pytest.raises(PlanningError, match="valid planners: trapezoid, scurve"):
         get_planner("nope")
     bad = replace(keops.limits, cartesian=replace(keops.limits.cartesian, a=0.0))
-    with pytest.raises(PlanningError, match="cartesian.a = 0.0 must be"):
+    with pytest.raises(PlanningError, match="cartesian limit a = 0.0 must be"):
         plan("trapezoid", x_line(10.0), keops, bad)
     with pytest.raises(PlanningError, match="feed_max"):
         plan("trapezoid", x_line(10.0), keops, replace(keops.limits, feed_max=-1.0))
