@@ -20,7 +20,7 @@ from .pn101 import Pn101
 
 FAMILIES: dict[str, type[Kinematics]] = {k.family: k for k in (Keops, LinearDelta, Pn101)}
 
-__all__ = ["load_machine", "available_machines", "Kinematics", "Limits", "MachineLimits",
+__all__ = ["load_machine", "machine_from_dict", "available_machines", "Kinematics", "Limits", "MachineLimits",
            "Finding", "WorkspaceError", "MachineFileError", "FAMILIES"]
 
 
@@ -42,7 +42,7 @@ def load_machine(name_or_path: str | Path) -> Kinematics:
         raw = tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as e:
         raise MachineFileError(f"{p}: not valid TOML: {e}") from None
-    return _build(raw, str(p))
+    return machine_from_dict(raw, str(p))
 
 
 def _get(d: dict, key: str, src: str, section: str):
@@ -75,7 +75,9 @@ def _limits(d: dict, src: str, section: str) -> Limits:
 _LENGTHS = {"L", "R", "x_ref", "c1", "c2", "c3"}
 
 
-def _build(raw: dict, src: str) -> Kinematics:
+def machine_from_dict(raw: dict, src: str) -> Kinematics:
+    """A machine from the parsed contents of a machine file (``src`` names it in errors): what
+    load_machine does after reading the file, and what a sweep does with a varied copy."""
     name = _get(raw, "name", src, "top level")
     kin = _get(raw, "kinematics", src, "top level")
     family = _get(kin, "type", src, "kinematics")

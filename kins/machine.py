@@ -14,11 +14,10 @@ The base class adds shape handling, stroke/reach checks, errors and findings.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-MACHINE_DIR = Path(__file__).resolve().parent.parent / "benchmarks" / "machines"
+from kins.resources import MACHINE_DIR
 
 
 class MachineFileError(ValueError):

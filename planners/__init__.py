@@ -21,8 +21,9 @@ _REGISTRY = {
 PLANNERS = ("trapezoid", "scurve", "scurve_joint", "pso", "toppra", "optimal")
 
 
-class PlanningError(RuntimeError):
-    """A planner cannot produce a profile; the message gives the reason."""
+from planners.errors import PlanningError
+
+__all__ = ["PLANNERS", "PlanningError", "get_planner", "plan"]
 
 
 def get_planner(name: str):
@@ -49,7 +50,7 @@ def plan(name: str, path, machine, limits=None, **options):
     """
     fn = get_planner(name)
     if not hasattr(path, "point"):
-        from planners.path import resolve_path
+        from planners.paths import resolve_path
         path = resolve_path(path)
     t0 = time.perf_counter()
     profile = fn(path, machine, limits, **options)
@@ -57,35 +58,3 @@ def plan(name: str, path, machine, limits=None, **options):
     profile.validate()
     return profile
 
-
-def check_limits(limits, planner: str = "planner") -> None:
-    """Raise PlanningError unless every limit is a finite number > 0."""
-    vals = {"feed_max": limits.feed_max, "chord_error_mm": limits.chord_error_mm}
-    for group in ("joint", "cartesian"):
-        lim = getattr(limits, group)
-        vals.update({f"{group}.v": lim.v, f"{group}.a": lim.a, f"{group}.j": lim.j})
-    for name, v in vals.items():
-        try:
-            ok = v > 0 and v < float("inf")
-        except TypeError:
-            ok = False
-        if not ok:
-            raise PlanningError(f"{planner}: limit {name} = {v!r} must be a finite number > 0")
-
-
-def check_workspace(path, machine, step_mm: float = 0.5) -> None:
-    """Raise PlanningError naming the first path point (arc length, G-code line, xyz and the
-    joint or box side) that ``machine.check`` flags — out of reach, beyond a joint stroke,
-    outside the workspace box or near a singularity — sampling the path every ≤ step_mm."""
-    s, P = path.sample(step_mm)
-    findings = machine.check(P)
-    if not findings:
-        return
-    f = findings[0]
-    where = ""
-    if hasattr(path, "line_at"):
-        ln = int(path.line_at(s[f.index])[0])
-        where = f" (G-code line {ln})" if ln >= 0 else ""
-    joint = f" [joint {f.joint}]" if f.joint is not None else ""
-    raise PlanningError(f"{path.source}: the path leaves the workspace of {machine.name} at "
-                        f"s = {s[f.index]:.6g} mm{where}{joint}: {f.message}")

@@ -11,7 +11,7 @@ of the grid.  Formulation (direct multiple shooting, exact integration):
 * at every node: |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A, |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J (the jerk of both
   intervals that meet there), ṡ ≤ feed cap(s); q′, q″, q‴ and the cap are B-spline
   interpolants of the PathTable over s, so IPOPT sees exact derivatives;
-* the feed cap also holds the G1-join caps (joint_limits.second_derivative_jumps);
+* the feed cap also holds the G1-join caps (constraints.second_derivative_jumps);
 * objective N·h, warm start from the `scurve_joint` profile (feasible, so IPOPT starts inside
   the constraint set: from the faster but jerk-infeasible `toppra` profile IPOPT lost itself
   in restoration on kossel's test_part, whose 0.04 mm blend arcs make it 68× over the jerk
@@ -24,11 +24,12 @@ as fine (from the seed again) where the node budget had spread the nodes ≥ 3×
 pieces where a limit read above 1: with the margin doubled on each limit read above 1 (each
 piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
 at each interval's midpoint too (keops' flower: the jerk read 1.04 × between nodes 2 ms
-apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (On kossel's
-bird_kossel, 3 s pieces at 600 nodes needed margin 0.04 and ended at 15.936 s, slower than
-pso; refined to ~1200 nodes they pass at 0.005 with 15.392 s.  On kossel's test_part one
-margin for all limits passed at 0.02 with 46.61 s, slower than scurve_joint: the
-feed-capped cruise paid for a jerk read 1.007 × at one blend join.)
+apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (Why refining
+comes first and why margins are per piece and per limit: the measurements in docs/TUNING.md.)
+
+Size: _Piece.solve (~115 lines) is over the project's 80-line guide on purpose this time:
+another branch is changing this module's internals for memory on long programs (issue 18
+left them alone).
 """
 from __future__ import annotations
 
@@ -39,15 +40,9 @@ import time
 import casadi as ca
 import numpy as np
 
-from .joint_limits import (PathTable, PlanningError, check_limits, check_path,
-                           second_derivative_jumps, feed_cap, corner_list, joint_derivs)
+from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, check_limits, check_path,
+                          join_jumps, rest_pieces, table_feed_cap)
 from .profile import Profile
-from . import toppra_ref
-
-# A jump Δq″ of the joint acceleration at speed ṡ reads, as a third difference at T, as at
-# most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
-# difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
-JUMP_READ_FACTOR = 0.75
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
 # read at T peaked 2 % above the limit between them.
@@ -69,7 +64,7 @@ def broken_limits(machine, path, prof, pcs, limits) -> set:
     """{(piece index, limit kind)} read above 1 at T: the joint velocity, acceleration, jerk
     (differences of the IK'd samples, each window blamed on the piece its first sample is in)
     and the feed against F_max."""
-    from harness.metrics import differences
+    from planners.verify import differences
     T = prof.T
     edges = np.array([a for a, _ in pcs[1:]])
     lim = {"velocity": limits.joint.v, "acceleration": limits.joint.a, "jerk": limits.joint.j}
@@ -80,21 +75,6 @@ def broken_limits(machine, path, prof, pcs, limits) -> set:
     feed = np.diff(prof.s) / T
     bad = np.nonzero(feed > limits.feed_max * (1 + 1e-6))[0]
     out |= {(int(g), "feed") for g in np.searchsorted(edges, prof.s[bad], side="right")}
-    return out
-
-
-def cap_table(path, table: PathTable, limits, T):
-    """min(F_max, F_clim) on the table grid."""
-    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
-    return feed_cap(path, table.s, limits, T, kappa=kappa)
-
-
-def join_jumps(path, table: PathTable, machine):
-    """[(s, Δq″ per joint)] at the G1 joins where q″ jumps (joint_limits.second_derivative_jumps)."""
-    out = []
-    for sj, jump in second_derivative_jumps(path, table, machine, corner_list(path)):
-        q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))[2]
-        out.append((sj, np.abs(q2[1] - q2[0])))
     return out
 
 
@@ -308,7 +288,7 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
          retries: int = 3) -> Profile:
     """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from ``warm`` (a
     Profile; default the `scurve_joint` plan) slowed down by ``warm_stretch``."""
-    from harness.metrics import command_metrics, worst_sample
+    from planners.verify import command_metrics, worst_sample
 
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
@@ -316,12 +296,12 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
     check_path(path, "optimal")
     T = machine.servo_period_s
     table = PathTable(path, machine)
-    cap = cap_table(path, table, limits, T)
+    cap = table_feed_cap(path, table, limits, T)
     joins = join_jumps(path, table, machine)
     if warm is None:
         from .scurve import plan_joint
         warm = plan_joint(path, machine, limits)
-    pcs = toppra_ref.pieces(path)
+    pcs = rest_pieces(path)
     problems, starts, bounds = [], [], []
     budgets = [max_nodes_per_piece] * len(pcs)
     for s0, s1 in pcs:

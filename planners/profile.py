@@ -28,7 +28,7 @@ class Profile:
     sd: np.ndarray                # ṡ, mm/s
     sdd: np.ndarray               # s̈, mm/s²
     sddd: np.ndarray              # s⃛, mm/s³
-    path: Any                     # the geometry s refers to (planners.path.Path)
+    path: Any                     # the geometry s refers to (planners.paths.Path)
     planning_time_s: float = 0.0
     info: dict = field(default_factory=dict)   # planner diagnostics (JSON-serialisable)
 

@@ -21,9 +21,8 @@ each join passed at a fixed feed with s̈ = s⃛ = 0, each sub-piece a feed spli
 those ends, in its own normalised time.  The feed must dip at a join (bird: to 57–207 mm/s
 from ~850 mm/s between them); a whole-piece spline spends its few control points on that dip
 and one time stretch couples all of it, while the cut search shapes each dip-to-dip stretch on
-its own.  Per piece the faster of the two is kept (bird: cut on its three pieces with joins,
-1.878 s against 2.132 s whole, swarm alone, 150 iterations; kossel's bird_kossel: whole, its
-seconds-long sub-pieces need more than 10 control points).
+its own.  Per piece the faster of the two is kept (measured on bird and bird_kossel:
+docs/TUNING.md).
 
 Objective.  Stretching time by λ divides joint velocity by λ, acceleration by λ², jerk by
 λ³ and the feed by λ.  So each whole piece's shape is scaled to the smallest λ at which every
@@ -36,21 +35,23 @@ checked with the independent metrics; a discretisation excess is removed by a fu
 stretch of the whole piece (with its join feeds).
 
 Polish (a memetic step, after the swarm).  A swarm finds the basin — which pieces to cut,
-the shape of each stretch — but converges slowly in it (bird: 1.916 s after 40 iterations,
-1.873 s after 150, 1.870 s after 800, against the jerk-limited optimum's 1.766 s).  So its best
+the shape of each stretch — but converges slowly in it (docs/TUNING.md).  So its best
 particle on each (sub-)piece is re-expressed on a finer spline (`refined`) and improved by
 sequential linear programming (`polish`): per step the limit ratio of every joint at every sample
 is linearised and an LP in a trust region takes the step.  A step is kept only if the swarm's own
-objective falls, so the polish can only improve on the swarm (bird: 1.946 → 1.7805 s).
-``polish_steps=0`` returns the swarm alone.  The swarm runs 20 iterations by default: after the
-polish 40 gave the same bird, bird_flat and helix (1.7805, 1.5922, 1.2500 s), flower 1.2888
-against 1.2788 s, bird_kossel 15.597 against 15.605 s, and cost 1.5–2 s more.
+objective falls, so the polish can only improve on the swarm.
+``polish_steps=0`` returns the swarm alone.  The swarm runs 20 iterations by default (why:
+docs/TUNING.md).
 
 Seeded: the swarm starts around the `scurve_joint` profile (its feed fitted by least
 squares), ``seed`` drives all random numbers and the iteration count ends the search, so the
 same inputs give the same profile on any machine.  An optional wall-clock ``time_budget_s``
 (off by default: it would make the result depend on the machine's speed) is reported in
 ``info['stopped_by']`` when it ends the search.
+
+Size: this module (~730 lines) and its plan() (~215 lines) are over the project's 400/80-line
+guides on purpose this time: another branch is changing its internals for memory on long
+programs (issue 18 left them alone; its split into a pso/ package is a later step).
 """
 from __future__ import annotations
 
@@ -60,13 +61,11 @@ import time
 import numpy as np
 from scipy.interpolate import BSpline
 
-from .joint_limits import (PathTable, PlanningError, check_limits, check_path, corner_list,
-                           feed_cap, joint_derivs, second_derivative_jumps)
+from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, check_limits, check_path,
+                          join_jumps, rest_pieces, table_feed_cap)
 from .profile import Profile
-from . import toppra_ref
 
 DEGREE = 2                   # ṡ quadratic per knot span ⇒ s⃛ piecewise constant, as in an s-curve
-JUMP_READ_FACTOR = 0.75      # see optimal.py: a jump Δq″ reads as ≤ 0.75·Δq″·ṡ²/T at T
 MIN_KNOT_GAP_T = 2           # seed switch times < 2 servo periods apart share a knot (see _seed_window)
 # A piece with G1 joins is cut there into sub-pieces (see _SubPiece).  Their join feed, as a
 # fraction of the largest feed at which the join, passed with s̈ = s⃛ = 0, meets every limit
@@ -521,7 +520,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     proportion to the seed's time on each); ``polish_steps``: SLP steps per piece after the
     swarm (POLISH_ITERATIONS if None, 0: none); ``target_time_s``: record when the best total
     (swarm, then polished) first reaches it (``info['time_to_target_s']``), for the benchmark."""
-    from harness.metrics import command_metrics, differences
+    from planners.verify import command_metrics, stretch_need
     from .scurve import plan_joint
 
     t0 = time.perf_counter()
@@ -534,14 +533,10 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
     table = PathTable(path, machine)
-    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
-    cap = feed_cap(path, table.s, limits, T, kappa=kappa)
-    joins = []
-    for sj, _ in second_derivative_jumps(path, table, machine, corner_list(path)):
-        q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))[2]
-        joins.append((sj, np.abs(q2[1] - q2[0])))
+    cap = table_feed_cap(path, table, limits, T)
+    joins = join_jumps(path, table, machine)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
-    pcs = toppra_ref.pieces(path)
+    pcs = rest_pieces(path)
     # control points in proportion to the seed's time on each piece
     tp = np.array([max(np.count_nonzero((seed_prof.s > a) & (seed_prof.s < b)), 1) for a, b in pcs], float)
     Ks = np.maximum(8, np.round(control_points * tp / tp.sum()).astype(int))
@@ -695,18 +690,12 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
             "time_to_target_s": time_to_target}
     # check at T with the independent metrics; stretch the pieces whose samples at T read
     # above a limit (the swarm saw only its own samples) by just that excess
-    lim = limits.joint
     for _ in range(8):
         prof = _sample(pieces, T, path, info)
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
         if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
             break
-        D = {o: np.abs(x).max(axis=1) for o, x in differences(machine.ik(path.point(prof.s)), T).items()}
-        feed = np.diff(prof.s) / T / limits.feed_max
-        need = np.zeros(len(prof.s))
-        need[1:] = np.maximum(D["velocity"] / lim.v, feed)
-        need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
-        need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
         k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
         grp = np.array([p["group"] for p in pieces])[k]

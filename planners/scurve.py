@@ -23,6 +23,9 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
 
 The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
 lands on s = L at rest.
+
+Size: ~415 lines, the FLF, the 1-D pieces and the repair loop of one method (TII 2022) kept
+together; another branch is speeding it up, so issue 18 left it whole.
 """
 from __future__ import annotations
 
@@ -33,9 +36,9 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
-from .joint_limits import (PathTable, PlanningError, cartesian_derivs, check_limits, check_workspace,
-                           check_path, joint_derivs, peak_ratios, second_derivative_jumps,
-                           time_derivs)
+from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
+                          chord_feed_cap, corner_list, ik_along, joint_derivs, peak_ratios,
+                          second_derivative_jumps, time_derivs)
 from .profile import Profile
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
@@ -57,11 +60,8 @@ def flf_of(kappa, q1, limits, T):
     kappa = np.abs(np.asarray(kappa, float))
     A, J = limits.cartesian.a, limits.cartesian.j
     eps = limits.chord_error_mm
+    fc = chord_feed_cap(kappa, eps, T)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rho = np.where(kappa > 0, 1.0 / kappa, np.inf)
-        # ρ² − (ρ − ε)² = 2ρε − ε² (no inf − inf on straight parts); ρ ≤ ε: the diameter per period
-        fc = np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)),
-                      2 * rho / T)
         fa = np.sqrt(A / kappa)
         fj = np.cbrt(J / (kappa * kappa))
     F = np.minimum.reduce([np.full(kappa.shape, limits.feed_max), fc, fa, fj])
@@ -150,7 +150,7 @@ class _Planner:
         self.check = type(lim)(lim.v * (1 - margin), lim.a * (1 - margin), lim.j * (1 - margin))
         self.table = PathTable(path, machine if joint else None, ds=grid_mm)
         if not joint:      # the Cartesian planner does not need the IK, but the path must be reachable
-            check_workspace(machine, self.table.s, self.table.cart[0])
+            ik_along(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s
         self.F = self.F_at(self.grid)
         self._reachable = {}            # memo of reachable() across the repair rounds
@@ -166,8 +166,7 @@ class _Planner:
     # -- critical points ----------------------------------------------------------
     def critical_points(self):
         L, g, F = self.path.length, self.grid, self.F
-        corners = [float(c) for c in (self.path.corners() if hasattr(self.path, "corners") else [])
-                   if 0 < c < L]
+        corners = corner_list(self.path)
         pts = {0.0: 0.0, L: 0.0}
         for c in corners:
             pts[c] = 0.0
@@ -223,7 +222,7 @@ class _Planner:
 
     def second_derivative_jumps(self, corners):
         """G1 joins where P″ jumps: critical points with the feed that keeps the jerk read at
-        T within 0.4 of the checked limit (see joint_limits.second_derivative_jumps)."""
+        T within 0.4 of the checked limit (see constraints.second_derivative_jumps)."""
         out = []
         for sj, jump in second_derivative_jumps(self.path, self.table, self.machine if self.joint else None, corners):
             vj = math.sqrt(0.4 * self.check.j * self.T / jump) if jump > 0 else self.limits.feed_max

@@ -22,7 +22,7 @@ import toppra
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from .joint_limits import PathTable, PlanningError, check_limits, check_path, feed_cap
+from .constraints import PathTable, PlanningError, check_limits, check_path, feed_cap, rest_pieces
 from .profile import Profile
 
 toppra.setup_logging("ERROR")   # a failed interpolation-scheme try is handled below
@@ -65,21 +65,13 @@ class _PieceGeometry(toppra.interpolator.AbstractGeometricPath):
         return np.array([self.s0, self.s1])
 
 
-def pieces(path):
-    """[(s0, s1)] between the path ends and its exact-stop corners."""
-    L = path.length
-    cs = [float(c) for c in (path.corners() if hasattr(path, "corners") else []) if 1e-9 < c < L - 1e-9]
-    edges = [0.0] + cs + [L]
-    return list(zip(edges[:-1], edges[1:]))
-
-
 def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
     """TOPP-RA on each piece: (s grid, ṡ on it, pieces solved by collocation) for the whole
     path, ṡ = 0 at corners."""
     T = machine.servo_period_s
     vj, aj = limits.joint.v, limits.joint.a
     S, SD, fallbacks = [], [], []
-    for k, (s0, s1) in enumerate(pieces(path)):
+    for k, (s0, s1) in enumerate(rest_pieces(path)):
         # grid: ≤ grid_mm apart (≥ 19 intervals per piece), uniform between the joins of the
         # path's segments, each join on it and ≥ 4 intervals on each segment (a 0.04 mm G64
         # blend arc is resolved, not stepped over)
@@ -170,7 +162,7 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.25) -> Profile:
     table = PathTable(path, machine)
     s_grid, sd_grid, fallbacks = solve_grid(path, machine, limits, table, grid_mm)
     prof = sample_const_accel(s_grid, sd_grid, machine.servo_period_s, path, "toppra",
-                              {"grid_points": int(len(s_grid)), "pieces": len(pieces(path)),
+                              {"grid_points": int(len(s_grid)), "pieces": len(rest_pieces(path)),
                                "collocation_pieces": fallbacks})
     prof.planning_time_s = time.perf_counter() - t0
     return prof

@@ -3,10 +3,10 @@
 What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of LinuxCNC 2.9):
 
 * Geometry as LinuxCNC gets it: lines and arcs. A NURBS is first cut into G1 lines within
-  the chord tolerance (as a CAM post does; :func:`planners.blend.cut_into_lines`) and its
+  the chord tolerance (as a CAM post does; :func:`planners.paths.blend.cut_into_lines`) and its
   corners are then blended under ``G64 P<tolerance>`` by tangent arcs
-  (:func:`planners.blend.blend_corners`; blendmath.c). A segment path (G-code) is used as
-  read (its corners were already blended per G61/G64 by :mod:`planners.gcode`).
+  (:func:`planners.paths.blend.blend_corners`; blendmath.c). A segment path (G-code) is used as
+  read (its corners were already blended per G61/G64 by :mod:`planners.paths.gcode`).
 * Segment limits (tc.c ``tcGetTangentialMaxAccel``, ``tcUpdateArcLimits``; blendmath.c
   ``pmCircleActualMaxVel``): LinuxCNC limits only the Cartesian axes and the feed. A line's
   acceleration/velocity is the largest keeping every axis within its limit along the line's
@@ -35,9 +35,10 @@ import math
 
 import numpy as np
 
-from planners import PlanningError, check_limits, check_workspace
-from planners.blend import blend_corners, cut_into_lines
-from planners.path import NurbsPath, Path, SegmentPath
+from planners.constraints import check_limits, check_path_in_workspace
+from planners.errors import PlanningError
+from planners.paths.blend import blend_corners, cut_into_lines
+from planners.paths import NurbsPath, Path, SegmentPath
 from planners.profile import Profile
 
 ACC_RATIO_TANGENTIAL = 0.5                               # blendmath.h
@@ -164,7 +165,7 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
 
 def programmed_feeds(path: SegmentPath, feed_max: float) -> np.ndarray:
     """The F of the G-code move each segment came from (mm/s; rapids and unknown: F_max)."""
-    prog = getattr(path, "program", None)
+    prog = path.program
     by_line = {m.line: m.feed_mm_s for m in prog.moves} if prog is not None else {}
     return np.array([min(feed_max, by_line.get(g.line) or feed_max) for g in path.segments])
 
@@ -191,7 +192,7 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
         raise PlanningError(f"trapezoid: chord tolerance {chord} mm must be > 0")
     if blend < 0:
         raise PlanningError(f"trapezoid: blend tolerance {blend} mm must be ≥ 0")
-    check_workspace(path, machine, check_workspace_step_mm)
+    check_path_in_workspace(path, machine, check_workspace_step_mm)
     planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
     vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)
     if programmed_feed:

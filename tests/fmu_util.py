@@ -2,9 +2,9 @@
 collect the FMU's log."""
 from __future__ import annotations
 
-from harness.fmu_driver import SteppedFmu  # noqa: F401  (re-exported for the FMU tests)
-from harness.master import _Instance
-from harness.system import Component, FMU_DIR
+from harness.cosim.fmu_driver import SteppedFmu  # noqa: F401  (re-exported for the FMU tests)
+from harness.cosim.master import _Instance
+from harness.cosim.system import Component, FMU_DIR
 
 
 class Fmu:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import random
 import sys
 
-from planners.gcode import GCodeError, parse_gcode
+from planners.paths.gcode import GCodeError, parse_gcode
 
 SEED_PROGRAMS = [
     "G21 G90 G64 P0.01\nN10 G1 X0 Y0 Z-400 F600\nN20 G2 X10 Y0 I5 J0\nN30 G3 X0 Y0 R5\nG91 G1 Z-2\nG90 G17 G2 X0 Y0 I-5 J0 P2 Z-410\nM2\n",

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from harness.cli import main as cli
-from harness.record import read_command_csv
-from harness.system import FMU_DIR
+from harness.cosim.record import read_command_csv
+from harness.cosim.system import FMU_DIR
 
 DATA = Path(__file__).parent / "data"
 LINE = str(DATA / "short_line.json")
@@ -32,7 +32,7 @@ def test_run_refuses_a_seed_outside_0_to_2_pow_64(seed, tmp_path, capsys):
 
 
 def test_suite_task_and_api_seeds_are_checked(tmp_path, capsys):
-    from harness.run import RunError, run_case
+    from harness.cosim.run import RunError, run_case
     from harness.sweep import SuiteError, make_task
     from harness.sweep.suite import MACHINE_DIR
 
@@ -54,7 +54,7 @@ def test_suite_task_and_api_seeds_are_checked(tmp_path, capsys):
 
 
 def test_fmu_seed_keeps_32_bit_seeds_and_hashes_larger_ones():
-    from harness.drive_params import ethercat_start_values
+    from harness.cosim.drive_params import ethercat_start_values
     from harness.seed import fmu_seed
 
     # < 2³²: the same 32 bits as before (the FMU reads its Integer as unsigned)
@@ -91,9 +91,9 @@ def test_a_run_folder_moved_elsewhere_loads_in_the_harness_and_in_fmpy(tmp_path)
     """The SSP files name the FMUs and the run's files relative to the folder (resources/)."""
     from fmpy.ssp.ssd import read_ssd
 
-    from harness.master import simulate
-    from harness.run import RECORD
-    from harness.system import read_ssp
+    from harness.cosim.master import simulate
+    from harness.cosim.run import RECORD
+    from harness.cosim.system import read_ssp
 
     assert cli(["run", "--machine", "keops", "--path", LINE, "--planners", "scurve",
                 "--out", str(tmp_path / "a"), "--no-recordings"]) == 0
@@ -141,7 +141,7 @@ def test_help_is_a_whole_sentence_and_lists_every_command(capsys):
     out = " ".join(capsys.readouterr().out.split())
     assert " ".join(DESCRIPTION.split()) in out and DESCRIPTION.endswith(".")
     assert not out.split("positional arguments")[0].rstrip().endswith(" with")
-    for name, (_, help_, _) in COMMANDS.items():
+    for name, (_, help_) in COMMANDS.items():
         assert f"{name} {' '.join(help_.split())}" in out
 
 

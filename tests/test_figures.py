@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.figures import keops_paper, kossel_thesis
-from harness.system import FMU_DIR
+from harness.report.figures import keops_paper, kossel_thesis
+from harness.cosim.system import FMU_DIR
 from kins import load_machine
 
 pytestmark = pytest.mark.skipif(not (FMU_DIR / "EtherCAT.fmu").exists(), reason="make fmus")

@@ -13,9 +13,9 @@ import pytest
 from fmpy import extract
 from fmpy.validation import validate_fmu
 
-from harness.figures.kossel_thesis import trapezoid
+from harness.report.figures.kossel_thesis import trapezoid
 from tests.fmu_util import SteppedFmu
-from harness.drive_params import drive_start_values, nanotec_gains_to_si
+from harness.cosim.drive_params import drive_start_values, nanotec_gains_to_si
 
 ROOT = Path(__file__).resolve().parent.parent
 FMU = ROOT / "fmus" / "build" / "Drive.fmu"

@@ -14,7 +14,7 @@ from fmpy import extract
 from fmpy.validation import validate_fmu
 
 from tests.fmu_util import SteppedFmu
-from harness.drive_params import ethercat_start_values
+from harness.cosim.drive_params import ethercat_start_values
 
 ROOT = Path(__file__).resolve().parent.parent
 FMU = ROOT / "fmus" / "build" / "EtherCAT.fmu"

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-import harness.master
-import harness.system
+import harness.cosim.master
+import harness.cosim.system
 from harness.cli import main
-from harness.fmu_driver import SteppedFmu
-from harness.system import FMU_DIR, SystemError_
+from harness.cosim.fmu_driver import SteppedFmu
+from harness.cosim.system import FMU_DIR, SystemError_
 
 ROOT = Path(__file__).resolve().parent.parent
 SHORT_LINE = str(ROOT / "tests" / "data" / "short_line.json")
@@ -75,7 +75,7 @@ def chain_copy(tmp_path, monkeypatch) -> Path:
     fmus.mkdir()
     for n in CHAIN:
         shutil.copy(FMU_DIR / f"{n}.fmu", fmus)
-    monkeypatch.setattr(harness.system, "FMU_DIR", fmus)
+    monkeypatch.setattr(harness.cosim.system, "FMU_DIR", fmus)
     return fmus
 
 
@@ -96,7 +96,7 @@ def test_run_with_a_truncated_or_missing_fmu_is_one_line(tmp_path, monkeypatch, 
 
 
 def test_stepped_fmu_on_a_damaged_fmu(tmp_path, monkeypatch):
-    monkeypatch.setattr(harness.master, "EXTRACT_DIR", tmp_path / "extracted")
+    monkeypatch.setattr(harness.cosim.master, "EXTRACT_DIR", tmp_path / "extracted")
     good = tmp_path / "Drive.fmu"
     shutil.copy(FMU_DIR / "Drive.fmu", good)
     sim = SteppedFmu(good, {}, 1e-3, "drive")                  # the checks accept a whole FMU

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import planners
-from harness.system import FMU_DIR
+from harness.cosim.system import FMU_DIR
 from kins import load_machine
-from planners.path import Arc, Line, NurbsPath, SegmentPath, resolve_path
+from planners.paths import Arc, Line, NurbsPath, SegmentPath, resolve_path
 from planners.profile import Profile
 from tests.fmu_util import Fmu
 
@@ -209,7 +209,7 @@ def test_segment_gap_tolerance_is_the_python_contract(tmp_path, gap, accepted):
     assert ok == accepted, log
     if not accepted:
         assert "segments[1] starts" in log and "away from the end of segments[0]" in log
-    from planners.path import PathError, SegmentPath as SP
+    from planners.paths import PathError, SegmentPath as SP
     if accepted:
         SP([Line(a, b), Line(c, [10.0, 10.0, -400.0])])
     else:

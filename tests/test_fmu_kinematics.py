@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from harness.system import FMU_DIR, kinematics_start
+from harness.cosim.system import FMU_DIR, kinematics_start
 from kins import load_machine
 from tests.fmu_util import Fmu
 from tests.test_kins import workspace_grid

@@ -1,11 +1,11 @@
-"""planners.gcode: every supported word, modal state, arcs, blending modes and every error."""
+"""planners.paths.gcode: every supported word, modal state, arcs, blending modes and every error."""
 import math
 
 import numpy as np
 import pytest
 
-from planners.gcode import GCodeError, parse_gcode, program_path, read_gcode
-from planners.path import Arc, Line, PathError, load_path
+from planners.paths.gcode import GCodeError, parse_gcode, program_path, read_gcode
+from planners.paths import Arc, Line, PathError, load_path
 
 START = "G90 G21 G17\nG0 X0 Y0 Z0\n"
 
@@ -165,7 +165,7 @@ def test_start_errors_and_empty_program(tmp_path):
 
 
 def test_standard_test_part():
-    p = read_gcode(__import__("planners.path").path.PATH_DIR / "test_part.ngc")
+    p = read_gcode(__import__("kins.resources").resources.PATH_DIR / "test_part.ngc")
     kinds = [m.segment.kind for m in p.moves]
     assert kinds.count("arc") == 2 and len(p.moves) == 25
     circ = [m.segment for m in p.moves if m.segment.kind == "arc"]
@@ -173,9 +173,10 @@ def test_standard_test_part():
 
 
 def test_write_read_round_trip(tmp_path):
-    from planners.gcode import write_gcode
-    from planners.path import resolve_path
-    from planners.path import PATH_DIR, SegmentPath
+    from planners.paths.gcode import write_gcode
+    from planners.paths import resolve_path
+    from kins.resources import PATH_DIR
+    from planners.paths import SegmentPath
     # the part's programmed moves, unblended (its blend arcs lie in tilted planes: G-code
     # cannot express those), written under G61 and read back
     part = SegmentPath(read_gcode(PATH_DIR / "test_part.ngc").segments())

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 import planners
-from harness.master import CoSimError, simulate
-from harness.record import read_command_csv, read_mcap
-from harness.run import RECORD, RunError, cosimulate, run_case
-from harness.system import FILE_PARAMS, FMU_DIR, SystemError_, chain, read_ssp, write_ssp
+from harness.cosim.master import CoSimError, simulate
+from harness.cosim.record import read_command_csv, read_mcap
+from harness.cosim.run import RECORD, RunError, cosimulate, run_case
+from harness.cosim.system import FILE_PARAMS, FMU_DIR, SystemError_, chain, read_ssp, write_ssp
 from kins import load_machine
-from planners.path import Line, SegmentPath
+from planners.paths import Line, SegmentPath
 
 pytestmark = pytest.mark.skipif(not (FMU_DIR / "Interpolator.fmu").exists() or not (FMU_DIR / "Drive.fmu").exists()
                                 or not (FMU_DIR / "EtherCAT.fmu").exists(), reason="FMUs not built (make fmus)")
@@ -105,13 +105,13 @@ def test_fmu_error_names_fmu_time_and_log(keops, tmp_path):
 
 
 def test_missing_and_corrupt_fmu(keops, tmp_path, monkeypatch):
-    import harness.system as S
+    import harness.cosim.system as S
     monkeypatch.setattr(S, "FMU_DIR", tmp_path)
     with pytest.raises(SystemError_, match=r"Interpolator.fmu is missing: build the FMUs with 'make fmus'"):
         chain(keops, tmp_path / "a", tmp_path / "b", 0.01)
     bad = tmp_path / "Bad.fmu"
     bad.write_bytes(b"not a zip")
-    from harness.master import _extract
+    from harness.cosim.master import _extract
     with pytest.raises(SystemError_, match=r"Bad.fmu: not a valid FMU \(corrupt zip\)"):
         _extract(bad)
 

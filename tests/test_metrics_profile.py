@@ -1,8 +1,8 @@
-"""harness.metrics and planners.profile against closed forms and round trips."""
+"""planners.verify and planners.profile against closed forms and round trips."""
 import numpy as np
 import pytest
 
-from harness.metrics import chord_error_mm, command_metrics, differences, limit_ratios
+from planners.verify import chord_error_mm, command_metrics, differences, limit_ratios
 from kins import Limits, load_machine
 from planners.profile import Profile, ProfileError
 
@@ -118,7 +118,7 @@ def test_worst_sample_finds_a_single_step():
     """One sample displaced by d: its velocity reads d/T, its acceleration 2d/T², its jerk 3d/T³
     (third-difference coefficients 1, −3, 3, −1), first in the window starting two samples
     before it; with these limits the jerk ratio is the largest."""
-    from harness.metrics import worst_sample
+    from planners.verify import worst_sample
     T, d = 1e-3, 1e-6
     X = np.zeros((30, 3))
     X[10, 1] = d

@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from harness.metrics import command_metrics
+from planners.verify import command_metrics
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, optimal, plan
-from planners.path import Line, SegmentPath
+from planners.constraints import join_jumps, rest_pieces, table_feed_cap
+from planners.paths import Line, SegmentPath
 
 KOSSEL = load_machine("kossel")
 
@@ -51,11 +52,12 @@ def test_empty_path():
         optimal.plan(Empty(), KOSSEL)
 
 
+@pytest.mark.slow
 def test_g64_blend_arc_between_toppra_and_scurve_joint():
     """Two lines blended by a 0.038 mm G64 arc (two G1 joins where q″ jumps): IPOPT starts from
     the feasible scurve_joint plan, ends feasible, no slower than it and no faster than toppra.
     (From toppra's start, 68× over the jerk limit on such arcs, it did not converge.)"""
-    from planners.gcode import parse_gcode, program_path
+    from planners.paths.gcode import parse_gcode, program_path
     path = program_path(parse_gcode("G21 G90 G64 P0.01\nG1 X-20 Y-20 Z-250 F1200\nX20\nY20\n"))
     p = plan("optimal", path, KOSSEL)
     assert all(st.startswith("Solve_Succeeded") for st in p.info["ipopt"])
@@ -64,12 +66,13 @@ def test_g64_blend_arc_between_toppra_and_scurve_joint():
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
 
 
+@pytest.mark.slow
 def test_thin_grid_is_refined_before_the_margin_grows():
     """bird_kossel's 3 s pieces get 600 nodes (5 ms apart, 5× node_period_s): the first
     solution reads above the jerk limit at T between nodes.  Doubling the margin until it
     passed (0.04) cost 6 % over the toppra bound (15.936 s against 14.991 s); the refined grid
     passes at the first margin and ends within 3 % of it (15.392 s)."""
-    from planners.path import resolve_path
+    from planners.paths import resolve_path
     path = resolve_path("bird_kossel")
     p = plan("optimal", path, KOSSEL)
     assert p.info["margin"] == 0.005
@@ -79,13 +82,14 @@ def test_thin_grid_is_refined_before_the_margin_grows():
     assert tp.execution_time_s <= p.execution_time_s <= 1.03 * tp.execution_time_s
 
 
+@pytest.mark.slow
 def test_a_stop_at_a_blend_join_leaves_forward():
     """Blended within 0.04 mm, the corner's arc is so tight that the optimum stops at a join
     (ṡ = 0 at the node) and leaves it with s̈ < 0, s⃛ > 0: without ṡ ≥ 0 at the quarter points of
     the intervals at a join, ṡ dipped below 0 between a node and a midpoint that sat on 0, and
     sampling clipped s into a kink that read 1.54 × the jerk limit at T (2.69 × at P0.1), which
     no margin removes.  With them the solution passes the check."""
-    from planners.gcode import parse_gcode, program_path
+    from planners.paths.gcode import parse_gcode, program_path
     path = program_path(parse_gcode("G21 G90 G64 P0.04\nG0 X-25 Y-25 Z-250\nG1 X25 F1200\nY25\nX-25\n"))
     p = plan("optimal", path, KOSSEL)
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
@@ -97,10 +101,9 @@ def test_broken_limits_names_the_piece_and_the_limit(fast):
     """A feed of 1.5 × F_max on one of two pieces and 0.5 × on the other: the feed is blamed
     on the fast piece only, so only its feed margin grows."""
     from types import SimpleNamespace
-    from planners import toppra_ref
     z = KOSSEL.home[2]
     path = SegmentPath([Line([-20, 0, z], [0, 0, z]), Line([0, 0, z], [0, 20, z])])
-    pcs = toppra_ref.pieces(path)
+    pcs = rest_pieces(path)
     assert len(pcs) == 2
     T, F = KOSSEL.servo_period_s, KOSSEL.limits.feed_max
     k = [1.5, 0.5] if fast == 0 else [0.5, 1.5]
@@ -109,6 +112,7 @@ def test_broken_limits_names_the_piece_and_the_limit(fast):
     assert (fast, "feed") in out and (1 - fast, "feed") not in out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("midpoints", [False, True])
 def test_midpoints_bound_a_and_j_between_nodes(midpoints):
     """keops' flower on 150 nodes (8 ms apart): the joint jerk q‴ṡ³ + 3q″ṡs̈ + q′s⃛ at each
@@ -116,14 +120,14 @@ def test_midpoints_bound_a_and_j_between_nodes(midpoints):
     nodes keep, unless the midpoints are bounded too (as a retry after such a check does).
     The joint derivatives are the NLP's own interpolants: the kinematics agree with them but
     where a NURBS knot makes q‴ jump between table rows."""
-    from planners.path import resolve_path
+    from planners.paths import resolve_path
     from planners.scurve import plan_joint
     keops = load_machine("keops")
     path = resolve_path("flower")
     lim, m = keops.limits, 0.005
     table = optimal.PathTable(path, keops)
-    piece = optimal._Piece(table, optimal.cap_table(path, table, lim, keops.servo_period_s), 0.0,
-                           path.length, lim, m, optimal.join_jumps(path, table, keops), keops.servo_period_s)
+    piece = optimal._Piece(table, table_feed_cap(path, table, lim, keops.servo_period_s), 0.0,
+                           path.length, lim, m, join_jumps(path, table, keops), keops.servo_period_s)
     piece.midpoints = midpoints
     start = optimal._warm_start(plan_joint(path, keops, lim), [0.0, path.length], 1e-3, 150, 1.02)
     (h, s, v, a, u), status, _ = piece.solve(*start)
@@ -141,11 +145,12 @@ def test_midpoints_bound_a_and_j_between_nodes(midpoints):
         assert jerk > 1.0
 
 
+@pytest.mark.slow
 def test_flower_passes_with_a_and_j_bounded_between_nodes():
     """The whole retry: flower's first solution reads 1.04 × the jerk limit at T between nodes
     2 ms apart; the retries bound a and j at the midpoints and it passes, between toppra's
     bound and scurve_joint."""
-    from planners.path import resolve_path
+    from planners.paths import resolve_path
     keops = load_machine("keops")
     path = resolve_path("flower")
     p = plan("optimal", path, keops)

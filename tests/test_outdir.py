@@ -11,8 +11,8 @@ import pytest
 
 from harness.cli import main
 from harness.outdir import LOCK_NAME, OutDirError, output_dir, run_lock
-from harness.record import replacing
-from harness.system import FMU_DIR
+from harness.cosim.record import replacing
+from harness.cosim.system import FMU_DIR
 
 ROOT = Path(__file__).resolve().parent.parent
 SHORT_LINE = str(ROOT / "tests" / "data" / "short_line.json")
@@ -158,14 +158,14 @@ def test_interrupted_run_leaves_no_part_and_nothing_complete(tmp_path, capsys, m
     assert main(run_argv(out)) == 0                   # an earlier, complete run
     assert (out / "summary.json").exists()
 
-    import harness.run
+    import harness.cosim.run
 
     def interrupted(path, *a, **k):                   # Ctrl-C while command.csv is being written
         with replacing(path) as tmp:
             tmp.write_text("t,x,y,z,q1,q2,q3\n0,")
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(harness.run, "write_command_csv", interrupted)
+    monkeypatch.setattr(harness.cosim.run, "write_command_csv", interrupted)
     assert main(run_argv(out)) == 130
     assert "pkmbench run: interrupted" in capsys.readouterr().err
     files = sorted(str(p.relative_to(out)) for p in out.rglob("*"))

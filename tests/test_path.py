@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from planners.path import (Arc, Line, NurbsPath, PathError, SegmentPath, load_path,
+from planners.paths import (Arc, Line, NurbsPath, PathError, SegmentPath, load_path,
                            resolve_path, standard_paths)
 
 R = 30.0

@@ -1,11 +1,11 @@
-"""planners.blend: G64 corner arcs against closed forms; NURBS → G1 lines within the chord tolerance."""
+"""planners.paths.blend: G64 corner arcs against closed forms; NURBS → G1 lines within the chord tolerance."""
 import math
 
 import numpy as np
 import pytest
 
-from planners.blend import blend_corners, cut_into_lines
-from planners.path import Arc, Line, NurbsPath, SegmentPath
+from planners.paths.blend import blend_corners, cut_into_lines
+from planners.paths import Arc, Line, NurbsPath, SegmentPath
 
 
 def corner(L1=10.0, L2=10.0):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from kins import load_machine
-from planners.path import resolve_path
+from planners.paths import resolve_path
 
 FITS = [("bird", "keops"), ("bird_flat", "keops"), ("flower", "keops"), ("helix", "keops"),
         ("bird_kossel", "kossel"), ("test_part.ngc", "kossel")]

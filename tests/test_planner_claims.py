@@ -1,13 +1,15 @@
 """Every planner of issue 5B meets the limits it claims, checked by the one independent
-checker (harness.metrics.command_metrics) on the IK'd trajectory at T; profiles are
+checker (planners.verify.command_metrics) on the IK'd trajectory at T; profiles are
 consistent (s from ṡ), start and end at rest, and the references order as they must."""
 import numpy as np
 import pytest
 
-from harness.metrics import command_metrics
+from planners.verify import command_metrics
 from kins import load_machine
 from planners import plan
-from planners.path import Arc, Line, SegmentPath
+from planners.paths import Arc, Line, SegmentPath
+
+pytestmark = pytest.mark.slow      # every planner on the standard paths: minutes
 
 TOL = 1 + 1e-6
 

@@ -2,11 +2,12 @@
 import numpy as np
 import pytest
 
-from harness.metrics import command_metrics
+from planners.verify import command_metrics
 from kins import load_machine
 from planners import PlanningError, plan
 from planners import pso
-from planners.path import Arc, Line, SegmentPath
+from planners.constraints import rest_pieces
+from planners.paths import Arc, Line, SegmentPath
 
 KEOPS = load_machine("keops")
 Z = -400.0
@@ -43,7 +44,7 @@ def test_time_scaling_law():
     """Stretching time by λ divides joint v, a, j by λ, λ², λ³: the λ a particle gets makes its
     worst ratio exactly 1 (margin 0)."""
     m = KEOPS
-    from planners.joint_limits import PathTable
+    from planners.constraints import PathTable
     table = PathTable(PATH, m)
     pr = pso._PieceProblem(table, 0.0, PATH.length, m.limits, m.servo_period_s, [], 12, 300,
                            table.s, np.full(len(table.s), 1e9))
@@ -70,20 +71,20 @@ def test_bad_options():
         plan("pso", PATH, KEOPS, particles=1)
 
 
+@pytest.mark.slow
 def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
     """Fitted with the seed's jerk switch times as knots, each piece's start particle needs no
     stretch beyond the seed's own duration (±1 %).  A knot span holding no seed sample once
     left the fit undetermined there and stretched one piece of bird 19× (0.69 → 13.2 s)."""
-    from planners import toppra_ref
-    from planners.joint_limits import PathTable, feed_cap
-    from planners.path import resolve_path
+    from planners.constraints import PathTable, feed_cap
+    from planners.paths import resolve_path
     from planners.scurve import plan_joint
     path, m = resolve_path("bird"), KEOPS
     table = PathTable(path, m)
     kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
     cap = feed_cap(path, table.s, m.limits, m.servo_period_s, kappa=kappa)
     seed = plan_joint(path, m)
-    for s0, s1 in toppra_ref.pieces(path):
+    for s0, s1 in rest_pieces(path):
         tau, v, jerk, D, knots = pso._seed_window(seed, s0, s1)
         pr = pso._PieceProblem(table, s0, s1, m.limits, m.servo_period_s, [], 15, 400, table.s, cap,
                                pso.knot_density(tau, jerk), inner=knots)
@@ -91,6 +92,7 @@ def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
         assert lam[0] == pytest.approx(D, rel=0.01), (s0, s1)
 
 
+@pytest.mark.slow
 def test_never_slower_than_a_feasible_seed():
     """With no search, no polish and a 5 % margin the swarm's best is the seed stretched to 95 %
     of every limit, slower than the seed: pso then returns the seed itself (feasible), and says so."""
@@ -122,7 +124,7 @@ def test_sub_piece_duration_and_ratio_at_constant_feed():
     """A sub-piece whose every control point is c moves at ṡ ≡ c (s̈ = s⃛ = 0): it lasts L/c, and
     its worst ratio is the joint velocity |dq/ds|·c/V, here with dq/ds by central differences
     of the IK (not the path table the planner reads)."""
-    from planners.joint_limits import PathTable
+    from planners.constraints import PathTable
     m, L, c = KEOPS, 40.0, 150.0
     line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
     table = PathTable(line, m)
@@ -137,11 +139,12 @@ def test_sub_piece_duration_and_ratio_at_constant_feed():
     assert need[0] == pytest.approx(np.abs(dq).max() * c / m.limits.joint.v, rel=1e-4)
 
 
+@pytest.mark.slow
 def test_cut_piece_passes_each_join_at_its_join_feed():
     """PATH's piece is searched cut at its two G1 joins (line–arc–line): the profile passes
     each join at JOIN_FEED_FRACTION of the join's feed (divided by the T-check stretch), with
     ṡ continuous there (a sub-piece's ends are fixed, so neighbours agree)."""
-    from planners.joint_limits import PathTable, feed_cap
+    from planners.constraints import PathTable, feed_cap
     p = plan("pso", PATH, KEOPS, **FAST)
     assert p.info["searched_as"] == ["cut"]
     m, T = KEOPS, KEOPS.servo_period_s
@@ -159,12 +162,13 @@ def test_cut_piece_passes_each_join_at_its_join_feed():
         assert abs(p.sd[i] - p.sd[i - 1]) < a_max * T
 
 
+@pytest.mark.slow
 def test_polish_climbs_to_the_feed_cap():
     """Under a feed cap c alone (joint limits out of reach, ends fixed at c) the fastest
     sub-piece moves at ṡ ≡ c and lasts L/c.  From ṡ = c/2 inside, the polish's LP steps get there
     (rel 1e-4) with the cap met (to the 1e-7 the penalised objective leaves)."""
     from types import SimpleNamespace
-    from planners.joint_limits import PathTable
+    from planners.constraints import PathTable
     m, L, c = KEOPS, 40.0, 150.0
     line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
     table = PathTable(line, m)

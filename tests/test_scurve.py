@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from harness.metrics import command_metrics
+from planners.verify import command_metrics
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
 from planners import scurve
-from planners.path import Arc, Line, SegmentPath
+from planners.paths import Arc, Line, SegmentPath
 
 KEOPS = load_machine("keops")
 
@@ -136,7 +136,7 @@ def test_a_g64_blend_arc_shorter_than_the_table_grid_is_a_critical_point():
     shorter than the 0.05 mm planning grid.  The feed through it is the arc's FLF
     min(√(A/κ), ∛(J/κ²)) (closed form) and the G1 joins' cap, so the Cartesian limits hold;
     before the joins were table edges the s-curve crossed it at full feed (a ≈ 36×)."""
-    from planners.gcode import parse_gcode, program_path
+    from planners.paths.gcode import parse_gcode, program_path
     kossel = load_machine("kossel")
     path = program_path(parse_gcode("G21 G90 G64 P0.01\nG1 X-20 Y-20 Z-250 F1200\nX20\nY20\n"))
     arcs = [g for g in path.segments if g.kind == "arc"]
@@ -156,7 +156,7 @@ def test_test_part_on_kossel_cartesian_plan_breaks_the_joints_joint_plan_does_no
     """The Kossel thesis part (blended corners, circles, two depths): scurve within the
     Cartesian limits breaks a joint limit, scurve_joint is feasible and slower, toppra (no
     jerk limit) is the fastest."""
-    from planners.path import resolve_path
+    from planners.paths import resolve_path
     kossel = load_machine("kossel")
     path = resolve_path("test_part.ngc")
     out = {}
@@ -173,7 +173,7 @@ def test_helix_one_long_segment_keeps_the_cartesian_limits():
     """The helix is one arc: a single s-curve segment, 0 → cruise → 0, whose ms-long jerk
     phases hide between uniform samples of a 1.6 s segment; every phase is sampled on its own
     (before: Cartesian jerk 1.24 read at T)."""
-    from planners.path import resolve_path
+    from planners.paths import resolve_path
     path = resolve_path("helix")
     p = scurve.plan(path, KEOPS)
     r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)

@@ -165,7 +165,7 @@ def test_sweep_through_a_real_scheduler_with_two_worker_processes(tmp_path, caps
 
 
 def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("harness.sweep.CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr("harness.sweep.engine.CONNECT_TIMEOUT", "1s")
     suite = write_suite(tmp_path, planners=["quintic"])
     t0 = time.perf_counter()
     assert cli(["sweep", str(suite), "--scheduler", f"tcp://127.0.0.1:{_free_port()}",
@@ -201,7 +201,7 @@ def test_fmus_reach_dask_workers_as_files(tmp_path, monkeypatch):
     fmus = tmp_path / "fmus"
     fmus.mkdir()
     (fmus / "Fake.fmu").write_bytes(b"PK" + bytes(1234))
-    monkeypatch.setattr("harness.sweep.FMU_DIR", fmus)
+    monkeypatch.setattr("harness.sweep.engine.FMU_DIR", fmus)
     tasks = tasks_from_suite_file(write_suite(tmp_path, planners=["quintic"]))
     r = run_sweep(tasks, tmp_path / "o", task_fn=f"{__name__}:fmu_size_task", workers=1, progress=False)
     assert (r.ok, r.failed) == (1, 0), r.failures
@@ -247,3 +247,28 @@ def test_a_local_sweep_ends_without_a_traceback_on_the_console(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "1 run, 0 already done, 0 failed" in r.stdout
     assert "Traceback" not in r.stderr and "CRITICAL" not in r.stderr, r.stderr
+
+
+def test_run_and_sweep_read_a_suite_with_the_one_parser(tmp_path):
+    """`planner = "x"` (one planner) is accepted by `run` and `sweep` alike, and an unknown key
+    is refused by both with the same message: they share harness.sweep.suite."""
+    from argparse import Namespace
+
+    from harness.cli import CliError
+    from harness.cli.run import cases_of
+    from harness.sweep import SuiteError, tasks_from_suite_file
+
+    one = tmp_path / "one.toml"
+    one.write_text('[[run]]\nmachine = "keops"\npath = "bird"\nplanner = "scurve"\n')
+    cases, _ = cases_of(Namespace(suite=str(one), out=str(tmp_path / "o")))
+    assert [(m, p, pl) for m, p, pl, _ in cases] == [("keops", "bird", ["scurve"])]
+    assert [t["planner"] for t in tasks_from_suite_file(one)] == ["scurve"]
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[run]]\nmachine = "keops"\npath = "bird"\nplanners = ["scurve"]\nplaners = ["x"]\n')
+    with pytest.raises(CliError) as run_err:
+        cases_of(Namespace(suite=str(bad), out=str(tmp_path / "o")))
+    with pytest.raises(SuiteError) as sweep_err:
+        tasks_from_suite_file(bad)
+    assert str(run_err.value) == str(sweep_err.value)
+    assert "bad.toml:line 5: [[run]] #1: unknown key 'planers'" in str(sweep_err.value)

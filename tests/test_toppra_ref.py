@@ -6,7 +6,7 @@ import pytest
 
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
-from planners.path import Arc, Line, SegmentPath
+from planners.paths import Arc, Line, SegmentPath
 
 KOSSEL = load_machine("kossel")
 KEOPS = load_machine("keops")

@@ -5,10 +5,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from harness.metrics import command_metrics
+from planners.verify import command_metrics
 from kins import load_machine
 from planners import PlanningError, get_planner, plan
-from planners.path import Arc, Line, SegmentPath, resolve_path
+from planners.paths import Arc, Line, SegmentPath, resolve_path
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +94,7 @@ def test_registry_and_bad_input(keops):
     with pytest.raises(PlanningError, match="valid planners: trapezoid, scurve"):
         get_planner("nope")
     bad = replace(keops.limits, cartesian=replace(keops.limits.cartesian, a=0.0))
-    with pytest.raises(PlanningError, match="cartesian.a = 0.0 must be"):
+    with pytest.raises(PlanningError, match="cartesian limit a = 0.0 must be"):
         plan("trapezoid", x_line(10.0), keops, bad)
     with pytest.raises(PlanningError, match="feed_max"):
         plan("trapezoid", x_line(10.0), keops, replace(keops.limits, feed_max=-1.0))

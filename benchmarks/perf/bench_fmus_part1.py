@@ -21,7 +21,7 @@ from bench_fmus_part2 import build_driver, time_fmu  # noqa: E402
 def main() -> dict:
     import planners
     from kins import load_machine
-    from planners.path import NurbsPath
+    from planners.paths import NurbsPath
 
     m = load_machine("keops")
     n = 60

@@ -13,9 +13,9 @@ import tempfile
 from pathlib import Path
 
 import planners
-from harness.master import simulate
-from harness.run import RECORD
-from harness.system import System, chain
+from harness.cosim.master import simulate
+from harness.cosim.run import RECORD
+from harness.cosim.system import System, chain
 from kins import load_machine
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -1,7 +1,7 @@
 """Benchmark of the issue-5B planners: scurve, scurve_joint, toppra, optimal, pso.
 
 Prints, for each standard path on its machine, every planner's execution time, planning
-time and peak ratios (joints and Cartesian axes, measured by harness.metrics on the IK'd
+time and peak ratios (joints and Cartesian axes, measured by planners.verify on the IK'd
 trajectory at the servo period), plus the anchors of the issue:
   scurve planning time on bird ≤ 0.3 s (TII 2022: 0.41–0.61 s, C++ on an i5-6600);
   pso time to reach 1.03·T_optimal ≤ 10 s (2016 PSO: 90 s); optimal ≤ 60 s.
@@ -17,10 +17,10 @@ from pathlib import Path as FsPath
 
 sys.path.insert(0, str(FsPath(__file__).resolve().parents[2]))
 
-from harness.metrics import command_metrics  # noqa: E402
+from planners.verify import command_metrics  # noqa: E402
 from kins import load_machine  # noqa: E402
 from planners import PlanningError, plan  # noqa: E402
-from planners.path import resolve_path  # noqa: E402
+from planners.paths import resolve_path  # noqa: E402
 
 CASES = [("bird", "keops"), ("bird_flat", "keops"), ("flower", "keops"), ("helix", "keops"),
          ("bird_kossel", "kossel"), ("test_part.ngc", "kossel")]

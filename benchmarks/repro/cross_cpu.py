@@ -9,7 +9,7 @@ the spread between machines can be measured on one.
 
 runs the suite (planning + co-simulation, as `pkmbench sweep`) once per CPU-feature setting
 and writes DIR/spread.json and DIR/spread.md: per metric the largest difference from the
-native run, and per metric rule of the CI contract (harness.sweep.ci) whether it held, with
+native run, and per metric rule of the CI contract (harness.ci.baseline) whether it held, with
 the margin. docs/REPRODUCIBILITY.md quotes its output.
 """
 from __future__ import annotations
@@ -25,7 +25,7 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
 from harness.sweep import SweepStore, flatten, task_label  # noqa: E402
-from harness.sweep import ci  # noqa: E402
+from harness.ci import baseline as ci  # noqa: E402
 
 # numpy ≥ 2.4 dispatch targets on x86-64 (numpy._core._multiarray_umath.__cpu_dispatch__):
 # disabling a level falls back to the one below it.
@@ -62,7 +62,7 @@ def spread(reference: dict, other: dict) -> list[dict]:
             if metric in ("planning_time_s",) or not isinstance(x, (int, float)):
                 continue
             rule = ci.rule_for(metric, ci.DEFAULT_TOLERANCES, label)
-            ok, _ = ci._compare_value(metric, x, y, ci.resolve_rule(rule, label))
+            ok, _ = ci.compare_value(metric, x, y, ci.resolve_rule(rule, label))
             rows.append({"entry": label, "metric": metric, "native": x, "other": y,
                          "abs": abs(float(y) - float(x)), "rule": ci.describe(rule), "within": ok})
     return rows

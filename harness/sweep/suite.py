@@ -16,6 +16,10 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
     name = "jerk_half"
     set = { "limits.joint.j" = 2.5e5 }   # dotted keys of the machine file, overridden
 
+This module is the one parser of suite files: `pkmbench run SUITE` takes the [[run]] tables
+(:func:`suite_runs`), `pkmbench sweep`/`ci` expand them with the axes (:func:`expand`); both
+refuse the same unknown keys and accept ``planner``/``planners`` alike.
+
 One task = (machine, path, planner, seed, preset, variation). A task carries the *contents*
 of its machine and path files, so a worker on another host needs only the code.
 """
@@ -23,22 +27,56 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import tomllib
 from pathlib import Path
 
 from harness.seed import SeedError, check_seed
+from kins.resources import FMU_DIR, MACHINE_DIR, PATH_DIR, REPO, repo_relative
 
-REPO = Path(__file__).resolve().parents[2]
-MACHINE_DIR = REPO / "benchmarks" / "machines"
-PATH_DIR = REPO / "benchmarks" / "paths"
 PATH_SUFFIXES = (".json", ".ngc")
 # Sources whose change can change a result: every task key depends on their hash.
 CODE_DIRS = ("kins", "planners", "harness")
-FMU_DIR = REPO / "fmus" / "build"
+
+
+TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci")
+RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners")
 
 
 class SuiteError(ValueError):
     """A suite file is malformed; the message names the file and the key."""
+
+
+def _line_of(text: str | None, key: str) -> str:
+    """':line N' of the first assignment to key in the file's text (tomllib reports no
+    positions), or '' without the text."""
+    if text is None:
+        return ""
+    for i, line in enumerate(text.splitlines(), start=1):
+        if re.match(rf"\s*\"?{re.escape(key)}\"?\s*=", line):
+            return f":line {i}"
+    return ":line ?"
+
+
+def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list]]:
+    """The (machines, paths, planners) of each [[run]] table, keys checked: what `pkmbench run`
+    runs and :func:`expand` crosses with the sweep axes."""
+    for key in suite:
+        if key not in TOP_KEYS:
+            raise SuiteError(f"{src}{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(TOP_KEYS))})")
+    runs = suite.get("run")
+    if not isinstance(runs, list) or not runs:
+        raise SuiteError(f"{src}: no [[run]] tables (need machine(s), path(s), planners)")
+    out = []
+    for i, run in enumerate(runs):
+        where = f"[[run]] #{i + 1}"
+        for key in run:
+            if key not in RUN_KEYS:
+                raise SuiteError(f"{src}{_line_of(text, key)}: {where}: unknown key '{key}' "
+                                 f"(valid: machine(s), path(s), planner(s))")
+        out.append((_list(run, "machine", "machines", src, where), _list(run, "path", "paths", src, where),
+                    _list(run, "planner", "planners", src, where)))
+    return out
 
 
 def _list(d: dict, one: str, many: str, src: str, where: str) -> list:
@@ -77,30 +115,22 @@ def resolve_path(name: str, base: Path = REPO) -> Path:
     raise SuiteError(f"path '{name}': no file found (looked in {PATH_DIR}; known: {known or 'none'})")
 
 
-def _rel(p: Path) -> str:
-    try:
-        return str(p.resolve().relative_to(REPO))
-    except ValueError:
-        return str(p)
-
-
 def load_suite(file: str | Path) -> dict:
     file = Path(file)
     if not file.exists():
         raise SuiteError(f"{file}: no such suite file")
+    text = file.read_text()
     try:
-        return tomllib.loads(file.read_text())
+        suite = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SuiteError(f"{file}: not valid TOML: {e}") from None
+    suite_runs(suite, str(file), text)          # the keys, checked with their line numbers
+    return suite
 
 
 def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     """The tasks of a suite, in a stable order (runs × seeds × presets × variations)."""
-    runs = suite.get("run") or suite.get("runs")
-    if runs is None and ("machine" in suite or "machines" in suite):
-        runs = [suite]                       # a flat suite: top-level machines/paths/planners
-    if not isinstance(runs, list) or not runs:
-        raise SuiteError(f"{src}: no [[run]] tables (need machine(s), path(s), planners)")
+    runs = suite_runs(suite, src)
     sweep = suite.get("sweep", {})
     seeds = sweep.get("seeds", [0])
     presets = sweep.get("presets", ["none"])
@@ -128,11 +158,7 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
             raise SuiteError(f"{src}: [[sweep.variation]] '{v['name']}': set must be a table")
     options = suite.get("planner_options", {})
     tasks, seen = [], set()
-    for i, run in enumerate(runs):
-        where = f"[[run]] #{i + 1}"
-        machines = _list(run, "machine", "machines", src, where)
-        paths = _list(run, "path", "paths", src, where)
-        planners = _list(run, "planner", "planners", src, where)
+    for machines, paths, planners in runs:
         for m in machines:
             mfile = resolve_machine(m, base)
             for p in paths:
@@ -160,8 +186,8 @@ def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
     except SeedError as e:
         raise SuiteError(str(e)) from None
     return {
-        "machine": machine_file.stem, "machine_file": _rel(machine_file),
-        "path": path_file.stem, "path_file": _rel(path_file),
+        "machine": machine_file.stem, "machine_file": repo_relative(machine_file),
+        "path": path_file.stem, "path_file": repo_relative(path_file),
         "planner": planner, "planner_options": dict(planner_options or {}),
         "seed": int(seed), "preset": preset,
         "variation": {"name": "base", "set": {}} | dict(variation or {}),
@@ -174,7 +200,7 @@ def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
 def _hash_files(files) -> str:
     """Hash of (repo-relative name, content) pairs: equal across clones of the repository."""
     h = hashlib.sha256()
-    for name, f in sorted((_rel(f), f) for f in files):
+    for name, f in sorted((repo_relative(f), f) for f in files):
         h.update(name.encode() + b"\0")
         h.update(hashlib.sha256(f.read_bytes()).digest())
     return h.hexdigest()

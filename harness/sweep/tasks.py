@@ -1,7 +1,7 @@
 """Task functions for sweeps (the interface is in harness/sweep/__init__.py).
 
 - ``default_task`` = ``cosim_task``: the harness's full co-simulation of one planner.
-- ``plan_task``: planning only — ``planners.plan`` + ``harness.metrics`` on the commanded
+- ``plan_task``: planning only — ``planners.plan`` + ``planners.verify`` on the commanded
   trajectory (no FMUs): cheap, deterministic apart from ``planning_time_s``.
 - ``line_task``: a quintic (minimum-jerk) move along a straight line, with no planner at
   all: its numbers have a closed form, so the sweep machinery can be tested while the
@@ -18,6 +18,8 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+
+from harness.cosim.record import write_command_csv, write_json
 
 
 class TaskError(ValueError):
@@ -43,11 +45,11 @@ def machine_raw(task: dict) -> dict:
 
 
 def task_machine(task: dict):
-    from kins import _build            # the loader's validation, on the varied dict
+    from kins import machine_from_dict     # the loader's validation, on the varied dict
     src = task["machine_file"]
     if task["variation"].get("set"):
         src += f" (variation {task['variation']['name']})"
-    return _build(machine_raw(task), src)
+    return machine_from_dict(machine_raw(task), src)
 
 
 def write_toml(d: dict, file: Path) -> None:
@@ -93,16 +95,13 @@ def task_input_files(task: dict, folder: Path) -> tuple[Path, Path]:
 
 
 def _write_command(file: Path, T: float, P: np.ndarray, Q: np.ndarray) -> None:
-    t = np.arange(len(P)) * T
-    np.savetxt(file, np.column_stack([t, P, Q]), delimiter=",", header="t,x,y,z,q1,q2,q3",
-               comments="", fmt="%.17g")
+    write_command_csv(file, np.arange(len(P)) * T, P, Q)
 
 
 def _write_summary(out_dir: Path, task: dict, machine, metrics: dict) -> None:
-    summary = {"machine": task["machine"], "path": task["path"],
-               "servo_period_s": machine.servo_period_s,
-               "planners": {task["planner"]: metrics}}
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True) + "\n")
+    write_json(out_dir / "summary.json", {"machine": task["machine"], "path": task["path"],
+                                          "servo_period_s": machine.servo_period_s,
+                                          "planners": {task["planner"]: metrics}})
 
 
 # -- line_task -------------------------------------------------------------------------------
@@ -115,7 +114,7 @@ def line_task(task: dict, out_dir: Path) -> dict:
     (compute the profile this many times inside the timed planning: a slower planner).
     Planner name ``quintic``; any other name is an error (so a sweep can contain a failing task).
     """
-    from harness.metrics import command_metrics
+    from planners.verify import command_metrics
     if task["planner"] != "quintic":
         raise TaskError(f"line_task knows only planner 'quintic', not '{task['planner']}'")
     machine = task_machine(task)
@@ -152,12 +151,10 @@ def line_task(task: dict, out_dir: Path) -> dict:
 def plan_task(task: dict, out_dir: Path) -> dict:
     """Planning only: the planner's profile, interpolated at T, and its metrics (no FMUs)."""
     import planners
-    from harness.metrics import chord_error_mm, command_metrics
-    if not hasattr(planners, "plan"):
-        raise TaskError("planners.plan is not available yet (issue: planners)")
+    from planners.paths import load_path
+    from planners.verify import chord_error_mm, command_metrics
     machine = task_machine(task)
     _, pfile = task_input_files(task, out_dir / "inputs")
-    from planners.path import load_path
     path = load_path(pfile)
     prof = planners.plan(task["planner"], path, machine, **task["planner_options"])
     P = path.point(prof.s)
@@ -170,13 +167,13 @@ def plan_task(task: dict, out_dir: Path) -> dict:
 
 
 def cosim_task(task: dict, out_dir: Path) -> dict:
-    """The full co-simulation of one planner (harness.run.run_case): plan, FMU chain, metrics.
+    """The full co-simulation of one planner (harness.cosim.run.run_case): plan, FMU chain, metrics.
 
     The task's preset is the EtherCAT jitter preset ("none" = an ideal bus clock; "machine" or
     empty = the machine file's). Run files (summary.json, command.csv, the SSP system) land in
     out_dir; recordings (mcap, rrd) are skipped in sweeps to keep them light.
     """
-    from harness.run import run_case
+    from harness.cosim.run import run_case
 
     planner = task["planner"]
     mfile, pfile = task_input_files(task, out_dir / "inputs")

@@ -1,0 +1,1 @@
+"""The offline G-code checker (`pkmbench check`): :mod:`.gcode`."""

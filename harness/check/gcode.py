@@ -1,0 +1,318 @@
+"""Offline G-code checker for a PKM: compile, simulate through the kinematics, report.
+
+Like the off-line programming system of the LOLA pn101 (Dimić et al., ICPE-S 2018): a
+program is valid only if, run as the planner would run it at the servo period, every point
+is in the workspace, no singularity is approached and every joint stays within its stroke,
+velocity, acceleration and jerk limits. Each finding carries the G-code line(s) it comes
+from and the worst value against the limit.
+
+    report = check_program("part.ngc", load_machine("kossel"))
+    print(report.text()); exit(report.exit_code)      # 0 clean, 1 findings, 2 invalid
+
+The text report gives a summary per kind first, then the 50 worst entries (text(limit=None):
+every finding); report.to_json() holds every finding, "parsed" (it compiled) and "valid"
+(parsed and no error finding: exit code 0).
+"""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from planners import verify as M
+
+EXIT_CLEAN, EXIT_FINDINGS, EXIT_INVALID = 0, 1, 2
+TEXT_LIMIT = 50          # entries of the default text report (--all: every finding)
+
+
+@dataclass
+class Finding:
+    kind: str              # compile | unreachable | stroke | singularity | box | joint_velocity | …
+    severity: str          # "error" | "warning"
+    lines: list[int]       # G-code line numbers (1-based file lines)
+    value: float | None    # worst value (unit below)
+    limit: float | None
+    unit: str
+    message: str
+
+
+@dataclass
+class Report:
+    program: str
+    machine: str
+    planner: str
+    findings: list[Finding] = field(default_factory=list)
+    invalid: bool = False
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def exit_code(self) -> int:
+        if self.invalid:
+            return EXIT_INVALID
+        return EXIT_FINDINGS if self.errors else EXIT_CLEAN
+
+    @property
+    def errors(self) -> int:
+        return sum(f.severity == "error" for f in self.findings)
+
+    def summary(self) -> list[dict]:
+        """Per (kind, severity): count, lines, and the worst finding (value against limit)."""
+        rows: dict[tuple, dict] = {}
+        for f in self.findings:
+            r = rows.setdefault((f.kind, f.severity), {"kind": f.kind, "severity": f.severity, "count": 0,
+                                                       "lines": set(), "worst": f})
+            r["count"] += 1
+            r["lines"].update(f.lines)
+            if _badness(f) > _badness(r["worst"]):
+                r["worst"] = f
+        out = []
+        for r in sorted(rows.values(), key=lambda r: (r["severity"] != "error", -_badness(r["worst"])[0], r["kind"])):
+            w = r["worst"]
+            out.append({"kind": r["kind"], "severity": r["severity"], "count": r["count"],
+                        "lines": len(r["lines"]), "worst_value": w.value, "limit": w.limit, "unit": w.unit,
+                        "worst_ratio": _ratio(w), "worst_line": w.lines[0] if w.lines else 0})
+        return out
+
+    def to_json(self) -> str:
+        # every finding, and fields that cannot be misread: "valid" means no error at all
+        d = {"program": self.program, "machine": self.machine, "planner": self.planner,
+             "parsed": not self.invalid, "valid": self.exit_code == EXIT_CLEAN,
+             "errors": self.errors, "warnings": len(self.findings) - self.errors,
+             "exit_code": self.exit_code, "stats": self.stats, "summary": self.summary(),
+             "findings": [asdict(f) for f in self.findings]}
+        return json.dumps(d, indent=2, sort_keys=True)
+
+    def text(self, limit: int | None = TEXT_LIMIT) -> str:
+        """Summary per kind, then the findings worst first: consecutive lines of one kind merged
+        into a range and at most ``limit`` entries (None: every finding, one per line)."""
+        head = f"{self.program}: {self.machine}, planner {self.planner}"
+        if self.invalid:
+            return head + "\n" + "\n".join(f"  {self.program}:{f.lines[0] if f.lines else 0}: error: {f.message}"
+                                           for f in self.findings if f.kind == "compile")
+        if not self.findings:
+            return head + f"\n  clean: {self.stats.get('moves', 0)} moves, {self.stats.get('samples', 0)} samples checked"
+        n_lines = len({ln for f in self.findings for ln in f.lines})
+        out = [head, f"  {self.errors} error(s), {len(self.findings) - self.errors} warning(s) "
+                     f"on {n_lines} line(s)"]
+        for r in self.summary():
+            worst = ("" if r["worst_value"] is None or r["limit"] is None else
+                     f", worst {abs(r['worst_value']):.6g} {r['unit']} against {r['limit']:g} {r['unit']}"
+                     + (f" (ratio {r['worst_ratio']:.3f})" if r["worst_ratio"] is not None else ""))
+            out.append(f"    {r['kind']:<22} {r['severity']:<7} {r['count']:>7} on {r['lines']} line(s)"
+                       + worst + (f" at line {r['worst_line']}" if r["worst_line"] else ""))
+        entries = _runs(self.findings) if limit is not None else [[f] for f in self.findings]
+        entries.sort(key=lambda run: (tuple(-x for x in max(_badness(f) for f in run)), _first_line(run[0]), run[0].kind))
+        shown = entries if limit is None else entries[:limit]
+        out.append("  worst first:" if limit is None or len(entries) <= limit else
+                   f"  worst first ({len(shown)} of {len(entries)} entries):")
+        for run in shown:
+            out.append("  " + _entry(self.program, run))
+        if len(shown) < len(entries):
+            rest = sum(len(r) for r in entries[len(shown):])
+            out.append(f"  … {rest} more finding(s) in {len(entries) - len(shown)} more entries: "
+                       "--all prints every one (--json too)")
+        return "\n".join(out)
+
+
+
+def _badness(f: Finding) -> tuple[float, float]:
+    """Ratio of the worst value to its limit (1 when the finding has no such ratio), then the
+    value itself (a box excess in mm has a limit of 0: no ratio, but a larger one is worse)."""
+    r = _ratio(f)
+    return (1.0 if r is None else r, 0.0 if f.value is None else abs(f.value))
+
+
+def _ratio(f: Finding) -> float | None:
+    if f.value is None or not f.limit:
+        return None
+    return abs(f.value) / abs(f.limit)
+
+
+def _first_line(f: Finding) -> int:
+    return f.lines[0] if f.lines else 0
+
+
+def _runs(findings: list[Finding]) -> list[list[Finding]]:
+    """Findings of one kind and severity on consecutive lines, grouped (file order)."""
+    runs: list[list[Finding]] = []
+    last: dict[tuple, list[Finding]] = {}
+    for f in sorted(findings, key=lambda f: (f.kind, f.severity, _first_line(f))):
+        key = (f.kind, f.severity)
+        run = last.get(key)
+        if run is not None and f.lines and run[-1].lines and _first_line(f) - _first_line(run[-1]) == 1:
+            run.append(f)
+        else:
+            run = [f]
+            runs.append(run)
+            last[key] = run
+    return runs
+
+
+def _entry(program: str, run: list[Finding]) -> str:
+    worst = max(run, key=_badness)
+    if len(run) == 1:
+        return f"{program}:{_first_line(worst)}: {worst.severity}: {worst.message}"
+    return (f"{program}:{_first_line(run[0])}-{_first_line(run[-1])}: {worst.severity}: {len(run)} lines, "
+            f"worst at line {_first_line(worst)}: {worst.message}")
+
+
+class CheckError(Exception):
+    """The checker itself cannot run (no such file, unknown machine or planner)."""
+
+
+_N_WORD = re.compile(r"^\s*[Nn]\s*(\d+)")
+
+
+def _n_number_warnings(text: str, source: str) -> list[Finding]:
+    """N numbers must increase (a warning: LinuxCNC ignores them, but a reordered program is suspect)."""
+    from planners.paths.gcode import GCodeError, strip_comments
+
+    out, last = [], None
+    for ln, raw in enumerate(text.splitlines(), start=1):
+        try:
+            body = strip_comments(raw, source, ln)
+        except GCodeError:
+            continue
+        m = _N_WORD.match(body)
+        if not m:
+            continue
+        n = int(m.group(1))
+        if last is not None and n <= last[0]:
+            out.append(Finding("compile", "warning", [ln], float(n), float(last[0]), "",
+                               f"N{n} does not increase (line {last[1]} has N{last[0]})"))
+        last = (n, ln)
+    return out
+
+
+def _lines_of(path, s: np.ndarray) -> np.ndarray:
+    """G-code line of each arc length; blend arcs (no line of their own) take the line before."""
+    lines = path.line_at(s)
+    if (lines < 0).any():
+        seg_lines = np.array([-1 if g.line is None else g.line for g in path.segments])
+        filled = seg_lines.copy()
+        for i in range(1, len(filled)):
+            if filled[i] < 0:
+                filled[i] = filled[i - 1]
+        lines = filled[path.segment_index(s)]
+    return lines
+
+
+def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, limit: float, unit: str,
+           what: str, joints: np.ndarray | None = None) -> list[Finding]:
+    """One finding per G-code line where mask holds, with that line's worst value (and, given
+    ``joints``, the joint of that worst sample named first: "joint 2 …")."""
+    out = []
+    idx = np.nonzero(mask)[0]
+    if not len(idx):
+        return out
+    # sort by line, then by |value| descending: the first sample of each line is its worst
+    order = np.lexsort((-np.abs(values[idx]), lines[idx]))
+    idx, ln = idx[order], lines[idx][order]
+    first = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
+    count = np.diff(np.r_[first, len(idx)])
+    for f0, c in zip(first, count):
+        v = float(values[idx[f0]])
+        name = what if joints is None else f"joint {int(joints[idx[f0]]) + 1} {what}"
+        out.append(Finding(kind, "error", [int(ln[f0])], v, limit, unit,
+                           f"{name} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
+                           f"(ratio {abs(v) / limit:.3f}, {c} sample(s))"))
+    return out
+
+
+def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5) -> Report:
+    import planners
+    from planners.paths.gcode import GCodeError, program_path, read_gcode
+
+    file = Path(file)
+    rep = Report(str(file), machine.name, planner)
+    if planner not in planners.PLANNERS:
+        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.PLANNERS)}")
+    if not file.exists():
+        raise CheckError(f"{file}: no such file")
+    # 1. compile
+    try:
+        prog = read_gcode(file, home=machine.home)      # a one-move program starts there
+        path = program_path(prog)
+    except GCodeError as e:
+        rep.invalid = True
+        rep.findings.append(Finding("compile", "error", [int(e.line)], None, None, "", e.message
+                                    if hasattr(e, "message") else str(e)))
+        return rep
+    text = file.read_text(errors="replace")
+    rep.findings += _n_number_warnings(text, str(file))
+    rep.stats["moves"] = len(prog.moves)
+    rep.stats["length_mm"] = float(path.length)
+    # 2. geometry: every point of the path, densely, against the workspace (all findings)
+    n = max(2, int(np.ceil(path.length / workspace_step_mm)) + 1)
+    s = np.linspace(0.0, path.length, n)
+    P = path.point(s)
+    lines = _lines_of(path, s)
+    found = machine.check(P)
+    box_excess = np.maximum(np.maximum(machine.workspace_min - P, P - machine.workspace_max), 0.0).max(axis=1)
+    bad_geometry = False
+    for kind in ("unreachable", "stroke", "singularity", "box"):
+        fs = [f for f in found if f.kind == kind]
+        if not fs:
+            continue
+        bad_geometry |= kind in ("unreachable", "stroke")
+        if kind == "singularity":
+            vals = np.zeros(n)
+            for f in fs:
+                vals[f.index] = f.value
+            rep.findings += _group("singularity", vals > 0, vals, lines, machine.cond_max, "",
+                                   "Jacobian condition number")
+            continue
+        by_line: dict[int, list] = {}          # one pass (a scan of fs per line was quadratic)
+        for f in fs:
+            by_line.setdefault(int(lines[f.index]), []).append(f)
+        for ln in sorted(by_line):
+            if kind == "box":      # kins gives no distance: the farthest point outside is the worst
+                worst = max(by_line[ln], key=lambda f: box_excess[f.index])
+            else:
+                worst = max(by_line[ln], key=lambda f: abs(f.value - f.limit))
+            at = P[worst.index]
+            where = f"at ({at[0]:.4g}, {at[1]:.4g}, {at[2]:.4g}) mm"
+            if kind == "unreachable":
+                msg = f"rod {worst.joint} cannot reach the point {where} (short by {worst.value:.4g} mm)"
+                val, lim = worst.value, 0.0
+            elif kind == "stroke":
+                msg = (f"joint {worst.joint} at {worst.value:.6g} mm is beyond its stroke limit "
+                       f"{worst.limit:g} mm by {abs(worst.value - worst.limit):.4g} mm {where}")
+                val, lim = worst.value, worst.limit
+            else:
+                val, lim = float(box_excess[worst.index]), 0.0
+                msg = f"outside the workspace box by {val:.4g} mm {where}"
+            rep.findings.append(Finding(kind, "error", [ln], val, lim, "mm", msg))
+    if bad_geometry:
+        rep.stats["dynamics"] = "skipped: the path leaves the workspace"
+        return rep
+    # 3. dynamics: the program as the planner runs it, at the servo period, through the IK
+    try:
+        prof = planners.plan(planner, path, machine)
+    except Exception as e:
+        rep.findings.append(Finding("planning", "error", [], None, None, "", f"{planner} cannot plan it: {e}"))
+        return rep
+    T = machine.servo_period_s
+    P = prof.path.point(prof.s)
+    Q = machine.ik(P)
+    slines = _lines_of(prof.path, prof.s) if hasattr(prof.path, "line_at") else np.full(len(P), -1)
+    rep.stats["samples"] = int(len(P))
+    rep.stats["execution_time_s"] = prof.execution_time_s
+    for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
+        for order, D in M.differences(X, T).items():
+            L = {"velocity": lim.v, "acceleration": lim.a, "jerk": lim.j}[order]
+            unit = {"velocity": "mm/s", "acceleration": "mm/s²", "jerk": "mm/s³"}[order]
+            worst = np.abs(D).max(axis=1)
+            col = np.abs(D).argmax(axis=1)
+            mask = worst > L * (1 + M.FEASIBLE_TOL)
+            if not mask.any():
+                continue
+            ln = slines[-len(D):]
+            if space == "joint":
+                rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col)
+            else:
+                rep.findings += _group(f"cartesian_{order}", mask, worst, ln, L, unit, f"Cartesian {order}")
+    return rep

@@ -1,0 +1,89 @@
+"""The `pkmbench` command line. Each command is a thin module ``harness.cli.<name>`` with
+``add_arguments(parser)`` and ``main(args) -> int`` that parses, calls the library
+(harness.cosim, harness.sweep, harness.ci, harness.report, harness.check, planners) and
+prints.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import subprocess
+import sys
+
+DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics machines through FMI "
+               "co-simulation FMUs (interpolator, kinematics, EtherCAT, drives) and compare their "
+               "execution time, joint-limit ratios and following/contour errors.")
+
+# name → (module, one-line help)
+COMMANDS = {
+    "run": ("harness.cli.run", "co-simulate a suite or machine × path × planners and compare"),
+    "plan": ("harness.cli.plan", "plan a feed profile only (no co-simulation)"),
+    "check": ("harness.cli.check", "offline G-code checker for a PKM (workspace, singularities, joint limits)"),
+    "sweep": ("harness.cli.sweep", "run a suite on Dask (in-process, or --scheduler ADDRESS)"),
+    "report": ("harness.cli.report", "Markdown/HTML comparison of a sweep"),
+    "figures": ("harness.cli.figures", "reproduce the published figures"),
+    "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline"),
+    "history": ("harness.cli.history", "plot the CI history trend"),
+    "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine"),
+}
+
+
+class CliError(Exception):
+    """A user-facing error: printed as one line, exit code 2."""
+
+
+def version_string() -> str:
+    """'pkmbench VERSION (git COMMIT)': the installed package's version and, in a git checkout,
+    the commit of this code (``+dirty`` when tracked files differ from it)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        ver = version("pkmbench")
+    except PackageNotFoundError:
+        ver = "(not installed)"
+    from kins.resources import REPO as repo
+    try:
+        git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], capture_output=True,  # noqa: E731
+                                        text=True, timeout=10)
+        head = git("rev-parse", "--short=12", "HEAD")
+        commit = head.stdout.strip() if head.returncode == 0 else ""
+        if commit and git("status", "--porcelain", "--untracked-files=no").stdout.strip():
+            commit += "+dirty"
+    except (OSError, subprocess.TimeoutExpired):     # no git on this machine
+        commit = ""
+    return f"pkmbench {ver}" + (f" (git {commit})" if commit else "")
+
+
+class _Version(argparse.Action):
+    """--version, computed only when asked (it runs git)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="print the version and git commit, then exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_string())
+        parser.exit()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="pkmbench", description=DESCRIPTION)
+    parser.add_argument("--version", action=_Version)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    modules = {}
+    for name, (modname, help_) in COMMANDS.items():
+        mod = importlib.import_module(modname)
+        mod.add_arguments(sub.add_parser(name, help=help_, description=help_))
+        modules[name] = mod
+    args = parser.parse_args(argv)
+    if not args.command:
+        parser.print_help()
+        return 2
+    mod = modules[args.command]
+    try:
+        return int(mod.main(args) or 0)
+    except CliError as e:
+        print(f"pkmbench {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"pkmbench {args.command}: interrupted", file=sys.stderr)
+        return 130
+

@@ -1,0 +1,28 @@
+"""`pkmbench check PROGRAM.ngc --machine M`: the offline G-code checker (exit 0 clean,
+1 findings, 2 invalid program)."""
+from __future__ import annotations
+
+from harness.cli import CliError
+
+
+def add_arguments(p):
+    p.add_argument("program", help="G-code program (.ngc)")
+    p.add_argument("--machine", required=True, help="machine id or .toml file")
+    p.add_argument("--planner", default="trapezoid", help="planner that runs it (default: %(default)s)")
+    p.add_argument("--json", action="store_true", help="machine-readable report (every finding)")
+    p.add_argument("--all", action="store_true",
+                   help="print every finding (default: a summary and the 50 worst entries)")
+
+
+def main(args) -> int:
+    from harness.check.gcode import TEXT_LIMIT, CheckError, check_program
+    from kins import load_machine
+    from kins.machine import MachineFileError
+
+    try:
+        m = load_machine(args.machine)
+        rep = check_program(args.program, m, args.planner)
+    except (MachineFileError, CheckError) as e:
+        raise CliError(str(e)) from None
+    print(rep.to_json() if args.json else rep.text(limit=None if args.all else TEXT_LIMIT))
+    return rep.exit_code

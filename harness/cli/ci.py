@@ -1,0 +1,145 @@
+"""`pkmbench ci`: run the nightly suite, compare every metric with the committed baseline.
+
+    pkmbench ci --suite benchmarks/suites/nightly.toml --baseline results/baseline.json
+    pkmbench ci ... --update-baseline        # accept the current numbers as the new baseline
+
+Writes OUT/junit.xml and OUT/summary.md (OUT = results/ci by default), appends the run to the
+history store (results/ci/history.sqlite; `pkmbench history` plots it). Exit 0 on pass, 1 on a
+regression (each named with its run, metric, values and tolerance), 2 on a user error.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+from harness.cli import CliError
+from harness.outdir import output_dir, output_file
+from kins.resources import BASELINE, CI_DIR, REPO, SUITE_DIR, repo_relative
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--suite", default=None, help="suite file (default: benchmarks/suites/nightly.toml of the checkout)")
+    p.add_argument("--baseline", default=str(BASELINE), help="baseline file (default: %(default)s)")
+    p.add_argument("--update-baseline", action="store_true",
+                   help="write the current numbers as the baseline instead of comparing")
+    p.add_argument("--no-timing", action="store_true",
+                   help="compare every metric but planning time (a check that the numbers reproduce, "
+                        "on a machine that is not the nightly runner)")
+    p.add_argument("--out", default=str(CI_DIR), help="folder for junit.xml, summary.md and the run (default: %(default)s)")
+    p.add_argument("--junit", help="JUnit XML file (default OUT/junit.xml)")
+    p.add_argument("--markdown", help="Markdown summary file (default OUT/summary.md)")
+    p.add_argument("--history", help="history store (default OUT/history.sqlite)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   help="local worker processes (0 = serial, no Dask)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing dask cluster")
+    p.add_argument("--task", default=None, metavar="MODULE:FUNCTION", help="task function (see sweep)")
+
+
+def _load_baseline(file: Path) -> dict:
+    from harness.ci.baseline import FORMAT
+    if not file.exists():
+        raise CliError(f"{file}: no baseline; create it with --update-baseline")
+    try:
+        b = json.loads(file.read_text())
+    except json.JSONDecodeError as e:
+        raise CliError(f"{file}: not valid JSON (line {e.lineno}): {e.msg}") from None
+    if b.get("format") != FORMAT or not isinstance(b.get("entries"), dict):
+        raise CliError(f"{file}: not a pkmbench baseline (format must be '{FORMAT}' with 'entries')")
+    return b
+
+
+def main(args) -> int:
+    from harness.sweep import (DEFAULT_TASK, SuiteError, SweepError, SweepStore, code_version,
+                               expand, load_suite, resolve_task_fn, run_sweep)
+    from harness.ci import baseline as ci
+    from harness.ci.history import History
+
+    if args.suite is None:           # recorded as the checkout-relative name, read from the checkout
+        args.suite = repo_relative(SUITE_DIR / "nightly.toml")
+        suite_file = SUITE_DIR / "nightly.toml"
+    else:
+        suite_file = Path(args.suite)
+    task_fn = args.task or DEFAULT_TASK
+    baseline_file = Path(args.baseline)
+    baseline = None if args.update_baseline else _load_baseline(baseline_file)
+    try:
+        resolve_task_fn(task_fn)
+    except SweepError as e:
+        raise CliError(str(e)) from None
+    try:
+        suite = load_suite(suite_file)
+        tasks = expand(suite, src=args.suite, base=Path.cwd())
+        tolerances = ci.tolerances_from_suite(suite)
+        if args.no_timing:
+            tolerances = ci.without_timing(tolerances)
+    except SuiteError as e:
+        raise CliError(str(e)) from None
+
+    # every file this command writes, checked before the suite runs for minutes
+    out = output_dir(args.out)
+    junit = output_file(args.junit or out / "junit.xml", "JUnit file")
+    mdfile = output_file(args.markdown or out / "summary.md", "summary file")
+    history_file = output_file(args.history or out / "history.sqlite", "history store")
+    if args.update_baseline:
+        output_file(baseline_file, "baseline file")
+
+    t0 = time.perf_counter()
+    reference_s = ci.reference_workload_s()
+    run_dir = out / "run"
+    shutil.rmtree(run_dir, ignore_errors=True)            # CI measures afresh: nothing skipped
+    try:
+        tasks = [t | {"ci_inner_task": task_fn} for t in tasks]
+        res = run_sweep(tasks, run_dir, task_fn="harness.ci.baseline:reference_timed_task", workers=args.workers,
+                        scheduler=args.scheduler, force=True, progress=sys.stderr.isatty())
+    except SweepError as e:
+        raise CliError(str(e)) from None
+    reference_s = min(reference_s, ci.reference_workload_s())   # best of before and after
+    with SweepStore(run_dir / "results.sqlite") as store:
+        entries, errors = ci.entries_from_rows(store.to_rows(), reference_s)
+    wall_s = time.perf_counter() - t0
+    version = code_version()
+
+    if args.update_baseline:
+        if errors:
+            for label, err in sorted(errors.items()):
+                print(f"FAILED {label}: {err}")
+            print(f"ci: {len(errors)} task(s) failed; baseline NOT updated")
+            checks = ci.compare({"entries": entries}, entries, errors, tolerances)
+            passed = False
+        else:
+            doc = {"format": ci.FORMAT, "suite": args.suite, "task_fn": task_fn,
+                   "code_version": version, "reference_s": reference_s, "host": ci.host_info(),
+                   "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                   "entries": entries}
+            baseline_file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+            checks = ci.compare(doc, entries, errors, tolerances)
+            passed = True
+            print(f"ci: baseline {baseline_file} written: {len(entries)} runs, "
+                  f"{sum(len(v) for v in entries.values())} metrics, {wall_s:.1f} s")
+        base_entries = entries
+    else:
+        if baseline.get("task_fn") and baseline["task_fn"] != task_fn:
+            print(f"ci: note: the baseline was made with task {baseline['task_fn']}, this run uses {task_fn}")
+        checks = ci.compare(baseline, entries, errors, tolerances)
+        passed = all(c.ok for c in checks)
+        base_entries = baseline["entries"]
+
+    md = ci.markdown_summary(checks, reference_s=reference_s, baseline_file=str(baseline_file),
+                             suite_file=args.suite, wall_s=wall_s, tolerances=tolerances)
+    for f, text in ((junit, ci.junit_xml(checks, wall_s)), (mdfile, md)):
+        f.write_text(text)
+    with History(history_file) as h:
+        run_id = h.append(entries=entries, checks=checks, baseline_entries=base_entries,
+                          mode="update-baseline" if args.update_baseline else "check",
+                          passed=passed, reference_s=reference_s, wall_s=wall_s, suite=args.suite,
+                          code_version=version, host=ci.host_info(), repo=REPO)
+    if not args.update_baseline:
+        # the head and the regressions table of the summary: the metric is named on stdout
+        print(md.split("## Tolerances")[0].rstrip())
+    print(f"ci: JUnit {junit}, summary {mdfile}, history run #{run_id}")
+    return 0 if passed else 1

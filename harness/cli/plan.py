@@ -1,0 +1,52 @@
+"""`pkmbench plan`: plan feed profiles only (no co-simulation), write them, print their metrics."""
+from __future__ import annotations
+
+from harness.cli import CliError
+from harness.outdir import output_dir
+
+
+def add_arguments(p):
+    p.add_argument("--machine", required=True, help="machine id or .toml file")
+    p.add_argument("--path", required=True, help="toolpath id or .json/.ngc file")
+    p.add_argument("--planners", default="scurve", help="comma-separated planners (default: %(default)s)")
+    p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
+
+
+def main(args) -> int:
+    import planners
+    from planners.verify import command_metrics
+    from kins import load_machine
+    from harness.cosim.record import write_json
+    from kins.machine import MachineFileError
+    from planners.paths import PathError, resolve_path
+
+    try:
+        m = load_machine(args.machine)
+        path = resolve_path(args.path)
+    except (MachineFileError, PathError) as e:
+        raise CliError(str(e)) from None
+    names = [n.strip() for n in args.planners.split(",") if n.strip()]
+    bad = [n for n in names if n not in planners.PLANNERS]
+    if bad:
+        raise CliError(f"unknown planner(s) {', '.join(bad)}; valid: {', '.join(planners.PLANNERS)}")
+    out = output_dir(args.out) if args.out else None
+    failed = 0
+    print(f"{m.name} / {args.path}: {'planner':14s} {'exec s':>9s} {'plan s':>8s} {'joint v/a/j':>22s} {'feasible':>9s}")
+    for name in names:
+        try:
+            prof = planners.plan(name, path, m)
+        except Exception as e:
+            print(f"  {name:14s} failed: {e}")
+            failed += 1
+            continue
+        met = command_metrics(m, prof.path.point(prof.s), m.servo_period_s, prof.s)
+        j = met["joint_peak_ratio"]
+        print(f"  {name:14s} {prof.execution_time_s:9.4f} {prof.planning_time_s:8.3f} "
+              f"{j['velocity']:6.3f} {j['acceleration']:6.3f} {j['jerk']:7.3f} {'yes' if met['feasible'] else 'NO':>9s}")
+        if out:
+            d = out / name
+            d.mkdir(parents=True, exist_ok=True)
+            prof.save_csv(d / "profile.csv")
+            prof.path.to_file(d / "path.json")
+            write_json(d / "metrics.json", met)
+    return 1 if failed else 0

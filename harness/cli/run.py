@@ -1,0 +1,106 @@
+"""`pkmbench run`: co-simulate planners on a machine × toolpath (or a suite) and compare."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from harness.cli import CliError
+from harness.outdir import output_dir
+from kins.resources import run_dir, suite_run_dir
+
+JITTER_PRESETS = ("none", "linuxcnc_rt_preempt", "tuned_rt")
+
+
+def add_arguments(p):
+    p.add_argument("suite", nargs="?", help="a suite file (benchmarks/suites/*.toml) instead of --machine/--path")
+    p.add_argument("--machine", help="machine id (benchmarks/machines/) or .toml file")
+    p.add_argument("--path", help="toolpath id (benchmarks/paths/) or .json/.ngc file")
+    p.add_argument("--planners", default="trapezoid,scurve,scurve_joint,pso,toppra,optimal",
+                   help="comma-separated planners (default: %(default)s)")
+    p.add_argument("--out", default=None, help="output folder (default: results/<machine>_<path> or results/<suite>)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the EtherCAT jitter draws, 0 <= SEED < 2**64 (default: 0)")
+    p.add_argument("--jitter", default=None, help=f"EtherCAT preset: {', '.join(JITTER_PRESETS)} (default: the machine file's)")
+    p.add_argument("--ideal", action="store_true", help="ideal chain: no jitter, no delay, ideal drives")
+    p.add_argument("--engine", choices=("native", "python"), default="native", help="co-simulation master")
+    p.add_argument("--jacobi", action="store_true", help="Jacobi instead of Gauss–Seidel")
+    p.add_argument("--no-recordings", action="store_true", help="skip run.mcap and run.rrd")
+
+
+def _progress(k, n, name):
+    bar = "#" * (20 * k // max(n, 1))
+    sys.stderr.write(f"\r  [{bar:<20s}] {k}/{n} {name:<14s}")
+    sys.stderr.flush()
+
+
+def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
+    """(machine, path, planners, planner options) of each run, and the output folder."""
+    if args.suite:
+        from harness.sweep.suite import SuiteError, load_suite, suite_runs
+        try:
+            suite = load_suite(args.suite)
+            runs = suite_runs(suite, args.suite)
+        except SuiteError as e:
+            raise CliError(str(e)) from None
+        cases = [(m, p, list(planners), suite.get("planner_options", {}))
+                 for machines, paths, planners in runs for m in machines for p in paths]
+        return cases, Path(args.out or suite_run_dir(args.suite))
+    if not (args.machine and args.path):
+        raise CliError("give a suite file, or --machine and --path")
+    planners = [p.strip() for p in args.planners.split(",") if p.strip()]
+    out = Path(args.out) if args.out else run_dir(args.machine, args.path)
+    return [(args.machine, args.path, planners, {})], out
+
+
+def table(summary: dict) -> str:
+    cols = ("exec s", "joint v", "joint a", "joint j", "cart a", "feasible", "follow µm", "contour µm")
+    lines = [f"{summary['machine']} / {summary['path']}  (T = {summary['servo_period_s'] * 1e6:g} µs)",
+             f"  {'planner':14s}" + "".join(f"{c:>11s}" for c in cols)]
+    for name, m in summary["planners"].items():
+        if "error" in m:
+            lines.append(f"  {name:14s}  {m['error']}")
+            continue
+        j, c = m["joint_peak_ratio"], m["cartesian_peak_ratio"]
+        f = lambda v, fmt="{:.3f}": ("—" if v is None else fmt.format(v))  # noqa: E731
+        vals = [f(m["execution_time_s"], "{:.4f}"), f(j["velocity"]), f(j["acceleration"]), f(j["jerk"]),
+                f(c["acceleration"]), "yes" if m["feasible"] else "NO",
+                f(m["max_following_error_um"], "{:.1f}"), f(m["max_contour_error_um"], "{:.1f}")]
+        lines.append(f"  {name:14s}" + "".join(f"{v:>11s}" for v in vals))
+    return "\n".join(lines)
+
+
+def _written(odir: Path, summary: dict) -> str:
+    """The per-planner files this run wrote (a failed planner or --no-recordings writes fewer)."""
+    names = [f for f in ("command.csv", "run.mcap", "run.rrd")
+             if any((odir / p / f).exists() for p in summary["planners"])]
+    hints = [h for f, h in (("run.rrd", "open the .rrd with 'rerun'"), ("run.mcap", "the .mcap with Foxglove"))
+             if f in names]
+    return (f"; per planner: {', '.join(names)}" if names else "") + (f" ({', '.join(hints)})" if hints else "")
+
+
+def main(args) -> int:
+    from harness.cosim.run import RunError, run_case
+    from harness.seed import SeedError, check_seed
+
+    if args.jitter and args.jitter not in JITTER_PRESETS:
+        raise CliError(f"unknown jitter preset '{args.jitter}'; valid: {', '.join(JITTER_PRESETS)}")
+    try:
+        check_seed(args.seed, "--seed")
+    except SeedError as e:
+        raise CliError(str(e)) from None
+    cases, out = cases_of(args)
+    output_dir(out)
+    failed = 0
+    for machine, path, planners, opts in cases:
+        odir = out if len(cases) == 1 else out / f"{Path(machine).stem}_{Path(path).stem}"
+        print(f"pkmbench run: {machine} / {path}: {', '.join(planners)} → {odir}", file=sys.stderr)
+        try:
+            summary = run_case(machine, path, planners, odir, seed=args.seed, jitter=args.jitter, ideal=args.ideal,
+                               engine=args.engine, jacobi=args.jacobi, planner_options=opts,
+                               recordings=not args.no_recordings, progress=_progress)
+        except RunError as e:
+            raise CliError(str(e)) from None
+        sys.stderr.write("\r" + " " * 60 + "\r")
+        print(table(summary))
+        failed += sum("error" in m for m in summary["planners"].values())
+        print(f"  results: {odir}/summary.json{_written(odir, summary)}\n")
+    return 1 if failed else 0

@@ -1,0 +1,321 @@
+"""The one constraint set of the planners, and the joint and Cartesian derivatives it needs.
+
+Constraints (shared by scurve_joint, pso, toppra and optimal; scurve and trapezoid use the
+Cartesian part): joint v/a/j limits, F_max, the chord-error feed cap (:func:`chord_feed_cap`),
+and at a G1 join, where q″ jumps, the jerk that jump reads as at T (:data:`JUMP_READ_FACTOR`,
+:func:`join_jumps`). The limits themselves are checked once (:func:`check_limits`), the path
+against the workspace by :func:`check_path_in_workspace` (the machine's findings) or
+:func:`ik_along` (IK of given points). The check of a sampled profile at T is
+:mod:`planners.verify`.
+
+
+Every planner that limits the joints of a PKM needs q(s) and its arc-length derivatives
+q′, q″, q‴ (the chain rule then gives joint velocity, acceleration and jerk for any
+s(t)).  kins gives the IK and the Jacobian but no higher derivatives, so we differentiate
+the IK numerically — but not along the path itself (that would smear the derivatives over
+an exact-stop corner): at each s we take the path's own one-sided derivatives
+(P, P′, P″, P‴ from ``path.derivs``), build the local cubic X(h) = P + P′h + P″h²/2 + P‴h³/6
+and difference q(X(h)) on a 5-point stencil in h.  X(h) agrees with the path to third order,
+so these are the derivatives of q(s) at s, with O(h²) truncation (h = 0.02 mm → ~1e-4
+relative on q‴ at 1 mm radius, round-off ~1e-8).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from kins import WorkspaceError
+from planners.errors import PlanningError
+
+STENCIL_H_MM = 0.02
+# A jump Δq″ of the joint acceleration at speed ṡ reads, as a third difference at T, as at
+# most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
+# difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
+JUMP_READ_FACTOR = 0.75
+
+
+def check_limits(limits, planner: str = "planner") -> None:
+    """Raise PlanningError unless every limit is a finite number > 0."""
+    vals = {f"{group} limit {k}": getattr(getattr(limits, group), k)
+            for group in ("joint", "cartesian") for k in ("v", "a", "j")}
+    vals |= {"limit feed_max": limits.feed_max, "limit chord_error_mm": limits.chord_error_mm}
+    for name, v in vals.items():
+        try:
+            ok = v > 0 and v < float("inf")
+        except TypeError:      # a string or None in a hand-made Limits
+            ok = False
+        if not ok:
+            raise PlanningError(f"{planner}: {name} = {v!r} must be a finite number > 0")
+
+
+def check_path(path, who: str) -> None:
+    L = path.length
+    if not np.isfinite(L) or L <= 0:
+        raise PlanningError(f"{who}: path has length {L!r}; need a non-empty path")
+
+
+def check_path_in_workspace(path, machine, step_mm: float = 0.5) -> None:
+    """Raise PlanningError naming the first path point (arc length, G-code line, xyz and the
+    joint or box side) that ``machine.check`` flags — out of reach, beyond a joint stroke,
+    outside the workspace box or near a singularity — sampling the path every ≤ step_mm."""
+    s, P = path.sample(step_mm)
+    findings = machine.check(P)
+    if not findings:
+        return
+    f = findings[0]
+    ln = int(path.line_at(s[f.index])[0])
+    where = f" (G-code line {ln})" if ln >= 0 else ""
+    joint = f" [joint {f.joint}]" if f.joint is not None else ""
+    raise PlanningError(f"{path.source}: the path leaves the workspace of {machine.name} at "
+                        f"s = {s[f.index]:.6g} mm{where}{joint}: {f.message}")
+
+
+def ik_along(machine, s, P) -> np.ndarray:
+    """IK of path points P at arc lengths s; PlanningError naming the arc length, the point and
+    the joint (the kins message) if one is out of reach (reach and stroke only: for the
+    workspace box and singularities see check_path_in_workspace)."""
+    try:
+        return machine.ik(P)
+    except WorkspaceError as e:
+        raise PlanningError(f"path point at s = {s[e.index]:.6g} mm leaves the workspace: {e}") from None
+
+
+def cartesian_derivs(path, s):
+    """(P, P′, P″, P‴) at arc lengths s, each (N, 3)."""
+    P, P1, P2, P3 = path.derivs(np.asarray(s, float))
+    return np.asarray(P, float), np.asarray(P1, float), np.asarray(P2, float), np.asarray(P3, float)
+
+
+def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
+    """(q, q′, q″, q‴) at arc lengths s, each (N, 3): joint positions and their derivatives
+    with respect to arc length.  Raises PlanningError naming the first point that leaves the
+    workspace (the kins message names the point and the joint)."""
+    s = np.asarray(s, float)
+    P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
+    Q0 = ik_along(machine, s, P)
+    Q = {0: Q0}
+    for k in (-2, -1, 1, 2):
+        d = k * h
+        X = P + P1 * d + P2 * (d * d / 2) + P3 * (d * d * d / 6)
+        Qk, reach = machine._ik(X)  # stencil points are ≤ 2h off the path: no stroke check
+        if (reach < 0).any():
+            i = int(np.argmax((reach < 0).any(axis=1)))
+            raise PlanningError(f"path point at s = {s[i]:.6g} mm {P[i]} is at the edge of reach")
+        Q[k] = Qk
+    q1 = (-Q[2] + 8 * Q[1] - 8 * Q[-1] + Q[-2]) / (12 * h)
+    q2 = (-Q[2] + 16 * Q[1] - 30 * Q[0] + 16 * Q[-1] - Q[-2]) / (12 * h * h)
+    q3 = (Q[2] - 2 * Q[1] + 2 * Q[-1] - Q[-2]) / (2 * h ** 3)
+    return Q0, q1, q2, q3
+
+
+def time_derivs(D1, D2, D3, sd, sdd, sddd):
+    """Velocity, acceleration, jerk in time of x(s(t)) from x′, x″, x‴ (N, k) and ṡ, s̈, s⃛ (N,).
+
+    ẋ = x′ṡ,  ẍ = x″ṡ² + x′s̈,  x⃛ = x‴ṡ³ + 3x″ṡs̈ + x′s⃛.  Broadcasts over leading axes.
+    """
+    sd, sdd, sddd = (np.asarray(x, float)[..., None] for x in (sd, sdd, sddd))
+    v = D1 * sd
+    a = D2 * sd * sd + D1 * sdd
+    j = D3 * sd ** 3 + 3 * D2 * sd * sdd + D1 * sddd
+    return v, a, j
+
+
+def peak_ratios(v, a, j, lim) -> np.ndarray:
+    """[v, a, j] peak |value| / limit (over all leading axes) for a kins Limits."""
+    return np.array([np.abs(v).max() / lim.v, np.abs(a).max() / lim.a, np.abs(j).max() / lim.j])
+
+
+def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
+    """min(F_max, F_clim) along s: the programmed feed ceiling and the chord-error cap
+    F_clim = (2/T)√(ρ² − (ρ − ε)²) of Erwinski et al., TII 2022 (the chord of one period
+    deviates ≤ ε from an arc of radius ρ)."""
+    kappa = np.asarray(path.curvature(s) if kappa is None else kappa, float)
+    return np.minimum(limits.feed_max, chord_feed_cap(kappa, limits.chord_error_mm, T))
+
+
+def chord_feed_cap(kappa, eps: float, T: float) -> np.ndarray:
+    """F_clim = (2/T)√(ρ² − (ρ − ε)²) at curvatures κ ≥ 0 (ρ = 1/κ; straight: inf): the feed at
+    which the chord of one period deviates ε from an arc of radius ρ (TII 2022)."""
+    kappa = np.asarray(kappa, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(kappa > 0, 1.0 / np.maximum(kappa, 1e-300), np.inf)
+        # ρ² − (ρ − ε)² = 2ρε − ε² (no inf − inf on straight parts); ρ ≤ ε: any chord is within
+        # ε, the cap is the diameter per period
+        return np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)), 2 * rho / T)
+
+
+def table_feed_cap(path, table, limits, T: float) -> np.ndarray:
+    """min(F_max, F_clim) on a PathTable's grid (κ = |P′ × P″| of the arc-length parametrisation)."""
+    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
+    return feed_cap(path, table.s, limits, T, kappa=kappa)
+
+
+def join_jumps(path, table, machine):
+    """[(s, Δq″ per joint)] at the G1 joins where q″ jumps (second_derivative_jumps)."""
+    out = []
+    for sj, _ in second_derivative_jumps(path, table, machine, corner_list(path)):
+        q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))[2]
+        out.append((sj, np.abs(q2[1] - q2[0])))
+    return out
+
+
+class PathTable:
+    """Derivative tables on an arc-length grid, for fast repeated checks.
+
+    Evaluating a NURBS at arc length needs a Newton inversion per call; planners that check
+    limits thousands of times (s-curve repair, PSO swarms, IPOPT) read these tables instead.
+    The grid is uniform within each piece between exact-stop corners, and holds each corner
+    twice (its value from the left and from the right), so no interpolation blends the two
+    sides of a corner.  x′ and x″ are interpolated by cubic Hermite with the next derivative
+    as slope (O(h⁴)), x‴ linearly (O(h²)), for the Cartesian axes and, with a machine, the
+    joints (`joint` is None without one).
+    """
+
+    def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001):
+        L = float(path.length)
+        self.length = L
+        # pieces between the path's joins (segment ends of a line/arc path, corners): a
+        # derivative that jumps at a join is never blended, and a segment shorter than ds
+        # still gets points of its own (a 0.04 mm G64 blend arc)
+        self.edges = np.array([0.0] + breakpoints(path) + [L])
+        per_mm = max(1.0 / ds, (min_points - 1) / L)
+        grids, self.offset, self.hs = [], [], []
+        n0 = 0
+        for a, b in zip(self.edges[:-1], self.edges[1:]):
+            n = max(8, int(math.ceil((b - a) * per_mm)) + 1)
+            g = np.linspace(a, b, n)
+            grids.append(g)
+            self.offset.append(n0)
+            self.hs.append(g[1] - g[0])
+            n0 += n
+        self.offset, self.hs = np.array(self.offset), np.array(self.hs)
+        self.counts = np.array([len(g) for g in grids])
+        self.s = np.concatenate(grids)
+        # evaluate one-sidedly: the end points of each piece a hair inside it
+        inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
+                                zip(grids, self.edges[:-1], self.edges[1:])])
+        self.cart = cartesian_derivs(path, inner)
+        self.joint = joint_derivs(machine, path, inner, cart=self.cart) if machine is not None else None
+
+    @staticmethod
+    def _interp(tab, i, w, h):
+        X, X1, X2, X3 = tab
+        w, h = w[..., None], h[..., None]
+        h00, h10 = 2 * w ** 3 - 3 * w ** 2 + 1, w ** 3 - 2 * w ** 2 + w
+        h01, h11 = -2 * w ** 3 + 3 * w ** 2, w ** 3 - w ** 2
+        d1 = h00 * X1[i] + h10 * h * X2[i] + h01 * X1[i + 1] + h11 * h * X2[i + 1]
+        d2 = h00 * X2[i] + h10 * h * X3[i] + h01 * X2[i + 1] + h11 * h * X3[i + 1]
+        d3 = (1 - w) * X3[i] + w * X3[i + 1]
+        return d1, d2, d3
+
+    def _locate(self, s):
+        """(row i, weight w, spacing h): s lies between rows i and i+1 of its piece.
+        A corner itself counts to the piece after it (callers stay inside pieces)."""
+        s = np.clip(np.asarray(s, float), 0.0, self.length)
+        p = np.clip(np.searchsorted(self.edges, s, side="right") - 1, 0, len(self.hs) - 1)
+        h = self.hs[p]
+        x = (s - self.edges[p]) / h
+        k = np.clip(x.astype(np.int64), 0, self.counts[p] - 2)
+        return self.offset[p] + k, x - k, h
+
+    def cartesian(self, s):
+        """(P′, P″, P‴) at s; any shape of s, results with a trailing axis of 3."""
+        i, w, h = self._locate(s)
+        return self._interp(self.cart, i, w, h)
+
+    def joints(self, s):
+        """(q′, q″, q‴) at s."""
+        i, w, h = self._locate(s)
+        return self._interp(self.joint, i, w, h)
+
+    def joint_positions(self, s):
+        """q(s) by linear interpolation (for plotting and toppra's order-0 calls only)."""
+        i, w, h = self._locate(s)
+        Q = self.joint[0]
+        return (1 - w)[..., None] * Q[i] + w[..., None] * Q[i + 1]
+
+
+def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
+    """[(s, jump)]: points where the path is tangent-continuous but P″ jumps (a G1 join of two
+    curves), and the size of the jump max|Δx″| of the checked coordinates (the joints through
+    the IK with a machine, else the Cartesian axes).
+
+    No feed-limiting function of the sources covers these: a nonzero feed ṡ there makes the
+    acceleration jump by Δx″·ṡ², which a drive reads at period T as a jerk ≈ Δx″·ṡ²/T, so
+    every jerk-limited planner caps the feed there at √(c·J·T/max|Δx″|).
+    """
+    corners = np.asarray(list(corners), float)
+    if path.segment_joins() is not None:
+        # joins are known: compare the one-sided values there (no search needed)
+        known = np.array(breakpoints(path))
+        if len(corners) and len(known):
+            # distance to the nearest corner from its two sorted neighbours (a scan of every
+            # corner per join was quadratic on a CAM program)
+            cs = np.sort(corners)
+            j = np.searchsorted(cs, known)
+            near = np.minimum(np.abs(cs[np.maximum(j - 1, 0)] - known), np.abs(cs[np.minimum(j, len(cs) - 1)] - known))
+            known = known[near >= 1e-9]
+        if len(known) == 0:
+            return []
+        lo = hi = known
+        cand = np.arange(len(known))
+        d = np.zeros(len(known))
+    else:
+        g = table.s
+        P2 = table.cart[2]
+        d = np.linalg.norm(np.diff(P2, axis=0), axis=1)
+        base = np.median(d) + 1e-12
+        dn = np.maximum(np.concatenate([[0.0], d[:-1]]), np.concatenate([d[1:], [0.0]]))
+        # a jump stands out from both neighbouring cells; a steep but smooth stretch does not
+        cand = np.nonzero((d > 50 * base) & (d > 1e-3) & (d > 4 * dn))[0]
+        if len(corners):
+            cand = np.array([i for i in cand if np.min(np.abs(corners - g[i])) >= 1e-3], int)
+        if len(cand) == 0:
+            return []
+        lo, hi = g[cand], g[cand + 1]
+        m, rows = 64, np.arange(len(cand))
+        for _ in range(3):          # three vectorised 64-way refinements: cell / 2.6e5 ≈ 2e-7 mm
+            sub = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, m)[None, :]
+            Q2 = cartesian_derivs(path, sub.ravel())[2].reshape(len(cand), m, 3)
+            k = np.linalg.norm(np.diff(Q2, axis=1), axis=2).argmax(axis=1)
+            lo, hi = sub[rows, k], sub[rows, k + 1]
+        d = d[cand]
+        cand = np.arange(len(cand))
+    pairs = np.column_stack([lo - 1e-7, hi + 1e-7]).ravel()
+    cart = cartesian_derivs(path, pairs)
+    D = joint_derivs(machine, path, pairs, cart=cart) if machine is not None else cart
+    cjump = np.linalg.norm(cart[2][1::2] - cart[2][0::2], axis=1)
+    jump = np.abs(D[2][1::2] - D[2][0::2]).max(axis=1)
+    # keep real jumps (a smooth stretch's change over 2e-7 mm is tiny; a C² knot has none)
+    return [(float(0.5 * (lo[n] + hi[n])), float(jump[n])) for n in cand
+            if cjump[n] >= max(0.25 * d[n], 1e-6)]
+
+
+def breakpoints(path) -> list[float]:
+    """Interior arc lengths where the path's pieces join: the segment boundaries of a
+    line/arc path (its curvature jumps there) and the corners.  A NURBS's derivatives jump
+    only at its corners (multiple knots, found by `corners()`); elsewhere they are searched."""
+    L = path.length
+    joins = path.segment_joins()
+    out = [] if joins is None else [float(x) for x in np.asarray(joins)]
+    out += corner_list(path)
+    out = sorted(x for x in out if 1e-9 < x < L - 1e-9)
+    merged = []
+    for x in out:
+        if not merged or x - merged[-1] > 1e-9:
+            merged.append(x)
+    return merged
+
+
+def corner_list(path):
+    """The path's exact-stop corners strictly inside it (1 nm from the ends)."""
+    L = path.length
+    return [float(c) for c in path.corners() if 1e-9 < c < L - 1e-9]
+
+
+def rest_pieces(path):
+    """[(s0, s1)] between the path ends and its exact-stop corners: the rest-to-rest pieces
+    (ṡ = s̈ = 0 at both ends, so planners solve them independently)."""
+    edges = [0.0] + corner_list(path) + [path.length]
+    return list(zip(edges[:-1], edges[1:]))

@@ -1,0 +1,127 @@
+"""The toolpath base: one geometry, parametrised by arc length s (mm), shared by every planner.
+
+Every path gives ``length``, ``point(s)``, ``derivs(s)`` (P, P′, P″, P‴ with respect to arc
+length), ``curvature(s)``, ``corners()`` (arc lengths where the tangent is discontinuous:
+the exact-stop points), ``segment_joins()``, ``line_at(s)``, ``bounds()`` and ``to_file(file)``.
+The kinds are :mod:`planners.paths.nurbs` and :mod:`planners.paths.segments`.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+S_TOL = 1e-9            # mm: arc lengths this far outside [0, L] are clipped, beyond → error
+CONTIG_TOL = 1e-9       # mm: consecutive segments must join this closely (file contract)
+END_TOL = 1e-6          # mm: an arc's redundant "end" must agree this closely
+CORNER_ANGLE = 1e-6     # rad: a tangent turn larger than this is a corner (exact stop)
+
+
+class PathError(ValueError):
+    """A toolpath is malformed or a query is outside it; the message names file and problem."""
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of two 3-vectors (np.cross costs ~15 µs a call; paths build one per segment)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def vec3(v, what: str, where: str) -> np.ndarray:
+    a = np.asarray(v, float)
+    # math.isfinite on three floats: np.isfinite(a).all() costs ~3 µs, paths build 10⁵ of these
+    if a.shape != (3,) or not (math.isfinite(a[0]) and math.isfinite(a[1]) and math.isfinite(a[2])):
+        raise PathError(f"{where}: {what} must be 3 finite numbers [x, y, z], got {v!r}")
+    return a
+
+
+def norm3(v) -> float:
+    """|v| of one 3-vector (np.linalg.norm costs ~3 µs a call)."""
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+class Path:
+    """Base class: a curve from s = 0 to s = length (mm)."""
+
+    kind = "abstract"
+    length: float
+    source: str
+    program = None      # the G-code program a path was read from (planners.paths.gcode), else None
+
+    # -- subclasses -------------------------------------------------------------------
+    def _derivs(self, s: np.ndarray, order: int) -> list[np.ndarray]:
+        raise NotImplementedError
+
+    def corners(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def to_dict(self) -> dict:
+        raise NotImplementedError
+
+    def segment_joins(self) -> np.ndarray | None:
+        """Interior arc lengths where the path's pieces join, when the path knows them (the
+        segment ends of a line/arc path); None when they must be searched (a NURBS)."""
+        return None
+
+    def line_at(self, s) -> np.ndarray:
+        """G-code line number of the segment at each arc length (−1: none; for messages)."""
+        a, _ = self._check_s(s)
+        return np.full(len(a), -1)
+
+    # -- public -------------------------------------------------------------------------
+    def _check_s(self, s) -> tuple[np.ndarray, bool]:
+        a = np.asarray(s, float)
+        scalar = a.ndim == 0
+        a = np.atleast_1d(a).ravel()
+        if not np.isfinite(a).all():
+            i = int(np.argmax(~np.isfinite(a)))
+            raise PathError(f"{self.source}: arc length #{i} is {a[i]} (not finite)")
+        if len(a) and (a.min() < -S_TOL or a.max() > self.length + S_TOL):
+            i = int(np.argmax((a < -S_TOL) | (a > self.length + S_TOL)))
+            raise PathError(f"{self.source}: arc length #{i} = {a[i]:.12g} mm is outside "
+                            f"the path [0, {self.length:.12g}] mm")
+        return np.clip(a, 0.0, self.length), scalar
+
+    def point(self, s) -> np.ndarray:
+        """Points (N, 3) at arc lengths s (mm); a scalar s gives shape (3,)."""
+        a, scalar = self._check_s(s)
+        P = self._derivs(a, 0)[0]
+        return P[0] if scalar else P
+
+    def derivs(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(P, dP/ds, d²P/ds², d³P/ds³) at arc lengths s, each (N, 3).
+
+        At a corner the outgoing (right-hand) values are returned, at s = length the
+        incoming ones.
+        """
+        a, _ = self._check_s(s)
+        return tuple(self._derivs(a, 3))
+
+    def tangent(self, s) -> np.ndarray:
+        a, _ = self._check_s(s)
+        return self._derivs(a, 1)[1]
+
+    def curvature(self, s) -> np.ndarray:
+        """κ(s) = |d²P/ds²| (1/mm), shape (N,)."""
+        a, _ = self._check_s(s)
+        return np.linalg.norm(self._derivs(a, 2)[2], axis=1)
+
+    def sample(self, ds: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+        """(s, P) on a uniform grid of step ≤ ds that includes both ends."""
+        n = max(2, int(np.ceil(self.length / ds)) + 1)
+        s = np.linspace(0.0, self.length, n)
+        return s, self.point(s)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min xyz, max xyz) of the path, from dense sampling (step ≤ 0.05 mm) and corners."""
+        s, P = self.sample(min(0.05, self.length / 16))
+        return P.min(axis=0), P.max(axis=0)
+
+    def to_file(self, file) -> None:
+        """Write the path file (JSON, 17 significant digits) that Interpolator.fmu reads."""
+        with open(file, "w") as f:
+            json.dump(self.to_dict(), f, indent=1)
+            f.write("\n")
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.source!r} length={self.length:.6g} mm>"

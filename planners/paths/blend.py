@@ -1,0 +1,157 @@
+"""Geometry shared by every planner: G64 corner blending and cutting a curve into G1 lines.
+
+Corner blending follows the idea of LinuxCNC 2.9's tangent-arc blends
+(``src/emc/tp/blendmath.c``: ``blendInit3FromLineLine``, ``blendFindPoints3``, …): the
+corner between two lines is replaced by the circular arc tangent to both, as large as
+the tolerance allows, but using at most half of each adjoining line so that neighbouring
+blends never overlap. The blended path is then tangent-continuous there. What is *not*
+blended (documented limits): corners touching an arc segment (kept as exact stops, as
+LinuxCNC does when a blend arc does not fit), and near-reversals (turn > π − 1e-6 rad).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planners.paths.base import CORNER_ANGLE, Path, PathError, cross3, norm3
+from planners.paths.segments import Arc, Line, SegmentPath
+
+REVERSAL_ANGLE = math.pi - 1e-6
+
+
+def line_blend(u1: np.ndarray, u2: np.ndarray, room: float, tolerance: float):
+    """(radius, tangent length d, deviation, turn angle) of the blend arc of a line corner.
+
+    u1, u2: unit directions in and out; ``room``: the longest tangent length allowed
+    (half of the shorter adjoining line); ``tolerance``: the largest distance allowed
+    between the corner point and the arc (inf = no limit but the room).
+    The arc touches the lines at d = R·tan(δ/2) from the corner and passes the corner at
+    R·(1/cos(δ/2) − 1), δ being the turn angle.
+    """
+    delta = math.acos(max(-1.0, min(1.0, float(u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2]))))
+    half = 0.5 * delta
+    R_room = room / math.tan(half)
+    sec_m1 = 1.0 / math.cos(half) - 1.0
+    R_tol = tolerance / sec_m1 if math.isfinite(tolerance) else math.inf
+    R = min(R_room, R_tol)
+    return R, R * math.tan(half), R * sec_m1, delta
+
+
+def blend_corners(segments, tolerances):
+    """Round the line–line corners whose tolerance is not None.
+
+    ``tolerances[i]`` governs the corner between segments i and i+1: None → exact stop,
+    a number p > 0 → an arc within p mm of the corner, inf → an arc limited only by room.
+    Returns (new segments, list of (corner index, deviation mm) for each blended corner).
+    """
+    segs = list(segments)
+    if len(tolerances) != max(len(segs) - 1, 0):
+        raise PathError(f"blend: {len(tolerances)} corner tolerances for {len(segs)} segments")
+    trim_start = [0.0] * len(segs)
+    trim_end = [0.0] * len(segs)
+    arcs: dict[int, tuple] = {}
+    done = []
+    # the turn of every line–line corner at once (a CAM program has 10⁵ of them)
+    is_line = np.array([g.kind == "line" for g in segs])
+    cand = [i for i, tol in enumerate(tolerances) if tol is not None and is_line[i] and is_line[i + 1]]
+    turns = []
+    if cand:
+        U = np.array([g.direction if g.kind == "line" else (0.0, 0.0, 0.0) for g in segs])
+        c = np.array(cand)
+        turns = np.arccos(np.clip(np.einsum("ij,ij->i", U[c], U[c + 1]), -1.0, 1.0)).tolist()
+    for i, turn in zip(cand, turns):
+        a, b, tol = segs[i], segs[i + 1], tolerances[i]
+        if not tol > 0:
+            raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
+        if turn <= CORNER_ANGLE or turn >= REVERSAL_ANGLE:
+            continue                      # tangent already, or a reversal: nothing to round
+        room = 0.5 * min(a.length, b.length)
+        R, d, dev, delta = line_blend(a.direction, b.direction, room, tol)
+        if not (R > 0 and d > 0):
+            continue
+        trim_end[i] = d
+        trim_start[i + 1] = d
+        arcs[i] = (R, d, delta)
+        done.append((i, dev))
+    # Assemble from exact positions: trimmed lines keep their original direction (so a
+    # short leftover never gets a direction of rounding noise, i.e. a false corner) and each
+    # blend arc runs from C − d·u1 to C + d·u2 of its corner C.
+    out = []
+    for i, g in enumerate(segs):
+        if g.kind == "line":
+            left = g.length - trim_start[i] - trim_end[i]
+            if left > 1e-9:
+                out.append(Line.exact(g.start + trim_start[i] * g.direction,
+                                      g.end - trim_end[i] * g.direction, g.direction, g.line))
+        else:
+            out.append(g)
+        if i in arcs:
+            R, d, delta = arcs[i]
+            u1, u2 = g.direction, segs[i + 1].direction
+            m = u2 - math.cos(delta) * u1
+            m /= norm3(m)
+            n = cross3(u1, u2)
+            n /= norm3(n)
+            t1 = g.end - d * u1
+            out.append(Arc.exact(t1, t1 + R * m, n, delta, segs[i + 1].line))
+    return out, done
+
+
+def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.05):
+    """G1 lines through points of ``path`` with chord deviation ≤ chord_tol (as a CAM post).
+
+    Vertices include every corner. Step from the local curvature, ℓ = √(8·ε/κ_max), then
+    each chord is checked at 17 interior points (midpoint included) and halved until within tolerance.
+    Returns (SegmentPath of lines, measured largest deviation in mm).
+    """
+    if not chord_tol > 0:
+        raise PathError(f"{path.source}: chord tolerance {chord_tol} must be > 0")
+    L = path.length
+    bounds = np.concatenate([[0.0], path.corners(), [L]])
+    n = max(2, int(math.ceil(L / grid_mm)) + 1)
+    sg = np.linspace(0.0, L, n)
+    kg = path.curvature(sg)
+    verts = [0.0]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        s = a
+        while b - s > 1e-12:
+            k0 = kg[min(np.searchsorted(sg, s), n - 1)]
+            step = math.sqrt(8 * 0.95 * chord_tol / k0) if k0 > 0 else b - s
+            for _ in range(3):          # curvature may rise within the step: re-check
+                lo, hi = np.searchsorted(sg, s) - 1, np.searchsorted(sg, s + step) + 1
+                kmax = kg[max(lo, 0):min(hi + 1, n)].max()
+                step = min(step, math.sqrt(8 * 0.95 * chord_tol / kmax) if kmax > 0 else step)
+            if s + step >= b - 1e-9:
+                s = b
+            elif s + 1.5 * step > b:
+                s = 0.5 * (s + b)         # no sliver before a corner: split the rest evenly
+            else:
+                s += step
+            verts.append(s)
+    sv = np.array(verts)
+    for _ in range(20):
+        dev = _chord_deviation(path, sv)
+        bad = dev > chord_tol
+        if not bad.any():
+            break
+        mids = 0.5 * (sv[:-1] + sv[1:])[bad]
+        sv = np.sort(np.concatenate([sv, mids]))
+    P = path.point(sv)
+    lines = [Line(P[i], P[i + 1], None, f"{path.source}: chord {i}") for i in range(len(P) - 1)]
+    out = SegmentPath(lines, f"{path.source} (G1 lines, chord ≤ {chord_tol:g} mm)")
+    return out, float(dev.max())
+
+
+def _chord_deviation(path: Path, sv: np.ndarray) -> np.ndarray:
+    """Largest distance of the curve from each chord, from 17 interior points per chord."""
+    t = np.linspace(0.0, 1.0, 19)[1:-1]          # 17 points, the midpoint among them
+    s = (sv[:-1, None] + (sv[1:] - sv[:-1])[:, None] * t[None, :]).ravel()
+    Q = path.point(s).reshape(len(sv) - 1, len(t), 3)
+    A, B = path.point(sv[:-1]), path.point(sv[1:])
+    u = B - A
+    uu = np.maximum(np.sum(u * u, axis=1), 1e-300)
+    w = Q - A[:, None, :]
+    lam = np.clip(np.sum(w * u[:, None, :], axis=2) / uu[:, None], 0.0, 1.0)
+    d = np.linalg.norm(w - lam[..., None] * u[:, None, :], axis=2)
+    return d.max(axis=1)

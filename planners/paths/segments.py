@@ -1,0 +1,262 @@
+"""Line/arc toolpaths: lines and circular/helical arcs (from G-code, from G64 corner
+blending, or a NURBS cut into G1 lines), with exact closed forms.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planners.paths.base import CONTIG_TOL, CORNER_ANGLE, END_TOL, Path, PathError, cross3, norm3, vec3
+
+class Line:
+    kind = "line"
+
+    def __init__(self, start, end, line: int | None = None, where: str = "<segment>", direction=None):
+        self.start = vec3(start, "line start", where)
+        self.end = vec3(end, "line end", where)
+        self.line = line
+        self.length = norm3(self.end - self.start)
+        if not self.length > CONTIG_TOL:
+            raise PathError(f"{where}: zero-length line at {self.start.tolist()}")
+        self.direction = (self.end - self.start) / self.length
+        if direction is not None:
+            # A known exact direction (e.g. a line trimmed by corner blends): for a very short
+            # line, the direction of end − start would carry the rounding of both ends.
+            d = np.asarray(direction, float)
+            d = d / norm3(d)
+            if norm3(self.start + self.length * d - self.end) > END_TOL:
+                raise PathError(f"{where}: line direction {d.tolist()} does not lead from start to end")
+            self.direction = d
+
+    @classmethod
+    def exact(cls, start, end, direction, line: int | None = None) -> "Line":
+        """A line from geometry a planner computed (a blend's trimmed line, keeping its
+        original direction): no re-validation (see Arc.exact)."""
+        g = cls.__new__(cls)
+        g.start, g.end, g.line, g.direction = start, end, line, direction
+        g.length = norm3(end - start)
+        return g
+
+    def tangent_in(self):
+        return self.direction
+
+    def tangent_out(self):
+        return self.direction
+
+    def to_dict(self) -> dict:
+        d = {"type": "line", "start": self.start.tolist(), "end": self.end.tolist()}
+        if self.line is not None:
+            d["line"] = int(self.line)
+        return d
+
+
+class Arc:
+    """Circle or helix: c + Rot(n, φ)(start − c) + (φ/θ)·h·n, φ ∈ [0, θ] (contract)."""
+
+    kind = "arc"
+
+    def __init__(self, start, center, normal, angle: float, rise: float = 0.0,
+                 line: int | None = None, where: str = "<segment>", end=None):
+        self.start = vec3(start, "arc start", where)
+        self.center = vec3(center, "arc center", where)
+        n = vec3(normal, "arc normal", where)
+        nn = norm3(n)
+        if not nn > 0:
+            raise PathError(f"{where}: arc normal is the zero vector")
+        if abs(nn - 1.0) > 1e-6:
+            raise PathError(f"{where}: arc normal {n.tolist()} is not a unit vector (|n| = {nn:.9g})")
+        self.normal = n / nn
+        try:
+            self.angle = float(angle)
+            self.rise = float(rise)
+        except (TypeError, ValueError):
+            raise PathError(f"{where}: arc angle and rise must be numbers") from None
+        if not (np.isfinite(self.angle) and self.angle > 0):
+            raise PathError(f"{where}: arc angle θ = {angle!r} must be > 0 (radians)")
+        if not np.isfinite(self.rise):
+            raise PathError(f"{where}: arc rise h = {rise!r} is not finite")
+        self.line = line
+        off = self._derive()
+        if abs(off) > END_TOL:
+            raise PathError(f"{where}: arc center is {off:.6g} mm off the plane through start ⟂ normal")
+        if not self.radius > CONTIG_TOL:
+            raise PathError(f"{where}: arc radius is zero (center = start)")
+        if end is not None:
+            e = vec3(end, "arc end", where)
+            if norm3(e - self.end) > END_TOL:
+                raise PathError(f"{where}: arc end {e.tolist()} disagrees with start/center/normal/angle/rise "
+                                f"(computed {self.end.tolist()}, off by {norm3(e - self.end):.3g} mm)")
+
+    @classmethod
+    def exact(cls, start, center, normal, angle: float, line: int | None = None) -> "Arc":
+        """A circular arc from geometry a planner computed (a G64 blend): no re-validation,
+        which costs more than the arc itself when a program has 10⁵ corners."""
+        g = cls.__new__(cls)
+        g.start, g.center, g.normal, g.angle, g.rise, g.line = start, center, normal, angle, 0.0, line
+        g._derive()
+        return g
+
+    def _derive(self) -> float:
+        """In-plane basis a, b, radius, length and end; returns the centre's offset from the plane."""
+        a = self.start - self.center
+        nv = self.normal
+        off = float(a[0] * nv[0] + a[1] * nv[1] + a[2] * nv[2])
+        self.a = a - off * nv
+        self.b = cross3(nv, self.a)
+        self.radius = norm3(self.a)
+        self.length = float(self.angle * math.hypot(self.radius, self.rise / self.angle))
+        # eval() at φ = θ for one point, without arrays
+        self.end = self.center + math.cos(self.angle) * self.a + math.sin(self.angle) * self.b + self.rise * nv
+        return off
+
+    def eval(self, t: np.ndarray, order: int) -> list[np.ndarray]:
+        """Point and s-derivatives at arc length t from the arc start."""
+        k = self.angle / self.length                # dφ/ds
+        phi = (t * k)[:, None]
+        c, s_ = np.cos(phi), np.sin(phi)
+        hn = (self.rise / self.angle) * self.normal
+        out = [self.center + c * self.a + s_ * self.b + phi * hn]
+        if order >= 1:
+            out.append(k * (-s_ * self.a + c * self.b + hn))
+        if order >= 2:
+            out.append(k**2 * (-c * self.a - s_ * self.b))
+        if order >= 3:
+            out.append(k**3 * (s_ * self.a - c * self.b))
+        return out
+
+    def _tangent(self, phi: float) -> np.ndarray:
+        """dP/ds at sweep φ: the first derivative of eval() for one point, without arrays."""
+        k = self.angle / self.length
+        hn = (self.rise / self.angle) * self.normal
+        return k * (-math.sin(phi) * self.a + math.cos(phi) * self.b + hn)
+
+    def tangent_in(self):
+        return self._tangent(0.0)
+
+    def tangent_out(self):
+        return self._tangent(self.angle)
+
+    def to_dict(self) -> dict:
+        d = {"type": "arc", "start": self.start.tolist(), "center": self.center.tolist(),
+             "normal": self.normal.tolist(), "angle": self.angle, "rise": self.rise,
+             "end": self.end.tolist()}
+        if self.line is not None:
+            d["line"] = int(self.line)
+        return d
+
+
+def segment_from_dict(d: dict, where: str):
+    if not isinstance(d, dict) or "type" not in d:
+        raise PathError(f"{where}: a segment must be an object with a 'type'")
+    line = d.get("line")
+    try:
+        if d["type"] == "line":
+            return Line(d["start"], d["end"], line, where)
+        if d["type"] == "arc":
+            return Arc(d["start"], d["center"], d["normal"], d["angle"], d.get("rise", 0.0),
+                       line, where, end=d.get("end"))
+    except KeyError as e:
+        raise PathError(f"{where}: {d['type']} segment lacks {e}") from None
+    raise PathError(f"{where}: unknown segment type {d['type']!r} (line | arc)")
+
+
+class SegmentPath(Path):
+    """Consecutive lines and arcs; s runs from 0 at the first start to the total length."""
+
+    kind = "segments"
+
+    def __init__(self, segments, source: str = "<segments>", program=None):
+        self.source = source
+        # the G-code program the segments were read from (planners.paths.gcode), or None
+        self.program = program
+        self._corners = None
+        segs = list(segments)
+        if not segs:
+            raise PathError(f"{source}: empty path (no segments)")
+        if len(segs) > 1:
+            starts = np.array([g.start for g in segs[1:]])
+            gaps = np.linalg.norm(starts - np.array([g.end for g in segs[:-1]]), axis=1)
+            bad = np.nonzero(gaps > CONTIG_TOL * np.maximum(1.0, np.abs(starts).max(axis=1)))[0]
+            if len(bad):
+                i, gap = int(bad[0]) + 1, float(gaps[bad[0]])
+                ln = f" (G-code line {segs[i].line})" if segs[i].line is not None else ""
+                raise PathError(f"{source}: segment #{i}{ln} starts {gap:.3g} mm away from the end "
+                                f"of segment #{i - 1}: segments must be contiguous")
+        self.segments = segs
+        lens = np.array([g.length for g in segs])
+        self.seg_start = np.concatenate([[0.0], np.cumsum(lens)])
+        self.length = float(self.seg_start[-1])
+        # Vectorised tables (lines use a = direction, arcs the circle frame).
+        n = len(segs)
+        self._is_arc = np.array([g.kind == "arc" for g in segs])
+        self._origin = np.array([g.start if g.kind == "line" else g.center for g in segs])
+        self._dir = np.array([g.direction if g.kind == "line" else np.zeros(3) for g in segs])
+        self._a = np.array([g.a if g.kind == "arc" else np.zeros(3) for g in segs])
+        self._b = np.array([g.b if g.kind == "arc" else np.zeros(3) for g in segs])
+        self._hn = np.array([(g.rise / g.angle) * g.normal if g.kind == "arc" else np.zeros(3) for g in segs])
+        self._k = np.array([g.angle / g.length if g.kind == "arc" else 0.0 for g in segs])
+        self._lens = lens
+        assert len(self._k) == n
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<segments>") -> "SegmentPath":
+        if d.get("units", "mm") != "mm":
+            raise PathError(f"{source}: units must be 'mm', got {d.get('units')!r}")
+        segs = d.get("segments")
+        if not isinstance(segs, list):
+            raise PathError(f"{source}: a segments path needs a list 'segments'")
+        return cls([segment_from_dict(g, f"{source}: segment #{i}") for i, g in enumerate(segs)], source)
+
+    def to_dict(self) -> dict:
+        return {"type": "segments", "units": "mm", "segments": [g.to_dict() for g in self.segments]}
+
+    def segment_index(self, s: np.ndarray) -> np.ndarray:
+        """Index of the segment holding each s (a junction belongs to the outgoing segment)."""
+        return np.clip(np.searchsorted(self.seg_start, s, side="right") - 1, 0, len(self.segments) - 1)
+
+    def _derivs(self, s: np.ndarray, order: int) -> list[np.ndarray]:
+        i = self.segment_index(s)
+        t = np.minimum(s - self.seg_start[i], self._lens[i])[:, None]
+        arc = self._is_arc[i][:, None]
+        k = self._k[i][:, None]
+        phi = t * k
+        c, sn = np.cos(phi), np.sin(phi)
+        a, b, hn = self._a[i], self._b[i], self._hn[i]
+        d = self._dir[i]
+        P = self._origin[i] + np.where(arc, c * a + sn * b + phi * hn, t * d)
+        out = [P]
+        if order >= 1:
+            out.append(np.where(arc, k * (-sn * a + c * b + hn), d))
+        if order >= 2:
+            out.append(np.where(arc, k**2 * (-c * a - sn * b), 0.0))
+        if order >= 3:
+            out.append(np.where(arc, k**3 * (sn * a - c * b), 0.0))
+        return out
+
+    def corners(self) -> np.ndarray:
+        # segments are immutable: the tangent breaks are computed once, all joins at a time
+        if self._corners is None:
+            if len(self.segments) < 2:
+                self._corners = np.array([])
+            else:
+                # unit tangents from the struct-of-arrays tables: a line's direction; an arc's
+                # k·(b + hn) at φ = 0 and k·(−sin θ·a + cos θ·b + hn) at φ = θ
+                th = np.array([g.angle if g.kind == "arc" else 0.0 for g in self.segments])[:, None]
+                arc, k = self._is_arc[:, None], self._k[:, None]
+                t_in = np.where(arc, k * (self._b + self._hn), self._dir)
+                t_out = np.where(arc, k * (-np.sin(th) * self._a + np.cos(th) * self._b + self._hn), self._dir)
+                t0, t1 = t_out[:-1], t_in[1:]
+                c = np.einsum("ij,ij->i", t0, t1) / (np.linalg.norm(t0, axis=1) * np.linalg.norm(t1, axis=1))
+                sharp = np.arccos(np.clip(c, -1.0, 1.0)) > CORNER_ANGLE
+                self._corners = np.asarray(self.seg_start[1:len(self.segments)][sharp], float)
+        return self._corners.copy()
+
+    def segment_joins(self) -> np.ndarray:
+        return self.seg_start[1:-1]
+
+    def line_at(self, s) -> np.ndarray:
+        """G-code line number (or −1) of the segment at each arc length (for messages)."""
+        a, _ = self._check_s(s)
+        lines = np.array([-1 if g.line is None else g.line for g in self.segments])
+        return lines[self.segment_index(a)]

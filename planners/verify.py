@@ -1,0 +1,101 @@
+"""The one check of a profile at the servo period T (DESIGN.md "The metrics"), used by the
+planners themselves (pso and optimal check their result with it), by the harness's run
+metrics, by `pkmbench plan`, the sweeps and the tests.
+
+Peak ratios are read on the commanded trajectory exactly as a drive would see it: the
+positions at period T, derivatives by backward finite differences at T (velocity a first
+difference, acceleration a second, jerk a third). At 250 µs this makes an 8 nm position error
+read as 5·10⁵ mm/s³, which is why everything upstream keeps full double precision.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from kins.machine import Limits
+
+FEASIBLE_TOL = 1e-6          # DESIGN.md: feasible ⇔ every peak ratio ≤ 1 + 1e-6
+ORDERS = ("velocity", "acceleration", "jerk")
+
+
+def differences(X: np.ndarray, T: float) -> dict[str, np.ndarray]:
+    """Velocity, acceleration, jerk of samples X (N, k) at period T (lengths N-1, N-2, N-3)."""
+    X = np.asarray(X, float)
+    v = np.diff(X, 1, axis=0) / T
+    a = np.diff(v, 1, axis=0) / T
+    j = np.diff(a, 1, axis=0) / T
+    return {"velocity": v, "acceleration": a, "jerk": j}
+
+
+def limit_ratios(X: np.ndarray, T: float, limits: Limits) -> tuple[dict, dict]:
+    """(peak ratio, violation time in s) per derivative order, over all columns of X."""
+    lim = {"velocity": limits.v, "acceleration": limits.a, "jerk": limits.j}
+    peak, viol = {}, {}
+    for order, D in differences(X, T).items():
+        r = np.abs(D).max(axis=1) / lim[order] if len(D) else np.zeros(0)
+        peak[order] = float(r.max()) if len(r) else 0.0
+        viol[order] = float(np.count_nonzero(r > 1.0 + FEASIBLE_TOL) * T)
+    return peak, viol
+
+
+def worst_sample(X: np.ndarray, T: float, limits: Limits) -> tuple[str, int, float]:
+    """(order, first sample index of its difference window, ratio) of the largest limit ratio
+    of X at T: where a trajectory breaks its limits worst, for an error message."""
+    lim = {"velocity": limits.v, "acceleration": limits.a, "jerk": limits.j}
+    best = ("velocity", 0, 0.0)
+    for order, D in differences(X, T).items():
+        if len(D):
+            r = np.abs(D).max(axis=1) / lim[order]
+            i = int(np.argmax(r))
+            if r[i] > best[2]:
+                best = (order, i, float(r[i]))
+    return best
+
+
+def command_metrics(machine, P: np.ndarray, T: float, s: np.ndarray | None = None) -> dict:
+    """Metrics of a commanded Cartesian trajectory P (N, 3) sampled at T on ``machine``.
+
+    ``s`` (arc length at each sample) adds the feed ratio against F_max.
+    Raises kins.WorkspaceError if a point leaves the workspace.
+    """
+    Q = machine.ik(P)
+    jpeak, jviol = limit_ratios(Q, T, machine.limits.joint)
+    cpeak, cviol = limit_ratios(P, T, machine.limits.cartesian)
+    out = {
+        "execution_time_s": float((len(P) - 1) * T),
+        "joint_peak_ratio": jpeak,
+        "violation_time_s": jviol,
+        "cartesian_peak_ratio": cpeak,
+        "cartesian_violation_time_s": cviol,
+        "feasible": bool(all(v <= 1.0 + FEASIBLE_TOL for v in jpeak.values())),
+    }
+    if s is not None:
+        feed = np.diff(np.asarray(s, float)) / T
+        out["cartesian_peak_ratio"]["feed"] = float(np.abs(feed).max() / machine.limits.feed_max) if len(feed) else 0.0
+    return out
+
+
+def chord_error_mm(P: np.ndarray, path, s: np.ndarray) -> float:
+    """Largest distance between the chord of two consecutive samples and the path between them.
+
+    Measured at the chord midpoint against the path point at the mid arc length: for a
+    circle of radius ρ and step Δs this is ρ(1 − cos(Δs/2ρ)) ≈ Δs²/8ρ, the quantity that
+    the FLF's chord-error term caps at ε.
+    """
+    s = np.asarray(s, float)
+    mid = 0.5 * (P[1:] + P[:-1])
+    on_path = path.point(0.5 * (s[1:] + s[:-1]))
+    return float(np.linalg.norm(mid - on_path, axis=1).max()) if len(mid) else 0.0
+
+
+def stretch_need(Q: np.ndarray, s: np.ndarray, T: float, limits) -> np.ndarray:
+    """Per sample, the time stretch λ ≥ its ratios that brings joint samples Q (N, 3) and the
+    feed of arc lengths s back within ``limits`` at T: velocity and feed scale as 1/λ,
+    acceleration as 1/λ², jerk as 1/λ³; a difference window counts at its last sample."""
+    lim = limits.joint
+    D = {o: np.abs(x).max(axis=1) for o, x in differences(Q, T).items()}
+    feed = np.diff(s) / T / limits.feed_max
+    need = np.zeros(len(s))
+    need[1:] = np.maximum(D["velocity"] / lim.v, feed)
+    need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
+    need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
+    return need
