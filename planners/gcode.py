@@ -17,7 +17,7 @@ LinuxCNC).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -135,7 +135,9 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     else:
         prog.start = np.array(cp.start, float)
     pos = prog.start.copy()
-    for cm in canon[first:]:
+    made = [0] * (len(canon) + 1)          # segments made before each canonical move
+    for k, cm in enumerate(canon[first:], start=first):
+        made[k] = len(prog.moves)
         end = np.array(cm.end, float)
         if not np.isfinite(end).all():
             raise GCodeError(cm.file, cm.line, "the position is unknown here (pass start=, the machine's position)")
@@ -153,6 +155,9 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         # after an arc, the next segment starts where the arc's geometry ends (within ~1e-15
         # of the programmed end): segments chain exactly, and the standard paths plan as before
         pos = seg.end.copy() if cm.kind == "arc" else end
+    made[len(canon)] = len(prog.moves)
+    # an event's index: the segments before it (LinuxCNC stops there for an M code)
+    prog.events = [replace(e, index=made[e.index]) for e in cp.events]
     if not prog.moves and positioning and canon:
         m0 = canon[0]
         if home is None:

@@ -66,20 +66,36 @@ def test_construct_reads_as_linuxcnc(name, tmp_path):
     assert len(same_as_linuxcnc(f)) >= 3
 
 
-REFUSED = {
-    "G41 D1": "G41", "G81 Z-1 R1": "G81", "G33 Z-1 K1": "G33", "G1 A10 F10": "A axis",
-    "G17.1": "G17.1", "G1 X[1/0] F10": "division by zero", "o1 while [1]\no1 endwhile": "loop",
-    "G2 X1 Y1 I5 J0 F10": "radius", "#<nope>": "parameter",
+REFUSED = {        # LinuxCNC refuses these too
+    "G1 X[1/0] F10": "division by zero", "G2 X1 Y1 I5 J0 F10": "radius", "G0 X#<nope>": "#<nope>",
+    "G1 X1 F10 Q5": "Q word", "G0 G1 X1": "same modal group", "G2 X1 Y1 K1 F10": "K word",
+}
+UNSUPPORTED = {    # LinuxCNC reads these; out of scope here: refused by name
+    "G41 D1": "G41", "G81 Z-1 R1": "G81", "G33 Z-1 K1": "G33", "G1 A10 F10": "A axis", "G17.1": "G17.1",
+    "G38.2 Z-5 F10": "G38.2", "G43.2 H1": "G43.2", "G93": "G93",
 }
 
 
 @pytest.mark.parametrize("text", sorted(REFUSED))
-def test_refusals_name_construct_and_line(text, tmp_path):
+def test_refusals_agree_with_linuxcnc_and_name_construct_and_line(text, tmp_path):
     f = tmp_path / "bad.ngc"
-    body = "G21 G0 X0 Y0 Z0\n" + (text if not text.startswith("#<") else "G0 X#<nope>") + "\nM2\n"
+    body = f"G21 G0 X0 Y0 Z0\n{text}\nM2\n"
     f.write_text(body)
     _, end = linuxcnc_moves(f)
-    assert end["error"] is not None                    # LinuxCNC refuses it too
+    assert end["error"] is not None
     with pytest.raises(RS274Error) as e:
-        interpret(body, str(f), max_loops=10_000)
-    assert e.value.line >= 2 and REFUSED[text].lower() in e.value.message.lower()
+        interpret(body, str(f))
+    assert e.value.line == 2 and REFUSED[text].lower() in e.value.message.lower()
+
+
+@pytest.mark.parametrize("text", sorted(UNSUPPORTED))
+def test_unsupported_constructs_are_refused_by_name(text):
+    with pytest.raises(RS274Error) as e:
+        interpret(f"G21 G0 X0 Y0 Z0\n{text}\nM2\n", "u.ngc")
+    assert e.value.line == 2 and UNSUPPORTED[text].lower() in e.value.message.lower()
+
+
+def test_endless_loop_stops_with_a_clear_error():
+    with pytest.raises(RS274Error) as e:
+        interpret("o1 while [1]\nG0 X1\no1 endwhile\n", "loop.ngc", max_loops=1000)
+    assert e.value.line == 3 and "more than 1000 loop iterations" in e.value.message

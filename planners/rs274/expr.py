@@ -34,7 +34,7 @@ class Reader:
 
     def fail(self, what: str):
         near = self.s[self.i:self.i + 12] or "end of line"
-        raise LineError(f"{what} at '{near}'")
+        raise LineError(f"cannot read '{near}': {what}")
 
     def number(self) -> float:
         s, i = self.s, self.i

@@ -478,6 +478,7 @@ class Interpreter:
         if 4 in groups:
             m.ijk_absolute = groups[4] == 901
         motion = groups.get(1)
+        self._arc_done = False
         axes = [a for a in AXES if a in w]
         if "@" in w or "^" in w:
             axes.append("@")
@@ -497,6 +498,25 @@ class Interpreter:
                 self.motion(mm, w, axes, g0 == 530)
         elif g0 == 530 and not axes_used:
             raise LineError("G53 needs a G0 or G1 move")
+        # interp_check.cc's check_other_codes: a word no code on the line uses is an error
+        used = set("xyzfstgmn@^")
+        if g0 == 40:
+            used.add("p")
+        if g0 == 100:
+            used |= set("lpr")
+        if groups.get(13) == 640:
+            used |= set("pq")
+        if 8 in groups:
+            used.add("h")
+        if 6 in mg and mg[6] == 61:
+            used.add("q")
+        if 5 in mg or 9 in mg:
+            used |= set("pqle")
+        if self._arc_done:
+            used |= set("ijkrp")
+        for letter in w:
+            if letter not in used:
+                raise LineError(f"{letter.upper()} word with no code on the line that uses it")
         for grp in (4,):
             if grp in mg:
                 c = mg[grp]
@@ -746,6 +766,7 @@ class Interpreter:
         cen[i1], cen[i2] = c1, c2
         turn = -turns if mm == 20 else turns
         self.emit("arc", self.to_machine(endp), center=tuple(self.to_machine(cen)), plane=m.plane, turn=turn)
+        self._arc_done = True
 
 
 def _read_text(name: str) -> str:
