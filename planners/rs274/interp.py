@@ -192,6 +192,8 @@ class Interpreter:
         n = self.evaluate(target[1], frame)
         if abs(n - round(n)) > 1e-6:
             raise LineError(f"parameter number #{n:g} is not an integer")
+        if 5400 <= round(n) <= 5429:          # tool and current position: LinuxCNC's read-only ones
+            raise LineError(f"parameter #{round(n)} is read-only")
         self.params.set(int(round(n)), value)
 
     # ------------------------------------------------------------------ files
