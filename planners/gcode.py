@@ -244,6 +244,7 @@ def program_path(prog: GCodeProgram) -> SegmentPath:
 
 
 def load_gcode_path(file, start=None, **options) -> SegmentPath:
+    """The blended path of a G-code file (options: home, tools, subroutine_path, block_delete)."""
     return program_path(read_gcode(file, start, **options))
 
 

@@ -111,7 +111,7 @@ class Interpreter:
 
     def to_program(self, q):
         o, g, t_ = self.g5x, self.g92, self.tlo
-        x, y, z = (q[i] - o[i] - g[i] - t_[i] for i in range(3))
+        x, y, z = q[0] - o[0] - g[0] - t_[0], q[1] - o[1] - g[1] - t_[1], q[2] - o[2] - g[2] - t_[2]
         if self.rot:
             t = math.radians(-self.rot)
             c, s = math.cos(t), math.sin(t)
@@ -343,6 +343,31 @@ class Interpreter:
     # ------------------------------------------------------------------ one block
     def execute(self, b, fr: Frame) -> None:
         m = self.m
+        fast = b.fast
+        if fast is not None:
+            # the common CAM line (constant X/Y/Z/I/J/K/R/F words, at most a G0-G3): same
+            # semantics as the general path below, without its per-group bookkeeping
+            motion, w = fast
+            if "f" in w:
+                f = w["f"]
+                if f < 0:
+                    raise LineError(f"negative feed rate F{f:g}")
+                m.feed = f * (MM_PER_INCH if m.units == 20 else 1.0)
+            if motion is not None:
+                m.motion = motion
+            mm = m.motion
+            axes = [a for a in AXES if a in w]
+            self._arc_done = False
+            if motion is not None or axes:
+                if mm is None or mm == 800:
+                    if axes:
+                        raise LineError("axis words with no motion mode in force (G0/G1/G2/G3)")
+                else:
+                    self.motion(mm, dict(w), axes, False)
+            for letter in w:
+                if letter in "ijkr" and not self._arc_done:
+                    raise LineError(f"{letter.upper()} word with no code on the line that uses it")
+            return
         if b.comment is not None:
             c = b.comment.strip()
             if c[:4].lower() in ("msg,", "debu", "prin"):

@@ -30,6 +30,7 @@ class Block:
     olabel: object = None                 # O label: str name, or a value-node
     oargs: list = field(default_factory=list)        # call arguments / the condition
     comment: str | None = None            # the last comment's text (for MSG/DEBUG notes)
+    fast: tuple | None = None             # (motion G×10 or None, {letter: value}): a plain line
 
 
 def strip_comments(raw: str) -> tuple[str, str | None]:
@@ -79,6 +80,7 @@ def tokenise(raw: str) -> Block | None:
                 break
         else:
             b.words = [(letter, float(v)) for letter, v in words if letter != "n"]
+            _mark_fast(b)
             return b
     r = Reader(s)
     if r.peek() == "n":                       # N number: first on the line, then ignored
@@ -144,3 +146,23 @@ def _oword(r: Reader, b: Block) -> None:
         b.oargs.append(r.expression())
     if r.i < len(r.s):
         r.fail(f"unexpected text after O {b.okey}")
+
+
+_FAST_G = {0.0: 0, 1.0: 10, 2.0: 20, 3.0: 30}
+
+
+def _mark_fast(b: Block) -> None:
+    """A line of constant X Y Z I J K R F words and at most one G0/G1/G2/G3, no comment."""
+    if b.comment is not None or b.delete:
+        return
+    w, motion = {}, None
+    for letter, v in b.words:
+        if letter == "g":
+            if motion is not None or v not in _FAST_G:
+                return
+            motion = _FAST_G[v]
+        elif letter in "xyzijkrf" and letter not in w:
+            w[letter] = v
+        else:
+            return
+    b.fast = (motion, w)
