@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: all venv fmus run test perf clean
+.PHONY: all venv fmus run test perf clean linuxcnc
 
 all: fmus
 
@@ -32,3 +32,11 @@ perf: fmus
 
 clean:
 	rm -rf fmus/build
+
+# LinuxCNC's interpreter (rs274 and its gcode Python module): the reference of the G-code tests
+# (tests/test_rs274_reference.py skips without it). Installs linuxcnc-uspace as root with apt.
+linuxcnc:
+	@if command -v rs274 >/dev/null 2>&1; then echo "linuxcnc: rs274 is installed"; \
+	elif [ "$$(id -u)" != 0 ]; then echo "linuxcnc: skipped (not root): apt-get install linuxcnc-uspace to run the rs274 reference tests"; \
+	elif ! command -v apt-get >/dev/null 2>&1; then echo "linuxcnc: skipped (no apt-get): install LinuxCNC 2.9 to run the rs274 reference tests"; \
+	else apt-get update && apt-get install -y --no-install-recommends linuxcnc-uspace; fi

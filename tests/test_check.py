@@ -26,11 +26,11 @@ def test_clean_program_exits_0(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("text,line,message", [
-    ("G1 X0 Y0 Z-400 F600\nG1 X10 Q5\n", 2, "unsupported word Q5"),
+    ("G1 X0 Y0 Z-400 F600\nG1 X10 Q5\n", 2, "Q word with no code on the line that uses it"),
     ("G1 X0 Y0 Z-400 F600\nG0 G1 X10\n", 2, "same modal group"),
     ("G1 X0 Y0 Z-400 F600\nG1 X1.2.3\n", 2, "cannot read"),
     ("G1 X0 Y0 Z-400 F600\nG2 X10 Y0 I3 J0\n", 2, "differs from radius to start"),
-    ("G0 X0 Y0 Z-400\nG1 X10\n", 2, "feed move with no feed rate: give F"),
+    ("G0 X0 Y0 Z-400\nG1 X10\n", 2, "zero feed rate: give F"),
     ("G1 X0 Y0 Z-400 F600\nG1 X10 X11\n", 2, "X word given twice"),
 ])
 def test_compile_errors_exit_2_with_line(tmp_path, capsys, text, line, message):

@@ -9,6 +9,10 @@ def add_arguments(p):
     p.add_argument("--machine", required=True, help="machine id or .toml file")
     p.add_argument("--path", required=True, help="toolpath id or .json/.ngc file")
     p.add_argument("--planners", default="scurve", help="comma-separated planners (default: %(default)s)")
+    p.add_argument("--start", default=None, metavar="X,Y,Z",
+                   help="G-code: the machine position before the program (mm); every move, the first "
+                        "included, is then planned from it, as LinuxCNC runs it (default: a first "
+                        "absolute G0/G1 with X, Y and Z positions the tool, else the machine's home)")
     p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
 
 
@@ -22,7 +26,14 @@ def main(args) -> int:
 
     try:
         m = load_machine(args.machine)
-        path = resolve_path(args.path)
+        opts = {"home": m.home}
+        if args.start is not None:
+            try:
+                opts["start"] = [float(v) for v in args.start.split(",")]
+                assert len(opts["start"]) == 3
+            except (ValueError, AssertionError):
+                raise CliError(f"--start {args.start}: expected X,Y,Z in mm") from None
+        path = resolve_path(args.path, **opts)
     except (MachineFileError, PathError) as e:
         raise CliError(str(e)) from None
     names = [n.strip() for n in args.planners.split(",") if n.strip()]

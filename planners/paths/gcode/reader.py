@@ -1,17 +1,11 @@
-"""RS274/NGC subset reader: G-code → line/arc segments, each tagged with its source line.
+"""G-code → line/arc segments, each tagged with its source line.
 
-Supported (LinuxCNC semantics): G0 G1 G2 G3 (I/J/K offsets — always incremental — or R,
-full circles, helices, P = number of turns), G17/G18/G19, G20/G21, G90/G91, G61/G61.1/G64 P,
-F (units per minute), N numbers, ``( … )`` and ``;`` comments, ``%`` lines. Modal words are
-kept from line to line. G40, G80, M codes, S and T are accepted and ignored with a note;
-M2/M30 end the program. Unknown words, a letter given twice, two G words of one modal
-group, R together with I/J/K, a feed move without F, an arc whose end radius disagrees
-with its start radius, and zero-length moves are errors (:class:`GCodeError`, carrying the
-file, the line number and the message).
-
-Start point: the program does not know where the tool is, so the first motion must be an
-absolute (G90) G0/G1 giving X, Y and Z; it positions the tool (no segment is made, a note
-says so) unless a ``start`` point is passed.
+The program runs through :mod:`planners.rs274`, an RS274NGC interpreter with LinuxCNC 2.9's
+semantics (expressions, parameters, O-words, work offsets, G92, tool length offsets, G28/G30,
+G53, polar @ ^, M70–M73, …; what it does not support is refused naming the construct and the
+line). Its canonical moves (machine coordinates, mm) become Line/Arc segments here;
+zero-length moves are dropped as LinuxCNC's canon drops them. Errors are
+:class:`GCodeError` (file, line, message). See :func:`parse_gcode` for the start point.
 
 Corners: the path-control mode in force when a move is read governs the corner at its end
 (LinuxCNC's term_cond): G61/G61.1 → exact stop; G64 P p → blended within p mm;
@@ -19,15 +13,11 @@ G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tole
 than the room available (half of each adjoining segment). Blending is done by
 :mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
-
-Size: ~410 lines, with parse_gcode ~140: one modal state machine over the words of a line
-reads best in one place (its helpers _words, _arc, strip_comments are already apart).
 """
 from __future__ import annotations
 
 import math
-import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -37,26 +27,11 @@ from planners.paths.blend import blend_corners
 from planners.paths.segments import Arc, Line, SegmentPath
 
 INCH_MM = 25.4
-ARC_RADIUS_ABS_TOL = 0.002     # mm (LinuxCNC rs274ngc: radius mismatch tolerances, abs …
-ARC_RADIUS_REL_TOL = 0.001     # … and relative; an arc is rejected if it breaks both)
 ZERO_MOVE_MM = 1e-9
 
-_WORD = re.compile(r"([A-Za-z])\s*([+-]?\s*(?:\d+\.?\d*|\.\d+))")
-# a line made of words and blanks only (the common case): read with one findall
-_WORD_ALL = re.compile(r"(([A-Za-z])\s*([+-]?\s*(?:\d+\.?\d*|\.\d+)))")
-_LINE = re.compile(r"(?:\s*[A-Za-z]\s*[+-]?\s*(?:\d+\.?\d*|\.\d+))*\s*")
-_GROUPS = {  # modal groups of the G words we accept
-    0.0: "motion", 1.0: "motion", 2.0: "motion", 3.0: "motion", 80.0: "motion",
-    17.0: "plane", 18.0: "plane", 19.0: "plane",
-    20.0: "units", 21.0: "units",
-    90.0: "distance", 91.0: "distance",
-    61.0: "path", 61.1: "path", 64.0: "path",
-    40.0: "cutter",
-}
 # plane → (first in-plane axis, second in-plane axis, normal axis); right-handed, so
 # G3 turns counter-clockwise about +normal (RS274/NGC: G18 is viewed from +Y: Z then X).
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
-_OFFSET_LETTER = {0: "I", 1: "J", 2: "K"}
 
 
 class GCodeError(PathError):
@@ -82,6 +57,7 @@ class GCodeProgram:
     start: np.ndarray
     moves: list[Move] = field(default_factory=list)
     notes: list[tuple[int, str]] = field(default_factory=list)
+    events: list = field(default_factory=list)   # rs274 CanonEvent: M codes, dwells, tool changes (line, index)
 
     def segments(self):
         return [m.segment for m in self.moves]
@@ -115,235 +91,131 @@ def strip_comments(text: str, src: str, ln: int) -> str:
     return "".join(out)
 
 
-def _words(body: str, src: str, ln: int) -> list[tuple[str, float, str]]:
-    if _LINE.fullmatch(body):
-        return [(L.upper(), float(v.replace(" ", "")), w) for w, L, v in _WORD_ALL.findall(body)]
-    words, pos = [], 0
-    for m in _WORD.finditer(body):
-        gap = body[pos:m.start()]
-        if gap.strip():
-            raise GCodeError(src, ln, f"cannot read {gap.strip()!r}")
-        words.append((m.group(1).upper(), float(m.group(2).replace(" ", "")), m.group(0).strip()))
-        pos = m.end()
-    rest = body[pos:]
-    if rest.strip():
-        raise GCodeError(src, ln, f"cannot read {rest.strip()!r}")
-    return words
+def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, tools=None,
+                subroutine_path=(), block_delete: bool = False, max_loops: int | None = None) -> GCodeProgram:
+    """Read G-code text into moves (lines/arcs in mm, machine coordinates, each with its line).
 
+    The text runs through the RS274NGC interpreter (:mod:`planners.rs274`, LinuxCNC's semantics);
+    its canonical moves become segments here. Start point:
 
-def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None) -> GCodeProgram:
-    """Read G-code text into moves (lines/arcs in mm, absolute, each with its line number).
+    - ``start`` given: LinuxCNC's rule: the tool is there, every move is a segment from it;
+    - else, when the first move gives X, Y and Z absolutely, it positions the tool (no segment:
+      the standard paths' convention, so they plan as before); a program whose only move is
+      that one is planned from ``home``;
+    - else the program starts from ``home`` (the machine's position), as LinuxCNC would.
 
-    ``home``: where the tool is before a program whose only motion is its positioning move;
-    that move is then the program (from ``home``), instead of leaving nothing to plan.
+    Zero-length moves are dropped (a note; an M code on their line still counts: ``events``).
     """
-    pos = None if start is None else np.asarray(start, float).copy()
-    prog = GCodeProgram(source, None if pos is None else pos.copy())
-    motion = None            # modal state, LinuxCNC defaults: G17 G21 G90 G64, no motion mode
-    plane, unit, absolute = 17, 1.0, True
-    blend: float | None = math.inf
-    feed = None              # mm/s
-    ended = False
-    positioning = None       # (line, motion, feed, blend) of the move that set the start point
-    for ln, raw in enumerate(text.splitlines(), start=1):
-        body = strip_comments(raw, source, ln).strip()
-        if not body or body == "%":
-            continue
-        if ended:
-            prog.notes.append((ln, "after M2/M30: ignored"))
-            continue
-        words = _words(body, source, ln)
-        seen: dict[str, tuple[float, str]] = {}
-        gwords: dict[str, float] = {}
-        mwords: list[float] = []
-        for letter, val, txt in words:
-            if letter == "G":
-                g = round(val, 1)
-                if g not in _GROUPS:
-                    raise GCodeError(source, ln, f"unsupported G code {txt}")
-                grp = _GROUPS[g]
-                if grp in gwords:
-                    raise GCodeError(source, ln, f"G{gwords[grp]:g} and {txt} are in the same modal group ({grp})")
-                gwords[grp] = g
-            elif letter == "M":
-                mwords.append(val)
-            elif letter in "NXYZIJKRFPST":
-                if letter in seen:
-                    raise GCodeError(source, ln, f"{letter} word given twice ({seen[letter][1]} and {txt})")
-                seen[letter] = (val, txt)
-            else:
-                raise GCodeError(source, ln, f"unsupported word {txt}")
-        if "N" in seen and words[0][0] != "N":
-            raise GCodeError(source, ln, f"line number {seen['N'][1]} must come first on the line")
-        # -- ignored words ------------------------------------------------------------
-        for letter in "ST":
-            if letter in seen:
-                prog.notes.append((ln, f"{seen[letter][1]} ignored (no spindle/tool in this benchmark)"))
-        if "cutter" in gwords:
-            prog.notes.append((ln, "G40 ignored (no cutter compensation)"))
-        for mv in mwords:
-            if mv in (2.0, 30.0):
-                ended = True
-                prog.notes.append((ln, f"M{mv:g}: end of program"))
-            else:
-                prog.notes.append((ln, f"M{mv:g} ignored"))
-        # -- modal state ----------------------------------------------------------------
-        if "units" in gwords:
-            unit = INCH_MM if gwords["units"] == 20.0 else 1.0
-        if "plane" in gwords:
-            plane = int(gwords["plane"])
-        if "distance" in gwords:
-            absolute = gwords["distance"] == 90.0
-        p_used = False
-        if "path" in gwords:
-            if gwords["path"] == 64.0:
-                if "P" in seen:
-                    p = seen["P"][0] * unit
-                    if p < 0:
-                        raise GCodeError(source, ln, f"G64 P must be ≥ 0, got {seen['P'][1]}")
-                    blend = math.inf if p == 0 else p
-                    p_used = True
-                else:
-                    blend = math.inf
-            else:
-                blend = None
-        if "F" in seen:
-            f = seen["F"][0]
-            if not f > 0:
-                raise GCodeError(source, ln, f"feed rate {seen['F'][1]} must be > 0")
-            feed = f * unit / 60.0
-        if "motion" in gwords:
-            if gwords["motion"] == 80.0:
-                prog.notes.append((ln, "G80 ignored (no canned cycles)"))
-                motion = None
-            else:
-                motion = int(gwords["motion"])
-        axes = [k for k in "XYZ" if k in seen]
-        offs = [k for k in "IJK" if k in seen]
-        if not axes:
-            if offs or "R" in seen:
-                raise GCodeError(source, ln, f"{(offs + ['R'])[0]} word without an axis word (X/Y/Z) to move to")
-            if "P" in seen and not p_used:
-                raise GCodeError(source, ln, f"{seen['P'][1]} has nothing to apply to (G64 P or G2/G3 P)")
-            continue
-        if motion is None:
-            raise GCodeError(source, ln, "axis words with no motion mode in force (G0/G1/G2/G3)")
-        if motion in (0, 1) and (offs or "R" in seen):
-            raise GCodeError(source, ln, f"{(offs + ['R'])[0]} word on a G{motion} (straight) move")
-        if "P" in seen and not p_used and motion not in (2, 3):
-            raise GCodeError(source, ln, f"{seen['P'][1]} has nothing to apply to (G64 P or G2/G3 P)")
-        # -- target -----------------------------------------------------------------
-        if pos is None:
-            if not absolute or motion not in (0, 1) or len(axes) < 3:
+    from planners.rs274 import RS274Error, interpret
+    opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete)
+    if max_loops is not None:
+        opts["max_loops"] = max_loops
+    positioning = start is None
+    at = start if start is not None else (math.nan,) * 3     # unknown: NaN marks it
+    try:
+        cp = interpret(text, source, start=at, **opts)
+        if positioning and cp.moves and not (cp.moves[0].kind in ("rapid", "feed")
+                                             and all(map(math.isfinite, cp.moves[0].end))):
+            if home is None:
+                ln = cp.moves[0].line
                 raise GCodeError(source, ln, "the first move must be an absolute (G90) G0/G1 with X, Y and Z "
-                                             "(it sets the start point) — or pass start=")
-            pos = np.array([seen[k][0] * unit for k in "XYZ"])
-            prog.start = pos.copy()
-            prog.notes.append((ln, f"start point {pos.tolist()} (positioning move, no segment)"))
-            positioning = (ln, motion, feed, blend)
-            continue
-        target = pos.copy()
-        for k in axes:
-            i = "XYZ".index(k)
-            target[i] = seen[k][0] * unit if absolute else pos[i] + seen[k][0] * unit
-        if motion in (0, 1):
-            if np.linalg.norm(target - pos) <= ZERO_MOVE_MM:
-                raise GCodeError(source, ln, f"zero-length move to {target.tolist()} (already there)")
-            if motion == 1 and feed is None:
-                raise GCodeError(source, ln, "G1 feed move with no feed rate: give F")
-            seg = Line(pos, target, ln, f"{source}:{ln}")
+                                             "(it sets the start point) — or pass start= (the machine's position)")
+            positioning = False
+            cp = interpret(text, source, start=tuple(np.asarray(home, float)), **opts)
+    except RS274Error as e:
+        raise GCodeError(e.file, e.line, e.message) from None
+    canon = cp.moves
+    prog = GCodeProgram(source, None)
+    prog.events = cp.events
+    prog.notes += cp.notes
+    first = 0
+    if positioning and canon:
+        m0 = canon[0]
+        prog.start = np.array(m0.end, float)
+        prog.notes.append((m0.line, f"start point {prog.start.tolist()} (positioning move, no segment)"))
+        first = 1
+    else:
+        prog.start = np.array(cp.start, float)
+    pos = prog.start.copy()
+    made = [0] * (len(canon) + 1)          # segments made before each canonical move
+    for k, cm in enumerate(canon[first:], start=first):
+        made[k] = len(prog.moves)
+        end = np.array(cm.end, float)
+        if not np.isfinite(end).all():
+            raise GCodeError(cm.file, cm.line, "the position is unknown here (pass start=, the machine's position)")
+        ln = cm.line
+        blend = None if cm.path_mode[0] == "exact" else (math.inf if cm.path_mode[1] == 0 else cm.path_mode[1])
+        feed = None if cm.kind == "rapid" else cm.feed_mm_min / 60.0
+        if cm.kind == "arc":
+            seg = _arc(cm, pos, end)
         else:
-            if feed is None:
-                raise GCodeError(source, ln, f"G{motion} feed move with no feed rate: give F")
-            seg = _arc(source, ln, motion, plane, pos, target, seen, unit)
-        prog.moves.append(Move(seg, ln, motion == 0, None if motion == 0 else feed, blend))
-        pos = seg.end.copy() if motion in (2, 3) else target
-    if not prog.moves and positioning is not None:
-        ln, motion, feed, blend = positioning
+            if np.linalg.norm(end - pos) <= ZERO_MOVE_MM:
+                prog.notes.append((ln, "zero-length move dropped (as LinuxCNC's canon drops it)"))
+                continue
+            seg = Line(pos, end, ln, f"{cm.file}:{ln}")
+        prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, blend))
+        # after an arc, the next segment starts where the arc's geometry ends (within ~1e-15
+        # of the programmed end): segments chain exactly, and the standard paths plan as before
+        pos = seg.end.copy() if cm.kind == "arc" else end
+    made[len(canon)] = len(prog.moves)
+    # an event's index: the segments before it (LinuxCNC stops there for an M code)
+    prog.events = [replace(e, index=made[e.index]) for e in cp.events]
+    if not prog.moves and positioning and canon:
+        m0 = canon[0]
         if home is None:
-            raise GCodeError(source, ln, "the program's only move positions the tool: nothing to plan "
-                                         "without the point it starts from (pass home=)")
+            raise GCodeError(source, m0.line, "the program's only move positions the tool: nothing to plan "
+                                              "without the point it starts from (pass home=)")
         home = np.asarray(home, float)
         if np.linalg.norm(prog.start - home) <= ZERO_MOVE_MM:
-            raise GCodeError(source, ln, f"the program's only move goes to {home.tolist()}, where the tool "
-                                         "already is: nothing to plan")
+            raise GCodeError(source, m0.line, f"the program's only move goes to {home.tolist()}, where the tool "
+                                              "already is: nothing to plan")
         target, prog.start = prog.start, home.copy()
-        prog.notes.append((ln, f"the only move: planned from home {home.tolist()}"))
-        prog.moves.append(Move(Line(home, target, ln, f"{source}:{ln}"), ln, motion == 0,
-                               None if motion == 0 else feed, blend))
+        prog.notes.append((m0.line, f"the only move: planned from home {home.tolist()}"))
+        blend = None if m0.path_mode[0] == "exact" else (math.inf if m0.path_mode[1] == 0 else m0.path_mode[1])
+        prog.moves.append(Move(Line(home, target, m0.line, f"{source}:{m0.line}"), m0.line, m0.kind == "rapid",
+                               None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, blend))
     if not prog.moves:
         raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
     return prog
 
 
-def _arc(src, ln, motion, plane, pos, target, seen, unit) -> Arc:
-    i1, i2, iax = _PLANES[plane]
+def _arc(cm, pos, end) -> Arc:
+    """An ARC_FEED as a segment. LinuxCNC keeps the centre and, when the end radius differs
+    (within interp_arc.cc's tolerance), moves on a spiral; a segment here has one radius, so
+    the centre goes onto the chord's bisector (it moves by at most the radius difference)."""
+    src, ln = cm.file, cm.line
+    i1, i2, iax = _PLANES[cm.plane]
     axis = np.zeros(3)
     axis[iax] = 1.0
-    n = axis if motion == 3 else -axis
-    offs = [k for k in "IJK" if k in seen]
-    allowed = {_OFFSET_LETTER[i1], _OFFSET_LETTER[i2]}
-    wrong = [k for k in offs if k not in allowed]
-    if wrong:
-        raise GCodeError(src, ln, f"{wrong[0]} offset is not in the G{plane} plane (use {' and '.join(sorted(allowed))})")
-    if "R" in seen and offs:
-        raise GCodeError(src, ln, "R and I/J/K given together: use one arc form")
-    st2 = np.array([pos[i1], pos[i2]])
-    en2 = np.array([target[i1], target[i2]])
+    n = axis if cm.turn > 0 else -axis
+    c = np.array(cm.center, float)
+    st2, en2 = np.array([pos[i1], pos[i2]]), np.array([end[i1], end[i2]])
+    c2 = np.array([c[i1], c[i2]])
     chord = en2 - st2
     d = float(np.linalg.norm(chord))
-    if "R" in seen:
-        r = seen["R"][0] * unit
-        if d <= ZERO_MOVE_MM:
-            raise GCodeError(src, ln, "R-form arc with end = start: a full circle needs I/J/K")
-        if abs(r) < d / 2 - ARC_RADIUS_ABS_TOL:
-            raise GCodeError(src, ln, f"arc radius R{abs(r):g} mm is too small for the chord of {d:.6g} mm")
-        h = math.sqrt(max(r * r - d * d / 4, 0.0))
+    r0, r1 = np.linalg.norm(st2 - c2), np.linalg.norm(en2 - c2)
+    if d > ZERO_MOVE_MM and abs(r1 - r0) > 1e-12:
         u = chord / d
-        left = np.array([-u[1], u[0]])      # axis × u in the (first, second) plane axes
-        sign = (1.0 if motion == 3 else -1.0) * (1.0 if r > 0 else -1.0)
-        c2 = st2 + chord / 2 + sign * h * left
-    elif offs:
-        off = np.zeros(3)
-        for k in offs:
-            off["IJK".index(k)] = seen[k][0] * unit
-        c2 = st2 + np.array([off[i1], off[i2]])
-        r0, r1 = np.linalg.norm(st2 - c2), np.linalg.norm(en2 - c2)
-        if abs(r1 - r0) > ARC_RADIUS_ABS_TOL and abs(r1 - r0) > ARC_RADIUS_REL_TOL * r0:
-            raise GCodeError(src, ln, f"arc radius to end ({r1:.6g} mm) differs from radius to start "
-                                      f"({r0:.6g} mm) by {abs(r1 - r0):.3g} mm")
-        if d > ZERO_MOVE_MM:
-            # Small mismatch: move the centre onto the chord's perpendicular bisector so the
-            # arc ends exactly at the programmed point (the segment file needs contiguity).
-            u = chord / d
-            m = st2 + chord / 2
-            perp = np.array([-u[1], u[0]])
-            c2 = m + np.dot(c2 - m, perp) * perp
-    else:
-        raise GCodeError(src, ln, f"G{motion} arc needs I/J/K (centre offset) or R")
+        m = st2 + chord / 2
+        perp = np.array([-u[1], u[0]])
+        c2 = m + np.dot(c2 - m, perp) * perp
     a2, b2 = st2 - c2, en2 - c2
-    if np.linalg.norm(a2) <= ZERO_MOVE_MM:
-        raise GCodeError(src, ln, "arc radius is zero (centre at the start point)")
-    s = 1.0 if motion == 3 else -1.0       # counter-clockwise angle about n
+    s = 1.0 if cm.turn > 0 else -1.0       # counter-clockwise angle about n
     cross = a2[0] * b2[1] - a2[1] * b2[0]
     theta = math.atan2(s * cross, float(np.dot(a2, b2)))
     if theta <= 1e-12:
         theta += 2 * math.pi                # end = start: full circle
-    if "P" in seen:
-        turns = seen["P"][0]
-        if turns != int(turns) or turns < 1:
-            raise GCodeError(src, ln, f"arc P (turns) must be an integer ≥ 1, got {seen['P'][1]}")
-        theta += 2 * math.pi * (int(turns) - 1)
+    theta += 2 * math.pi * (abs(cm.turn) - 1)
     center = pos.copy()
     center[i1], center[i2] = c2
-    rise = float((target[iax] - pos[iax]) * n[iax])
+    rise = float((end[iax] - pos[iax]) * n[iax])
     try:
         return Arc(pos, center, n, theta, rise, ln, f"{src}:{ln}")
     except PathError as e:
         raise GCodeError(src, ln, str(e)) from None
 
 
-def read_gcode(file, start=None, home=None) -> GCodeProgram:
+def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
     file = FsPath(file)
     try:
         data = file.read_bytes()
@@ -358,7 +230,7 @@ def read_gcode(file, start=None, home=None) -> GCodeProgram:
         # CAM posts and old editors write Latin-1 comments (é, °, µ); LinuxCNC reads them:
         # every byte is a Latin-1 character, and the G-code words themselves are ASCII
         text, latin1 = data.decode("latin-1"), True
-    prog = parse_gcode(text, str(file), start, home)
+    prog = parse_gcode(text, str(file), start, home, **options)
     if latin1:
         prog.notes.insert(0, (0, "not UTF-8: read as Latin-1"))
     return prog
@@ -370,8 +242,9 @@ def program_path(prog: GCodeProgram) -> SegmentPath:
     return SegmentPath(segs, prog.source, program=prog)
 
 
-def load_gcode_path(file, start=None) -> SegmentPath:
-    return program_path(read_gcode(file, start))
+def load_gcode_path(file, start=None, **options) -> SegmentPath:
+    """The blended path of a G-code file (options: home, tools, subroutine_path, block_delete)."""
+    return program_path(read_gcode(file, start, **options))
 
 
 def _num(x: float) -> str:

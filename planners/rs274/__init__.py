@@ -1,0 +1,12 @@
+"""An RS274NGC interpreter that reads G-code as LinuxCNC 2.9 reads it.
+
+tokens (a line → a block) → expr (expressions and functions) → params (numbered and named
+parameters) → owords (sub/call/if/while/do/repeat structure) → modal (the modal state) →
+interp (execution order of a block, offsets, arcs) → canon (canonical moves in machine mm).
+``linuxcnc.py`` runs LinuxCNC's own interpreter, the reference of the tests.
+"""
+from planners.rs274.canon import CanonEvent, CanonMove, CanonProgram
+from planners.rs274.errors import RS274Error
+from planners.rs274.interp import Interpreter, interpret
+
+__all__ = ["CanonEvent", "CanonMove", "CanonProgram", "Interpreter", "RS274Error", "interpret"]

@@ -1,0 +1,158 @@
+"""Compare the interpreter with LinuxCNC's own (planners/rs274/linuxcnc.py under the system
+Python that has LinuxCNC's ``gcode`` module): the tests' reference, and ``--reader linuxcnc``."""
+from __future__ import annotations
+
+import json
+import re
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SYSTEM_PYTHON = "/usr/bin/python3"
+
+
+def available() -> str | None:
+    """None when LinuxCNC's interpreter can run here, else why not."""
+    if shutil.which("rs274") is None:
+        return "LinuxCNC's rs274 is not on PATH (make linuxcnc installs linuxcnc-uspace)"
+    try:
+        r = subprocess.run([SYSTEM_PYTHON, "-c", "import gcode"], capture_output=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return f"{SYSTEM_PYTHON} cannot run"
+    if r.returncode:
+        return f"LinuxCNC's gcode Python module does not import under {SYSTEM_PYTHON}"
+    return None
+
+
+def linuxcnc_moves(file, tool_table=None, timeout=120):
+    """(moves, end) of LinuxCNC's interpreter: dicts as linuxcnc.py prints them."""
+    cmd = [SYSTEM_PYTHON, str(HERE / "linuxcnc.py"), str(file)]
+    if tool_table:
+        cmd += ["--tool-table", str(tool_table)]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    if r.returncode < 0:
+        # the gcode module crashes on tool changes without a running LinuxCNC (its tool
+        # data lives in LinuxCNC's shared memory): fall back to rs274's text output
+        return rs274_moves(file, tool_table, timeout)
+    rows = [json.loads(x) for x in r.stdout.splitlines() if x.startswith("{")]
+    if not rows or rows[-1].get("kind") != "end":
+        raise RuntimeError(f"LinuxCNC's interpreter failed on {file}: {r.stderr[-500:]}")
+    return [m for m in rows[:-1] if m["kind"] in ("rapid", "feed", "arc")], rows[-1]
+
+
+_CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
+RS274_DECIMALS_TOL = 0.5e-4 * 25.4 + 1e-9   # rs274 prints 4 decimals (in inches for G20)
+
+
+def rs274_moves(file, tool_table=None, timeout=120):
+    """LinuxCNC's ``rs274`` program: canonical calls as text with 4 decimals and no source line
+    numbers ("line" is None); same dicts as linuxcnc_moves, plus "decimals": 4."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        if not tool_table:
+            # rs274's built-in table has tool 1 at Z 0.511 in; ours is empty (offsets 0): give
+            # rs274 tools 1…999 with zero offsets so both read the same program
+            tool_table = Path(d) / "zero.tbl"
+            tool_table.write_text("".join(f"T{t} P{t} Z0\n" for t in range(1, 1000)))
+        cmd = ["rs274", "-g", "-t", str(tool_table), str(file)]
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+    unit, g5x, g92, tlo, rot, plane = 1.0, [0.0] * 3, [0.0] * 3, [0.0] * 3, 0.0, 17
+    out = []
+
+    def mach(x, y, z):
+        if rot:
+            c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+            x, y = x * c - y * s, x * s + y * c
+        return [(v + g5x[i] + g92[i] + tlo[i]) * unit for i, v in enumerate((x, y, z))]
+
+    for row in r.stdout.splitlines():
+        m = _CALL.match(row)
+        if not m:
+            continue
+        name, a = m.group(1), [x for x in re.split(r"[,\s]+", m.group(2).strip()) if x]
+        num = lambda k: float(a[k])
+        if name == "USE_LENGTH_UNITS":
+            unit = 25.4 if "INCH" in a[0] else (10.0 if "CM" in a[0] else 1.0)
+        elif name == "SET_G5X_OFFSET":
+            g5x = [num(1), num(2), num(3)]
+        elif name == "SET_G92_OFFSET":
+            g92 = [num(0), num(1), num(2)]
+        elif name == "USE_TOOL_LENGTH_OFFSET":
+            tlo = [num(0), num(1), num(2)]
+        elif name == "SET_XY_ROTATION":
+            rot = num(0)
+        elif name == "SELECT_PLANE":
+            plane = {"CANON_PLANE_XY": 17, "CANON_PLANE_YZ": 19, "CANON_PLANE_XZ": 18}[a[0]]
+        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+            out.append({"kind": "rapid" if name == "STRAIGHT_TRAVERSE" else "feed", "line": None,
+                        "end": mach(num(0), num(1), num(2))})
+        elif name == "ARC_FEED":
+            fe, se, fa, sa, rt, ae = num(0), num(1), num(2), num(3), int(a[4]), num(5)
+            if plane == 17:
+                end, cen, ax = (fe, se, ae), (fa, sa, 0.0), 2
+            elif plane == 19:
+                end, cen, ax = (ae, fe, se), (0.0, fa, sa), 0
+            else:
+                end, cen, ax = (se, ae, fe), (sa, 0.0, fa), 1
+            c = mach(*cen)
+            c[ax] = None
+            out.append({"kind": "arc", "line": None, "end": mach(*end), "center": c, "rotation": rt,
+                        "plane": plane})
+    err = [x for x in r.stdout.splitlines() if x and not _CALL.match(x) and not x.startswith("executing")]
+    return out, {"kind": "end", "result": r.returncode, "line": None, "decimals": 4,
+                 "error": None if r.returncode == 0 else (err[-1] if err else "error")}
+
+
+def compare(ours, ref, tol=1e-9):
+    """First difference between our canonical moves and LinuxCNC's, or None (ends, arc centres,
+    turns, kinds, lines)."""
+    if len(ours) != len(ref):
+        n = min(len(ours), len(ref))
+        for i in range(n):
+            d = _diff(ours[i], ref[i], tol)
+            if d:
+                return f"move {i}: {d}"
+        return f"{len(ours)} moves, LinuxCNC has {len(ref)}"
+    for i, (a, b) in enumerate(zip(ours, ref)):
+        d = _diff(a, b, tol)
+        if d:
+            return f"move {i}: {d}"
+    return None
+
+
+def _diff(a, b, tol):
+    if a.kind != b["kind"]:
+        return f"line {a.line}: {a.kind}, LinuxCNC line {b['line']}: {b['kind']}"
+    e = max(abs(x - y) for x, y in zip(a.end, b["end"]))
+    if not e <= tol:
+        return f"line {a.line}: end {a.end} vs {b['end']} ({e:.3g} mm)"
+    if a.kind == "arc":
+        c = max(abs(x - y) for x, y in zip(a.center, b["center"]) if y is not None)
+        if not c <= tol:
+            return f"line {a.line}: centre {a.center} vs {b['center']} ({c:.3g} mm)"
+        if a.turn != b["rotation"] or a.plane != b["plane"]:
+            return f"line {a.line}: turn/plane {a.turn}/{a.plane} vs {b['rotation']}/{b['plane']}"
+    if b["line"] is not None and a.line != b["line"]:
+        return f"line {a.line} vs LinuxCNC line {b['line']}"
+    return None
+
+
+if __name__ == "__main__":
+    # python -m planners.rs274.reference FILE…: compare each, one line per program
+    from planners.rs274 import RS274Error, interpret
+    from planners.rs274.interp import _read_text
+    for f in sys.argv[1:]:
+        try:
+            ref, end = linuxcnc_moves(f)
+        except Exception as e:
+            print(f"REF! {f}: {e}")
+            continue
+        try:
+            ours = interpret(_read_text(f), f).moves
+            d = compare(ours, ref, RS274_DECIMALS_TOL if end.get("decimals") else 1e-9)
+            print(f"{'OK  ' if d is None else 'DIFF'} {f}: {d or len(ours)} {'' if end['error'] is None else '(LinuxCNC: ' + end['error'] + ')'}")
+        except RS274Error as e:
+            print(f"ERR  {f}: {e.message} (line {e.line}) / LinuxCNC: {end['error']} ({len(ref)} moves)")
