@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: all venv fmus run test perf clean
+.PHONY: all venv fmus run test perf clean linuxcnc
 
 all: fmus
 
@@ -26,6 +26,19 @@ run: fmus
 
 test: fmus
 	$(BIN)/python -m pytest
+
+# LinuxCNC 2.9 (Debian's linuxcnc-uspace) for the `linuxcnc` planner and the oracle tests;
+# as root also the unprivileged user lcnc it runs under (rtapi_app refuses root).
+linuxcnc:
+	@if command -v rs274 >/dev/null 2>&1 && command -v linuxcnc >/dev/null 2>&1; then \
+	  echo "linuxcnc: LinuxCNC is installed ($$(command -v linuxcnc))"; \
+	elif [ "$$(id -u)" -ne 0 ]; then \
+	  echo "linuxcnc: not root: skipping the install (as root: make linuxcnc, or apt-get install linuxcnc-uspace)"; \
+	else \
+	  apt-get update -q && apt-get install -y --no-install-recommends linuxcnc-uspace; \
+	fi
+	@if [ "$$(id -u)" -eq 0 ] && ! id lcnc >/dev/null 2>&1; then \
+	  useradd -m lcnc && echo "linuxcnc: created the user lcnc (LinuxCNC runs as it)"; fi
 
 perf: fmus
 	$(BIN)/python benchmarks/perf/run_all.py
