@@ -11,6 +11,7 @@ def add_arguments(p):
     p.add_argument("--machine", required=True, help="machine id or .toml file")
     p.add_argument("--path", required=True, help="toolpath id or .json/.ngc file")
     p.add_argument("--planners", default="scurve", help="comma-separated planners (default: %(default)s)")
+    p.add_argument("--max-feed", action="store_true", help="run G-code at F_max, ignoring its F words")
     p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
 
 
@@ -26,12 +27,16 @@ def main(args) -> int:
         path = resolve_path(args.path)
     except (MachineFileError, PathError) as e:
         raise CliError(str(e)) from None
+    from harness.run import feed_summary
+    from planners.feed import use_max_feed
+    use_max_feed(path, args.max_feed)
     names = [n.strip() for n in args.planners.split(",") if n.strip()]
     bad = [n for n in names if n not in planners.PLANNERS]
     if bad:
         raise CliError(f"unknown planner(s) {', '.join(bad)}; valid: {', '.join(planners.PLANNERS)}")
     out = output_dir(args.out) if args.out else None
     failed = 0
+    print(f"feed: {feed_summary(path)}")
     print(f"{m.name} / {args.path}: {'planner':14s} {'exec s':>9s} {'plan s':>8s} {'joint v/a/j':>22s} {'feasible':>9s}")
     for name in names:
         try:

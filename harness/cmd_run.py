@@ -25,6 +25,9 @@ def add_arguments(p):
     p.add_argument("--engine", choices=("native", "python"), default="native", help="co-simulation master")
     p.add_argument("--jacobi", action="store_true", help="Jacobi instead of Gauss–Seidel")
     p.add_argument("--no-recordings", action="store_true", help="skip run.mcap and run.rrd")
+    p.add_argument("--max-feed", action="store_true",
+                   help="run G-code at F_max, ignoring its F words (planner-only comparisons; "
+                        "summary.json's 'feed' says so); a suite's [[run]] takes max_feed = true")
 
 
 def _progress(k, n, name):
@@ -59,16 +62,19 @@ def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
         cases = []
         for i, r in enumerate(suite.get("run", [])):
             for key in r:
-                if key not in {"machine", "machines", "path", "paths", "planners"}:
+                if key not in {"machine", "machines", "path", "paths", "planners", "max_feed"}:
                     raise CliError(f"{f}:{_line_of(text, key)}: [[run]] #{i + 1}: unknown key '{key}' "
-                                   f"(valid: machine(s), path(s), planners)")
+                                   f"(valid: machine(s), path(s), planners, max_feed)")
+            if not isinstance(r.get("max_feed", False), bool):
+                raise CliError(f"{f}:{_line_of(text, 'max_feed')}: [[run]] #{i + 1}: max_feed must be true or false")
             machines = r.get("machines") or ([r["machine"]] if "machine" in r else [])
             paths = r.get("paths") or ([r["path"]] if "path" in r else [])
             if not machines or not paths or not r.get("planners"):
                 raise CliError(f"{f}: [[run]] #{i + 1} needs machine(s), path(s) and planners")
             for m in machines:
                 for p in paths:
-                    cases.append((m, p, list(r["planners"]), suite.get("planner_options", {})))
+                    cases.append((m, p, list(r["planners"]), suite.get("planner_options", {}),
+                                  r.get("max_feed", False) or args.max_feed))
         if not cases:
             raise CliError(f"{f}: no [[run]] tables")
         return cases, Path(args.out or REPO / "results" / f.stem)
@@ -76,12 +82,13 @@ def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
         raise CliError("give a suite file, or --machine and --path")
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     out = Path(args.out) if args.out else REPO / "results" / f"{Path(args.machine).stem}_{Path(args.path).stem}"
-    return [(args.machine, args.path, planners, {})], out
+    return [(args.machine, args.path, planners, {}, args.max_feed)], out
 
 
 def table(summary: dict) -> str:
     cols = ("exec s", "joint v", "joint a", "joint j", "cart a", "feasible", "follow µm", "contour µm")
-    lines = [f"{summary['machine']} / {summary['path']}  (T = {summary['servo_period_s'] * 1e6:g} µs)",
+    lines = [f"{summary['machine']} / {summary['path']}  (T = {summary['servo_period_s'] * 1e6:g} µs, "
+             f"feed: {summary.get('feed', '?')})",
              f"  {'planner':14s}" + "".join(f"{c:>11s}" for c in cols)]
     for name, m in summary["planners"].items():
         if "error" in m:
@@ -118,13 +125,13 @@ def main(args) -> int:
     cases, out = cases_of(args)
     output_dir(out)
     failed = 0
-    for machine, path, planners, opts in cases:
+    for machine, path, planners, opts, max_feed in cases:
         odir = out if len(cases) == 1 else out / f"{Path(machine).stem}_{Path(path).stem}"
         print(f"pkmbench run: {machine} / {path}: {', '.join(planners)} → {odir}", file=sys.stderr)
         try:
             summary = run_case(machine, path, planners, odir, seed=args.seed, jitter=args.jitter, ideal=args.ideal,
                                engine=args.engine, jacobi=args.jacobi, planner_options=opts,
-                               recordings=not args.no_recordings, progress=_progress)
+                               recordings=not args.no_recordings, progress=_progress, max_feed=max_feed)
         except RunError as e:
             raise CliError(str(e)) from None
         sys.stderr.write("\r" + " " * 60 + "\r")

@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from planners.feed import feed_ceiling
+
 try:
     from . import PlanningError  # the registry's error type (planners/__init__.py)
 except ImportError:  # pragma: no cover - only until the registry lands
@@ -102,7 +104,7 @@ def peak_ratios(v, a, j, lim) -> np.ndarray:
 
 
 def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
-    """min(F_max, F_clim) along s: the programmed feed ceiling and the chord-error cap
+    """min(F_max, F, F_clim) along s: the programmed feed ceiling (planners.feed) and the chord-error cap
     F_clim = (2/T)√(ρ² − (ρ − ε)²) of Erwinski et al., TII 2022 (the chord of one period
     deviates ≤ ε from an arc of radius ρ)."""
     kappa = np.asarray(path.curvature(s) if kappa is None else kappa, float)
@@ -111,7 +113,7 @@ def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
         rho = np.where(kappa > 0, 1.0 / np.maximum(kappa, 1e-300), np.inf)
     # ρ ≤ ε: any chord is within ε; cap by the diameter per period
     fc = np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)), 2 * rho / T)
-    return np.minimum(limits.feed_max, fc)
+    return np.minimum(feed_ceiling(path, s, limits.feed_max), fc)
 
 
 class PathTable:

@@ -29,6 +29,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from planners import PlanningError, check_limits
+from planners.feed import feed_mode
 from planners.path import Line, SegmentPath
 from planners.profile import Profile
 
@@ -99,6 +100,7 @@ def plan(path, machine, limits=None, *, programmed_feed: bool = True,
     why = missing()
     if why:
         raise PlanningError(f"linuxcnc: {why}")
+    programmed_feed = programmed_feed and feed_mode(path) != "max"
     text, start, expected = program_for(path, machine, limits, programmed_feed)
     try:
         smp = run_program(text, machine, start, expected_s=expected, keep_dir=keep_dir)
