@@ -235,3 +235,15 @@ def test_a_killed_worker_is_reported_with_its_task_and_the_sweep_completes(tmp_p
     assert warn[0].startswith("sweep: warning: worker tcp://127.0.0.1:")
     assert warn[0].endswith("died while running keops/line/quintic/seed0/none/base; "
                             "dask runs that task again on another worker")
+
+
+def test_a_local_sweep_ends_without_a_traceback_on_the_console(tmp_path):
+    # the worker-loss subscription once made the scheduler log a CRITICAL CommClosedError
+    # traceback at every close: a clean sweep prints none
+    suite = write_suite(tmp_path, planners=("quintic",))
+    r = subprocess.run([sys.executable, "-m", "harness.cli", "sweep", str(suite), "--workers", "2",
+                        "--task", LINE_TASK, "--out", str(tmp_path / "out"), "--no-progress"],
+                       cwd=REPO, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "1 run, 0 already done, 0 failed" in r.stdout
+    assert "Traceback" not in r.stderr and "CRITICAL" not in r.stderr, r.stderr

@@ -277,6 +277,9 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
                                   "traceback": None}
                     record(key, task, result)
             finally:
+                # unsubscribed first: else the scheduler sends the client's own remove-client
+                # event down the closing comm and logs a CRITICAL traceback
+                client.unsubscribe_topic("all")
                 client.close()
                 if cluster is not None:
                     cluster.close()
