@@ -69,6 +69,11 @@ class Move:
     rapid: bool                    # G0
     feed_mm_s: float | None        # programmed feed (None for G0)
     blend_mm: float | None         # corner at the END: None = exact stop, inf = no tolerance
+    # LinuxCNC stops at the end of this move although G64 is in force: "sync" (an M code
+    # follows: task waits for the motion queue to drain) or "mode" (rapid ↔ feed: tp.c
+    # handleModeChange never blends them); None otherwise
+    stop: str | None = None
+    parabolic_end: bool = False    # G64 end with nothing to blend with (tc.c: half acceleration)
 
 
 @dataclass
@@ -181,7 +186,10 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None) -> GC
                 ended = True
                 prog.notes.append((ln, f"M{mv:g}: end of program"))
             else:
-                prog.notes.append((ln, f"M{mv:g} ignored"))
+                prog.notes.append((ln, f"M{mv:g}: no machine action here; motion stops before it "
+                                       "(LinuxCNC queue sync)"))
+                if prog.moves and prog.moves[-1].stop is None:
+                    _stop(prog.moves[-1], "sync")
         # -- modal state ----------------------------------------------------------------
         if "units" in gwords:
             unit = INCH_MM if gwords["units"] == 20.0 else 1.0
@@ -251,6 +259,9 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None) -> GC
             if feed is None:
                 raise GCodeError(source, ln, f"G{motion} feed move with no feed rate: give F")
             seg = _arc(source, ln, motion, plane, pos, target, seen, unit)
+        if prog.moves and prog.moves[-1].rapid != (motion == 0) and prog.moves[-1].stop is None:
+            prog.moves[-1].stop = "mode"      # tp.c handleModeChange: exact stop, full acceleration
+            prog.moves[-1].blend_mm = None
         prog.moves.append(Move(seg, ln, motion == 0, None if motion == 0 else feed, blend))
         pos = seg.end.copy() if motion in (2, 3) else target
     if not prog.moves and positioning is not None:
@@ -268,7 +279,18 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None) -> GC
                                None if motion == 0 else feed, blend))
     if not prog.moves:
         raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
+    if prog.moves[-1].stop is None:
+        _stop(prog.moves[-1], "end")
     return prog
+
+
+def _stop(move: Move, why: str) -> None:
+    """The motion queue ends after ``move`` (an M-code sync or the program end): under G64
+    LinuxCNC leaves its term_cond PARABOLIC, so it runs at half acceleration (tc.c
+    tcGetOverallMaxAccel) and stops at its end."""
+    move.parabolic_end = move.blend_mm is not None
+    move.stop = why
+    move.blend_mm = None
 
 
 def _arc(src, ln, motion, plane, pos, target, seen, unit) -> Arc:

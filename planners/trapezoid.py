@@ -90,10 +90,34 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
     return vmax, amax
 
 
-def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
-    """Backward look-ahead: the speed at the end of each segment (0 at corners and the end)."""
+def program_stops(path: SegmentPath):
+    """(segments after which LinuxCNC stops, segments at half acceleration) from the G-code
+    moves' ``stop``/``parabolic_end`` (planners.gcode): an M-code queue sync or a rapid ↔ feed
+    change stops motion even between collinear moves; the move before a sync or the program
+    end keeps term_cond PARABOLIC under G64, i.e. half acceleration (tc.c
+    ``tcGetOverallMaxAccel``). Blend arcs (LinuxCNC's own segments) keep full acceleration."""
+    prog = getattr(path, "program", None)
+    segs = path.segments
+    if prog is None:
+        return [], np.zeros(len(segs), bool)
+    by_line = {m.line: m for m in prog.moves}
+    stops, half = [], np.zeros(len(segs), bool)
+    for i, g in enumerate(segs):
+        m = by_line.get(g.line)
+        if m is None or g.kind != m.segment.kind:
+            continue
+        if m.stop and (i + 1 == len(segs) or segs[i + 1].line != g.line):
+            stops.append(i)
+        half[i] = m.parabolic_end
+    return stops, half
+
+
+def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray, stops=()) -> np.ndarray:
+    """Backward look-ahead: the speed at the end of each segment (0 at corners, after the
+    segments in ``stops`` and at the end)."""
     n = len(path.segments)
     corner_idx = set(np.searchsorted(path.seg_start, path.corners()).tolist())
+    corner_idx.update(i + 1 for i in stops)
     # plain floats in the loop: numpy scalar arithmetic is ~5× slower, and a 10⁵-line
     # program runs this 10⁵ times (IEEE results are the same)
     vm, am = vmax.tolist(), amax.tolist()
@@ -191,7 +215,9 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     feeds = segment_feeds(planned, limits.feed_max) if programmed_feed else None
     if feeds is not None:
         vmax = np.minimum(vmax, feeds)
-    vf = final_velocities(planned, vmax, amax)
+    stops, half = program_stops(planned)
+    amax = np.where(half, 0.5 * amax, amax)
+    vf = final_velocities(planned, vmax, amax, stops)
     s, sd, excess = simulate(planned, vmax, amax, vf, T)
     # s̈ as the mean acceleration of each period (the split cycles make it a mix of two
     # segments' accelerations); s⃛ its difference. Rest at the end: both 0 there.

@@ -86,3 +86,23 @@ def test_linuxcnc_refuses_a_machine_that_is_not_a_linear_delta(tmp_path):
     path = gcode_path(tmp_path, "line.ngc", LINE_G64.replace("Z-200", "Z-400"))
     with pytest.raises(PlanningError, match="lineardeltakins"):
         plan("linuxcnc", path, load_machine("keops"))
+
+
+def test_trapezoid_half_acceleration_and_queue_sync_closed_form(tmp_path, kossel):
+    # tc.c tcGetOverallMaxAccel: the last G64 move (term_cond PARABOLIC) runs at a/2;
+    # an M code between two collinear moves is a queue sync: motion stops there, and the
+    # move before it is also PARABOLIC. 10 mm/s, a = 500 → a/2 = 250 mm/s².
+    v, a2 = 10.0, kossel.limits.cartesian.a / 2
+    one = plan("trapezoid", gcode_path(tmp_path, "one.ngc", LINE_G64), kossel)
+    assert abs(one.execution_time_s - (20.0 / v + v / a2)) <= one.T
+    two = gcode_path(tmp_path, "two.ngc", LINE_G64.replace("G1 X20 F600", "G1 X10 F600\nM8\nG1 X20"))
+    pr = plan("trapezoid", two, kossel)
+    assert abs(pr.execution_time_s - 2 * (10.0 / v + v / a2)) <= 2 * pr.T
+    assert pr.sd[np.argmin(np.abs(pr.s - 10.0))] < 0.2       # at rest at the M8
+
+
+@needs_linuxcnc
+def test_trapezoid_matches_linuxcnc_on_a_single_g64_line(line_runs, kossel):
+    path, (lc, _) = line_runs
+    tz = plan("trapezoid", path, kossel)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= tz.T
