@@ -27,16 +27,24 @@ run: fmus
 test: fmus
 	$(BIN)/python -m pytest
 
+# LinuxCNC 2.9 (Debian's linuxcnc-uspace): the `linuxcnc` planner, the oracle tests and the
+# G-code reference (rs274 and its gcode module; tests/test_rs274_reference.py); as root also
+# the unprivileged user lcnc it runs under (rtapi_app refuses root). Without it those tests skip.
+linuxcnc:
+	@if command -v rs274 >/dev/null 2>&1 && command -v linuxcnc >/dev/null 2>&1; then \
+	  echo "linuxcnc: LinuxCNC is installed ($$(command -v linuxcnc))"; \
+	elif [ "$$(id -u)" -ne 0 ]; then \
+	  echo "linuxcnc: not root: skipping the install (as root: make linuxcnc, or apt-get install linuxcnc-uspace)"; \
+	elif ! command -v apt-get >/dev/null 2>&1; then \
+	  echo "linuxcnc: no apt-get: install LinuxCNC 2.9 by hand to run its tests"; \
+	else \
+	  apt-get update -q && apt-get install -y --no-install-recommends linuxcnc-uspace; \
+	fi
+	@if [ "$$(id -u)" -eq 0 ] && ! id lcnc >/dev/null 2>&1; then \
+	  useradd -m lcnc && echo "linuxcnc: created the user lcnc (LinuxCNC runs as it)"; fi
+
 perf: fmus
 	$(BIN)/python benchmarks/perf/run_all.py
 
 clean:
 	rm -rf fmus/build
-
-# LinuxCNC's interpreter (rs274 and its gcode Python module): the reference of the G-code tests
-# (tests/test_rs274_reference.py skips without it). Installs linuxcnc-uspace as root with apt.
-linuxcnc:
-	@if command -v rs274 >/dev/null 2>&1; then echo "linuxcnc: rs274 is installed"; \
-	elif [ "$$(id -u)" != 0 ]; then echo "linuxcnc: skipped (not root): apt-get install linuxcnc-uspace to run the rs274 reference tests"; \
-	elif ! command -v apt-get >/dev/null 2>&1; then echo "linuxcnc: skipped (no apt-get): install LinuxCNC 2.9 to run the rs274 reference tests"; \
-	else apt-get update && apt-get install -y --no-install-recommends linuxcnc-uspace; fi

@@ -17,8 +17,9 @@ _REGISTRY = {
     "pso": ("planners.pso", "plan"),
     "toppra": ("planners.toppra_ref", "plan"),
     "optimal": ("planners.optimal", "plan"),
+    "linuxcnc": ("planners.linuxcnc", "plan"),   # the real LinuxCNC 2.9, run headless
 }
-PLANNERS = ("trapezoid", "scurve", "scurve_joint", "pso", "toppra", "optimal")
+PLANNERS = ("trapezoid", "scurve", "scurve_joint", "pso", "toppra", "optimal", "linuxcnc")
 
 
 from planners.errors import PlanningError

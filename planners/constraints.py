@@ -27,6 +27,7 @@ import numpy as np
 
 from kins import WorkspaceError
 from planners.errors import PlanningError
+from planners.feed import feed_ceiling
 
 STENCIL_H_MM = 0.02
 # A jump Δq″ of the joint acceleration at speed ṡ reads, as a third difference at T, as at
@@ -127,11 +128,11 @@ def peak_ratios(v, a, j, lim) -> np.ndarray:
 
 
 def feed_cap(path, s, limits, T: float, kappa=None) -> np.ndarray:
-    """min(F_max, F_clim) along s: the programmed feed ceiling and the chord-error cap
+    """min(F_max, F, F_clim) along s: the programmed feed ceiling (planners.feed) and the chord-error cap
     F_clim = (2/T)√(ρ² − (ρ − ε)²) of Erwinski et al., TII 2022 (the chord of one period
     deviates ≤ ε from an arc of radius ρ)."""
     kappa = np.asarray(path.curvature(s) if kappa is None else kappa, float)
-    return np.minimum(limits.feed_max, chord_feed_cap(kappa, limits.chord_error_mm, T))
+    return np.minimum(feed_ceiling(path, s, limits.feed_max), chord_feed_cap(kappa, limits.chord_error_mm, T))
 
 
 def chord_feed_cap(kappa, eps: float, T: float) -> np.ndarray:

@@ -39,6 +39,7 @@ from scipy.optimize import minimize_scalar
 from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
                           chord_feed_cap, corner_list, ik_along, joint_derivs, peak_ratios,
                           second_derivative_jumps, time_derivs)
+from .feed import feed_ceiling
 from .profile import Profile
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
@@ -52,7 +53,8 @@ def flf(path, limits, T, s, *, joint_machine=None):
     s = np.asarray(s, float)
     kappa = np.abs(np.asarray(path.curvature(s), float))
     q1 = joint_derivs(joint_machine, path, s)[1] if joint_machine is not None else None
-    return flf_of(kappa, q1, limits, T)
+    # the programmed F of a G-code path caps the FLF too (planners.feed)
+    return np.minimum(flf_of(kappa, q1, limits, T), feed_ceiling(path, s, limits.feed_max))
 
 
 def flf_of(kappa, q1, limits, T):
@@ -161,7 +163,8 @@ class _Planner:
         P1, P2, _ = self.table.cartesian(s)
         kappa = np.linalg.norm(np.cross(P1, P2), axis=-1)
         q1 = self.table.joints(s)[0] if self.joint else None
-        return flf_of(kappa, q1, self.limits, self.T)
+        return np.minimum(flf_of(kappa, q1, self.limits, self.T),
+                          feed_ceiling(self.path, s, self.limits.feed_max))
 
     # -- critical points ----------------------------------------------------------
     def critical_points(self):

@@ -17,8 +17,8 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
   tangent-discontinuous junction (exact stop, or a corner with no blend) ends at rest.
   Differences from LinuxCNC: the whole path is looked ahead (LinuxCNC stops after
   TP_LOOKAHEAD_DEPTH segments, which matters only for very short segments), no "kink"
-  velocity at small tangent breaks, and the programmed F is replaced by F_max (all
-  planners of the suite share F_max, so their times compare).
+  velocity at small tangent breaks. The programmed F caps each move (planners.feed;
+  ``--max-feed`` runs at F_max).
 * Per-cycle update (tp.c ``tpCalculateTrapezoidalAccel``, ``tcUpdateDistFromAccel``,
   ``tpHandleSplitCycle``): the largest new speed that can still stop at the segment's final
   speed, v = −a·dt/2 + √(v_f² + a(2·dx − v·dt) + (a·dt/2)²), capped at the segment's
@@ -39,6 +39,7 @@ from planners.constraints import check_limits, check_path_in_workspace
 from planners.errors import PlanningError
 from planners.paths.blend import blend_corners, cut_into_lines
 from planners.paths import NurbsPath, Path, SegmentPath
+from planners.feed import segment_feeds
 from planners.profile import Profile
 
 ACC_RATIO_TANGENTIAL = 0.5                               # blendmath.h
@@ -90,10 +91,34 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
     return vmax, amax
 
 
-def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
-    """Backward look-ahead: the speed at the end of each segment (0 at corners and the end)."""
+def program_stops(path: SegmentPath):
+    """(segments after which LinuxCNC stops, segments at half acceleration) from the G-code
+    moves' ``stop``/``parabolic_end`` (planners.gcode): an M-code queue sync or a rapid ↔ feed
+    change stops motion even between collinear moves; the move before a sync or the program
+    end keeps term_cond PARABOLIC under G64, i.e. half acceleration (tc.c
+    ``tcGetOverallMaxAccel``). Blend arcs (LinuxCNC's own segments) keep full acceleration."""
+    prog = path.program
+    segs = path.segments
+    if prog is None:
+        return [], np.zeros(len(segs), bool)
+    by_line = {m.line: m for m in prog.moves}
+    stops, half = [], np.zeros(len(segs), bool)
+    for i, g in enumerate(segs):
+        m = by_line.get(g.line)
+        if m is None or g.kind != m.segment.kind:
+            continue
+        if m.stop and (i + 1 == len(segs) or segs[i + 1].line != g.line):
+            stops.append(i)
+        half[i] = m.parabolic_end
+    return stops, half
+
+
+def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray, stops=()) -> np.ndarray:
+    """Backward look-ahead: the speed at the end of each segment (0 at corners, after the
+    segments in ``stops`` and at the end)."""
     n = len(path.segments)
     corner_idx = set(np.searchsorted(path.seg_start, path.corners()).tolist())
+    corner_idx.update(i + 1 for i in stops)
     # plain floats in the loop: numpy scalar arithmetic is ~5× slower, and a 10⁵-line
     # program runs this 10⁵ times (IEEE results are the same)
     vm, am = vmax.tolist(), amax.tolist()
@@ -163,23 +188,16 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
     raise PlanningError(f"trapezoid: no arrival after {MAX_CYCLES} cycles (a limit too small?)")
 
 
-def programmed_feeds(path: SegmentPath, feed_max: float) -> np.ndarray:
-    """The F of the G-code move each segment came from (mm/s; rapids and unknown: F_max)."""
-    prog = path.program
-    by_line = {m.line: m.feed_mm_s for m in prog.moves} if prog is not None else {}
-    return np.array([min(feed_max, by_line.get(g.line) or feed_max) for g in path.segments])
-
-
 def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None = None,
-         chord_tolerance_mm: float | None = None, programmed_feed: bool = False,
+         chord_tolerance_mm: float | None = None, programmed_feed: bool = True,
          check_workspace_step_mm: float = 0.5) -> Profile:
     """LinuxCNC-style trapezoidal profile.
 
     ``chord_tolerance_mm`` (default: the machine's chord error) is used to cut a NURBS into
     G1 lines; ``blend_tolerance_mm`` is its G64 P (default: the same value; 0 → G61, exact
     stops at every vertex). ``programmed_feed``: for a G-code path, cap each move at its
-    programmed F as LinuxCNC does (default off: every planner of the suite runs at F_max so
-    that their times compare).
+    programmed F as LinuxCNC does (the default; False, or a path marked by
+    ``planners.feed.use_max_feed``, runs it at F_max).
     """
     limits = limits or machine.limits
     check_limits(limits, "trapezoid")
@@ -195,9 +213,12 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     check_path_in_workspace(path, machine, check_workspace_step_mm)
     planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
     vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)
-    if programmed_feed:
-        vmax = np.minimum(vmax, programmed_feeds(planned, limits.feed_max))
-    vf = final_velocities(planned, vmax, amax)
+    feeds = segment_feeds(planned, limits.feed_max) if programmed_feed else None
+    if feeds is not None:
+        vmax = np.minimum(vmax, feeds)
+    stops, half = program_stops(planned)
+    amax = np.where(half, 0.5 * amax, amax)
+    vf = final_velocities(planned, vmax, amax, stops)
     s, sd, excess = simulate(planned, vmax, amax, vf, T)
     # s̈ as the mean acceleration of each period (the split cycles make it a mix of two
     # segments' accelerations); s⃛ its difference. Rest at the end: both 0 there.
@@ -207,7 +228,7 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     sddd = np.zeros_like(sdd)
     sddd[1:] = np.diff(sdd) / T
     info.update({"corners": int(len(planned.corners())), "lookahead": "whole path",
-                 "programmed_feed": bool(programmed_feed),
+                 "programmed_feed": feeds is not None,
                  "boundary_speed_excess_mm_s": float(excess),
                  "acc_ratio_tangential": ACC_RATIO_TANGENTIAL})
     return Profile("trapezoid", T, s, sd, sdd, sddd, planned, info=info)

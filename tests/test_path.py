@@ -1,4 +1,4 @@
-"""planners.path: NURBS and segment paths against closed forms and an independent quadrature."""
+"""planners.paths: NURBS and segment paths against closed forms and an independent quadrature."""
 import json
 import math
 

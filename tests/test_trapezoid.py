@@ -139,9 +139,11 @@ def test_programmed_feed_option(keops, tmp_path):
     f = tmp_path / "f.ngc"
     f.write_text("G21 G90 G61\nG0 X-50 Y0 Z-400\nG1 X0 F6000\nG1 X50 F30000\n")
     path = resolve_path(str(f))
-    fast = plan("trapezoid", path, keops)
-    slow = plan("trapezoid", path, keops, programmed_feed=True)
+    fast = plan("trapezoid", path, keops, programmed_feed=False)
+    slow = plan("trapezoid", path, keops)            # the programmed F is the default
     assert fast.sd.max() == pytest.approx(1000.0)
+    from planners.feed import use_max_feed           # the suite's --max-feed mark: F_max
+    assert plan("trapezoid", use_max_feed(resolve_path(str(f))), keops).execution_time_s == fast.execution_time_s
     # first move capped at F6000 = 100 mm/s, the second at F30000 = 500 mm/s (< F_max)
     first = slow.s <= 50.0
     assert slow.sd[first].max() == pytest.approx(100.0)

@@ -13,6 +13,7 @@ def add_arguments(p):
                    help="G-code: the machine position before the program (mm); every move, the first "
                         "included, is then planned from it, as LinuxCNC runs it (default: a first "
                         "absolute G0/G1 with X, Y and Z positions the tool, else the machine's home)")
+    p.add_argument("--max-feed", action="store_true", help="run G-code at F_max, ignoring its F words")
     p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
 
 
@@ -36,12 +37,16 @@ def main(args) -> int:
         path = resolve_path(args.path, **opts)
     except (MachineFileError, PathError) as e:
         raise CliError(str(e)) from None
+    from harness.cosim.run import feed_summary
+    from planners.feed import use_max_feed
+    use_max_feed(path, args.max_feed)
     names = [n.strip() for n in args.planners.split(",") if n.strip()]
     bad = [n for n in names if n not in planners.PLANNERS]
     if bad:
         raise CliError(f"unknown planner(s) {', '.join(bad)}; valid: {', '.join(planners.PLANNERS)}")
     out = output_dir(args.out) if args.out else None
     failed = 0
+    print(f"feed: {feed_summary(path)}")
     print(f"{m.name} / {args.path}: {'planner':14s} {'exec s':>9s} {'plan s':>8s} {'joint v/a/j':>22s} {'feasible':>9s}")
     for name in names:
         try:

@@ -24,6 +24,9 @@ def add_arguments(p):
     p.add_argument("--engine", choices=("native", "python"), default="native", help="co-simulation master")
     p.add_argument("--jacobi", action="store_true", help="Jacobi instead of Gauss–Seidel")
     p.add_argument("--no-recordings", action="store_true", help="skip run.mcap and run.rrd")
+    p.add_argument("--max-feed", action="store_true",
+                   help="run G-code at F_max, ignoring its F words (planner-only comparisons; "
+                        "summary.json's 'feed' says so); a suite's [[run]] takes max_feed = true")
 
 
 def _progress(k, n, name):
@@ -41,19 +44,20 @@ def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
             runs = suite_runs(suite, args.suite)
         except SuiteError as e:
             raise CliError(str(e)) from None
-        cases = [(m, p, list(planners), suite.get("planner_options", {}))
-                 for machines, paths, planners in runs for m in machines for p in paths]
+        cases = [(m, p, list(planners), suite.get("planner_options", {}), max_feed or args.max_feed)
+                 for machines, paths, planners, max_feed in runs for m in machines for p in paths]
         return cases, Path(args.out or suite_run_dir(args.suite))
     if not (args.machine and args.path):
         raise CliError("give a suite file, or --machine and --path")
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     out = Path(args.out) if args.out else run_dir(args.machine, args.path)
-    return [(args.machine, args.path, planners, {})], out
+    return [(args.machine, args.path, planners, {}, args.max_feed)], out
 
 
 def table(summary: dict) -> str:
     cols = ("exec s", "joint v", "joint a", "joint j", "cart a", "feasible", "follow µm", "contour µm")
-    lines = [f"{summary['machine']} / {summary['path']}  (T = {summary['servo_period_s'] * 1e6:g} µs)",
+    lines = [f"{summary['machine']} / {summary['path']}  (T = {summary['servo_period_s'] * 1e6:g} µs, "
+             f"feed: {summary.get('feed', '?')})",
              f"  {'planner':14s}" + "".join(f"{c:>11s}" for c in cols)]
     for name, m in summary["planners"].items():
         if "error" in m:
@@ -90,13 +94,13 @@ def main(args) -> int:
     cases, out = cases_of(args)
     output_dir(out)
     failed = 0
-    for machine, path, planners, opts in cases:
+    for machine, path, planners, opts, max_feed in cases:
         odir = out if len(cases) == 1 else out / f"{Path(machine).stem}_{Path(path).stem}"
         print(f"pkmbench run: {machine} / {path}: {', '.join(planners)} → {odir}", file=sys.stderr)
         try:
             summary = run_case(machine, path, planners, odir, seed=args.seed, jitter=args.jitter, ideal=args.ideal,
                                engine=args.engine, jacobi=args.jacobi, planner_options=opts,
-                               recordings=not args.no_recordings, progress=_progress)
+                               recordings=not args.no_recordings, progress=_progress, max_feed=max_feed)
         except RunError as e:
             raise CliError(str(e)) from None
         sys.stderr.write("\r" + " " * 60 + "\r")

@@ -46,6 +46,14 @@ class RunError(Exception):
     folder that cannot be written or that another run holds)."""
 
 
+def feed_summary(path) -> str:
+    """How the feed was capped, for summary.json."""
+    from planners.feed import feed_mode
+    if path.program is None:
+        return "F_max (not a G-code program)"
+    return "F_max (--max-feed)" if feed_mode(path) == "max" else "programmed F, capped at F_max"
+
+
 def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None = None, ideal: bool = False,
                engine: str = "native", jacobi: bool = False):
     """Write the profile's files and system, run it, return the master's Result."""
@@ -63,7 +71,10 @@ def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None
 
 def run_case(machine_name: str, path_name: str, planner_names: list[str], out_dir, *, seed: int = 0,
              jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
-             planner_options: dict | None = None, recordings: bool = True, progress=None) -> dict:
+             planner_options: dict | None = None, recordings: bool = True, progress=None,
+             max_feed: bool = False) -> dict:
+    """``max_feed``: run a G-code program at F_max instead of its programmed F (planner-only
+    comparisons); summary.json's ``feed`` says which."""
     from kins import load_machine
     from kins.machine import MachineFileError
     import planners
@@ -77,6 +88,8 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         path = resolve_path(path_name)
     except PathError as e:
         raise RunError(str(e)) from None
+    from planners.feed import use_max_feed
+    use_max_feed(path, bool(max_feed))
     unknown = [p for p in planner_names if p not in planners.PLANNERS]
     if unknown:
         raise RunError(f"unknown planner(s) {', '.join(unknown)}; valid: {', '.join(planners.PLANNERS)}")
@@ -112,7 +125,8 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
         shutil.rmtree(d)
 
     summary = {"machine": machine.name, "path": path_name, "servo_period_s": machine.servo_period_s,
-               "seed": seed, "jitter": jitter or "machine default", "ideal_chain": ideal, "planners": {}}
+               "seed": seed, "jitter": jitter or "machine default", "ideal_chain": ideal,
+               "feed": feed_summary(path), "planners": {}}
     timing = {}
     for k, name in enumerate(planner_names):
         if progress:

@@ -40,7 +40,7 @@ CODE_DIRS = ("kins", "planners", "harness")
 
 
 TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci")
-RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners")
+RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed")
 
 
 class SuiteError(ValueError):
@@ -58,9 +58,10 @@ def _line_of(text: str | None, key: str) -> str:
     return ":line ?"
 
 
-def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list]]:
-    """The (machines, paths, planners) of each [[run]] table, keys checked: what `pkmbench run`
-    runs and :func:`expand` crosses with the sweep axes."""
+def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list, bool]]:
+    """The (machines, paths, planners, max_feed) of each [[run]] table, keys checked: what
+    `pkmbench run` runs and :func:`expand` crosses with the sweep axes. ``max_feed = true`` runs
+    G-code at F_max instead of its programmed F (planner-only comparisons)."""
     for key in suite:
         if key not in TOP_KEYS:
             raise SuiteError(f"{src}{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(TOP_KEYS))})")
@@ -73,9 +74,11 @@ def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> li
         for key in run:
             if key not in RUN_KEYS:
                 raise SuiteError(f"{src}{_line_of(text, key)}: {where}: unknown key '{key}' "
-                                 f"(valid: machine(s), path(s), planner(s))")
+                                 f"(valid: machine(s), path(s), planner(s), max_feed)")
+        if not isinstance(run.get("max_feed", False), bool):
+            raise SuiteError(f"{src}{_line_of(text, 'max_feed')}: {where}: max_feed must be true or false")
         out.append((_list(run, "machine", "machines", src, where), _list(run, "path", "paths", src, where),
-                    _list(run, "planner", "planners", src, where)))
+                    _list(run, "planner", "planners", src, where), run.get("max_feed", False)))
     return out
 
 
@@ -158,7 +161,7 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
             raise SuiteError(f"{src}: [[sweep.variation]] '{v['name']}': set must be a table")
     options = suite.get("planner_options", {})
     tasks, seen = [], set()
-    for machines, paths, planners in runs:
+    for machines, paths, planners, max_feed in runs:
         for m in machines:
             mfile = resolve_machine(m, base)
             for p in paths:
@@ -169,6 +172,8 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
                             for v in variations:
                                 t = make_task(mfile, pfile, pl, seed, preset, v,
                                               options.get(pl, {}))
+                                if max_feed:       # only then: the other tasks' keys stay as they were
+                                    t["max_feed"] = True
                                 ident = (t["machine"], t["path"], pl, seed, preset, v["name"])
                                 if ident in seen:
                                     continue           # the same task listed twice runs once

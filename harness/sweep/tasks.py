@@ -181,7 +181,7 @@ def cosim_task(task: dict, out_dir: Path) -> dict:
     summary = run_case(str(mfile), str(pfile), [planner], out_dir, seed=int(task.get("seed", 0)),
                        jitter=None if preset == "machine" else preset,
                        planner_options={planner: dict(task.get("planner_options") or {})},
-                       recordings=False)
+                       recordings=False, max_feed=bool(task.get("max_feed", False)))
     m = summary["planners"][planner]
     if "error" in m:
         raise TaskError(m["error"])

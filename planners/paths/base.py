@@ -47,6 +47,7 @@ class Path:
     length: float
     source: str
     program = None      # the G-code program a path was read from (planners.paths.gcode), else None
+    feed_mode = "programmed"   # or "max": G-code run at F_max, its F words ignored (planners.feed)
 
     # -- subclasses -------------------------------------------------------------------
     def _derivs(self, s: np.ndarray, order: int) -> list[np.ndarray]:

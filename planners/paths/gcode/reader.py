@@ -49,6 +49,15 @@ class Move:
     rapid: bool                    # G0
     feed_mm_s: float | None        # programmed feed (None for G0)
     blend_mm: float | None         # corner at the END: None = exact stop, inf = no tolerance
+    # LinuxCNC stops at the end of this move although G64 is in force: "sync" (an M code, a
+    # dwell or a tool change follows: task waits for the motion queue to drain), "mode" (rapid ↔
+    # feed: tp.c handleModeChange never blends them) or "end"; None otherwise
+    stop: str | None = None
+    parabolic_end: bool = False    # G64 end with nothing to blend with (tc.c: half acceleration)
+
+
+# M codes that only change the interpreter's state (M70–M73 save/restore modal state): no sync
+_STATELESS_M = {70, 71, 72, 73}
 
 
 @dataclass
@@ -153,6 +162,9 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
                 prog.notes.append((ln, "zero-length move dropped (as LinuxCNC's canon drops it)"))
                 continue
             seg = Line(pos, end, ln, f"{cm.file}:{ln}")
+        if prog.moves and prog.moves[-1].rapid != (cm.kind == "rapid") and prog.moves[-1].stop is None:
+            prog.moves[-1].stop = "mode"      # tp.c handleModeChange: exact stop, full acceleration
+            prog.moves[-1].blend_mm = None
         prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, blend))
         # after an arc, the next segment starts where the arc's geometry ends (within ~1e-15
         # of the programmed end): segments chain exactly, and the standard paths plan as before
@@ -176,7 +188,22 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
                                None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, blend))
     if not prog.moves:
         raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
+    for e in prog.events:
+        syncs = e.kind in ("dwell", "tool") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
+        if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop is None:
+            _stop(prog.moves[e.index - 1], "sync")
+    if prog.moves[-1].stop is None:
+        _stop(prog.moves[-1], "end")
     return prog
+
+
+def _stop(move: Move, why: str) -> None:
+    """The motion queue ends after ``move`` (a sync or the program end): under G64 LinuxCNC
+    leaves its term_cond PARABOLIC, so it runs at half acceleration (tc.c
+    tcGetOverallMaxAccel) and stops at its end."""
+    move.parabolic_end = move.blend_mm is not None
+    move.stop = why
+    move.blend_mm = None
 
 
 def _arc(cm, pos, end) -> Arc:

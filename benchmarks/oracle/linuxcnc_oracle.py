@@ -1,0 +1,82 @@
+"""`trapezoid` against the real LinuxCNC 2.9 tp (planner `linuxcnc`) on the oracle programs.
+
+    PYTHONPATH=. python benchmarks/oracle/linuxcnc_oracle.py [--only NAME,...] [--repeat N]
+
+Every program of benchmarks/oracle/programs/ (plus the standard test_part) runs on LinuxCNC
+(headless, serialised: minutes of wall time, one heavy job) and is planned by `trapezoid`
+with the programmed feed. Prints a Markdown table — execution times, Δ % and the joint
+velocity peak ratio Δ % (both from planners.verify on each planner's own geometry) — and
+writes results/oracle/linuxcnc_oracle.json. ``--repeat N`` runs LinuxCNC N times per program
+and reports the spread of its execution time (the determinism of the `linuxcnc` planner).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+sys.path.insert(0, str(REPO))
+
+from planners.verify import command_metrics  # noqa: E402
+from kins import load_machine  # noqa: E402
+from planners import plan  # noqa: E402
+from planners.paths import resolve_path  # noqa: E402
+
+# program → machine (the delta's program is written for linuxcnc_delta's workspace)
+PROGRAMS = {
+    "test_part": ("kossel", REPO / "benchmarks/paths/test_part.ngc"),
+    "thesis_f80_f160": ("kossel", HERE / "programs/thesis_f80_f160.ngc"),
+    "square_g64": ("kossel", HERE / "programs/square_g64.ngc"),
+    "square_g64p": ("kossel", HERE / "programs/square_g64p.ngc"),
+    "zigzag_short": ("kossel", HERE / "programs/zigzag_short.ngc"),
+    "line_arc_tangent": ("kossel", HERE / "programs/line_arc_tangent.ngc"),
+    "mcodes": ("kossel", HERE / "programs/mcodes.ngc"),
+    "spiral_arcs": ("kossel", HERE / "programs/spiral_arcs.ngc"),
+    "delta_star": ("linuxcnc_delta", HERE / "programs/delta_star.ngc"),
+}
+
+
+def measure(name, planner, path, machine):
+    pr = plan(planner, path, machine)
+    m = command_metrics(machine, pr.path.point(pr.s), pr.T, pr.s)
+    return pr, m
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", default="", help="comma-separated program names")
+    ap.add_argument("--repeat", type=int, default=1, help="LinuxCNC runs per program")
+    ap.add_argument("--out", default=str(REPO / "results/oracle/linuxcnc_oracle.json"))
+    args = ap.parse_args(argv)
+    names = [n for n in args.only.split(",") if n] or list(PROGRAMS)
+    rows = []
+    print("| program | machine | LinuxCNC s | trapezoid s | Δ % | joint v ratio LinuxCNC | trapezoid | Δ % |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in names:
+        mname, file = PROGRAMS[name]
+        machine = load_machine(mname)
+        path = resolve_path(str(file))
+        runs = [measure(name, "linuxcnc", path, machine) for _ in range(max(1, args.repeat))]
+        lc, mlc = runs[0]
+        tz, mtz = measure(name, "trapezoid", path, machine)
+        t_l, t_t = lc.execution_time_s, tz.execution_time_s
+        v_l, v_t = mlc["joint_peak_ratio"]["velocity"], mtz["joint_peak_ratio"]["velocity"]
+        row = {"program": name, "machine": mname, "linuxcnc_s": t_l, "trapezoid_s": t_t,
+               "dt_pct": 100 * (t_t - t_l) / t_l, "joint_v_linuxcnc": v_l, "joint_v_trapezoid": v_t,
+               "dv_pct": 100 * (v_t - v_l) / v_l,
+               "linuxcnc_runs_s": [r[0].execution_time_s for r in runs]}
+        rows.append(row)
+        print(f"| {name} | {mname} | {t_l:.3f} | {t_t:.3f} | {row['dt_pct']:+.2f} | {v_l:.4f} | {v_t:.4f} "
+              f"| {row['dv_pct']:+.2f} |" + (f" runs: {row['linuxcnc_runs_s']}" if args.repeat > 1 else ""),
+              flush=True)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(rows, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

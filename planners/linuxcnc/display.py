@@ -1,0 +1,121 @@
+#!/usr/bin/python3
+"""Headless DISPLAY program for LinuxCNC 2.9 (runs under the SYSTEM python3, not the venv:
+only there are LinuxCNC's ``linuxcnc`` and ``hal`` modules).
+
+``linuxcnc`` starts it as ``display.py -ini FILE`` once HAL, motion and task are up.
+It does what an operator does in AXIS — estop reset, machine on, home all, MDI G0 to the
+program's start point, AUTO run — while draining the HAL ``sampler`` (loaded on the servo
+thread by the generated HAL file) through ``hal.stream``: one row per servo period, full
+double precision. The rows are written to ``[PKMBENCH]OUTPUT``; on any failure a one-line
+reason goes to ``[PKMBENCH]OUTPUT.err`` and the exit status is non-zero, which ends
+LinuxCNC (the ``linuxcnc`` script shuts everything down when its display exits).
+No pkmbench import here: this file must run without the venv.
+"""
+import sys
+import time
+
+import hal
+import linuxcnc
+
+SAMPLER_SHMEM_KEY = 0x48534130      # src/hal/components/streamer.h (v2.9.0-pre1), channel 0
+
+
+def ini_path(argv):
+    return argv[argv.index("-ini") + 1]
+
+
+class Fail(Exception):
+    pass
+
+
+def main(argv):
+    ini = linuxcnc.ini(ini_path(argv))
+    out = ini.find("PKMBENCH", "OUTPUT")
+    program = ini.find("PKMBENCH", "PROGRAM")
+    start = ini.find("PKMBENCH", "START")
+    cfg = ini.find("PKMBENCH", "SAMPLER_CFG")
+    timeout = float(ini.find("PKMBENCH", "TIMEOUT_S") or 600)
+    try:
+        rows = run(program, start, cfg, timeout)
+    except Fail as e:
+        with open(out + ".err", "w") as f:
+            f.write(str(e) + "\n")
+        return 1
+    with open(out + ".tmp", "w") as f:
+        for sampleno, row in rows:
+            f.write(" ".join([str(sampleno)] + [repr(v) for v in row]) + "\n")
+    import os
+    os.replace(out + ".tmp", out)
+    return 0
+
+
+def run(program, start, cfg, timeout):
+    c, s, e = linuxcnc.command(), linuxcnc.stat(), linuxcnc.error_channel()
+    comp = hal.component("pkmsampleread")
+    comp.ready()
+    stream = hal.stream(comp, SAMPLER_SHMEM_KEY, cfg)
+    rows = []
+    keep = [False]
+
+    def drain():
+        while True:
+            r = stream.read()
+            if r is None:
+                return
+            if keep[0]:
+                rows.append((stream.sampleno, r))
+
+    def errors():
+        msg = e.poll()
+        if msg and msg[0] in (linuxcnc.NML_ERROR, linuxcnc.OPERATOR_ERROR):
+            raise Fail("LinuxCNC error: " + msg[1].strip().replace("\n", " "))
+
+    def wait(cond, what, limit=20.0):
+        t0 = time.monotonic()
+        while True:
+            drain()
+            s.poll()
+            errors()
+            if cond():
+                return
+            if time.monotonic() - t0 > limit:
+                raise Fail("LinuxCNC: timed out after %g s waiting for %s" % (limit, what))
+            time.sleep(0.005)
+
+    wait(lambda: True, "task")
+    c.state(linuxcnc.STATE_ESTOP_RESET)
+    wait(lambda: s.task_state == linuxcnc.STATE_ESTOP_RESET, "estop reset")
+    c.state(linuxcnc.STATE_ON)
+    wait(lambda: s.task_state == linuxcnc.STATE_ON, "machine on")
+    c.mode(linuxcnc.MODE_MANUAL)
+    wait(lambda: s.task_mode == linuxcnc.MODE_MANUAL, "manual mode")
+    c.home(-1)                       # HOME_SEARCH_VEL = 0: the joints take their HOME value
+    wait(lambda: all(s.homed[j] for j in range(s.joints)), "homing")
+    c.mode(linuxcnc.MODE_MDI)
+    wait(lambda: s.task_mode == linuxcnc.MODE_MDI, "MDI mode")
+    # the program's positioning move, done before sampling: pkmbench's path starts there
+    c.mdi("G21 G90 G0 " + start)
+    wait(lambda: s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos,
+         "the move to the start point", 120.0)
+    c.mode(linuxcnc.MODE_AUTO)
+    wait(lambda: s.task_mode == linuxcnc.MODE_AUTO, "auto mode")
+    c.program_open(program)
+    wait(lambda: True, "program open")
+    keep[0] = True
+    drain()
+    c.auto(linuxcnc.AUTO_RUN, 0)
+    wait(lambda: s.interp_state != linuxcnc.INTERP_IDLE, "the program to start", 20.0)
+    wait(lambda: s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos,
+         "the program to end", timeout)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 0.1:   # a few more periods at rest
+        drain()
+        time.sleep(0.005)
+    drain()
+    if stream.num_overruns:
+        raise Fail("LinuxCNC: the HAL sampler overran %d time(s) (samples lost)" % stream.num_overruns)
+    return rows
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

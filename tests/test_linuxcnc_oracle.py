@@ -1,0 +1,108 @@
+"""The real LinuxCNC 2.9 as planner (`linuxcnc`) and as oracle for `trapezoid`.
+
+Every test that runs LinuxCNC skips, with the reason, where it is not installed
+(``make linuxcnc`` installs it). The expected numbers come from closed forms of LinuxCNC's
+tp.c (v2.9.0-pre1), not from a previous run; the oracle tests compare `trapezoid` with the
+real tp on short programs (the long ones are benchmarks/oracle/linuxcnc_oracle.py).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from kins import load_machine
+from planners import PlanningError, plan
+from planners.paths.gcode import parse_gcode, program_path
+from planners.linuxcnc import runner
+
+WHY = runner.missing()
+needs_linuxcnc = pytest.mark.skipif(WHY is not None, reason=f"LinuxCNC absent: {WHY}")
+
+
+def gcode_path(tmp_path, name, text):
+    f = tmp_path / name
+    f.write_text(text)
+    return program_path(parse_gcode(text, str(f)))
+
+
+LINE_G64 = """G21 G90 G64
+G0 X0 Y0 Z-200
+G1 X20 F600
+M2
+"""
+
+
+@pytest.fixture(scope="module")
+def kossel():
+    return load_machine("kossel")
+
+
+@pytest.fixture(scope="module")
+def line_runs(tmp_path_factory, kossel):
+    """The same single-line program run twice on LinuxCNC (one per test session)."""
+    d = tmp_path_factory.mktemp("lcnc")
+    path = gcode_path(d, "line.ngc", LINE_G64)
+    return path, [plan("linuxcnc", path, kossel) for _ in range(2)]
+
+
+@needs_linuxcnc
+def test_linuxcnc_honours_F_and_half_acceleration_of_a_parabolic_segment(line_runs, kossel):
+    # tp.c tcGetTangentialMaxAccel: a segment with term_cond PARABOLIC (G64, nothing to
+    # blend with: the program's last move) gets half the axis acceleration; F600 = 10 mm/s
+    path, (pr, _) = line_runs
+    v, a = 10.0, kossel.limits.cartesian.a / 2
+    t_exact = 20.0 / v + v / a                               # 2.04 s
+    assert abs(pr.execution_time_s - t_exact) <= 2 * pr.T
+    assert abs(pr.sd.max() - v) < 1e-6
+    assert abs(np.abs(pr.sdd).max() - a) < 1e-6 * a
+    assert pr.s[-1] == pytest.approx(20.0, abs=1e-9)
+
+
+@needs_linuxcnc
+def test_linuxcnc_kinematics_agree_with_lineardeltakins(line_runs):
+    # LinuxCNC's own joints (lineardeltakins.c, L and R from the machine file) against
+    # kins.lineardelta's IK of its Cartesian command (2 periods earlier: cubic interpolator)
+    _, (pr, _) = line_runs
+    assert pr.info["joint_vs_ik_deviation_mm"] < 2e-4
+
+
+@needs_linuxcnc
+def test_linuxcnc_is_deterministic_without_queue_syncs(line_runs):
+    _, (a, b) = line_runs
+    assert len(a.s) == len(b.s)
+    assert np.array_equal(a.s, b.s)
+
+
+def test_linuxcnc_missing_is_a_one_line_planning_error(monkeypatch, kossel, tmp_path):
+    monkeypatch.setattr(runner.shutil, "which", lambda exe: None)
+    path = gcode_path(tmp_path, "line.ngc", LINE_G64)
+    with pytest.raises(PlanningError) as e:
+        plan("linuxcnc", path, kossel)
+    msg = str(e.value)
+    assert "\n" not in msg and "make linuxcnc" in msg and "linuxcnc" in msg.split(":")[0]
+
+
+def test_linuxcnc_refuses_a_machine_that_is_not_a_linear_delta(tmp_path):
+    path = gcode_path(tmp_path, "line.ngc", LINE_G64.replace("Z-200", "Z-400"))
+    with pytest.raises(PlanningError, match="lineardeltakins"):
+        plan("linuxcnc", path, load_machine("keops"))
+
+
+def test_trapezoid_half_acceleration_and_queue_sync_closed_form(tmp_path, kossel):
+    # tc.c tcGetOverallMaxAccel: the last G64 move (term_cond PARABOLIC) runs at a/2;
+    # an M code between two collinear moves is a queue sync: motion stops there, and the
+    # move before it is also PARABOLIC. 10 mm/s, a = 500 → a/2 = 250 mm/s².
+    v, a2 = 10.0, kossel.limits.cartesian.a / 2
+    one = plan("trapezoid", gcode_path(tmp_path, "one.ngc", LINE_G64), kossel)
+    assert abs(one.execution_time_s - (20.0 / v + v / a2)) <= one.T
+    two = gcode_path(tmp_path, "two.ngc", LINE_G64.replace("G1 X20 F600", "G1 X10 F600\nM8\nG1 X20"))
+    pr = plan("trapezoid", two, kossel)
+    assert abs(pr.execution_time_s - 2 * (10.0 / v + v / a2)) <= 2 * pr.T
+    assert pr.sd[np.argmin(np.abs(pr.s - 10.0))] < 0.2       # at rest at the M8
+
+
+@needs_linuxcnc
+def test_trapezoid_matches_linuxcnc_on_a_single_g64_line(line_runs, kossel):
+    path, (lc, _) = line_runs
+    tz = plan("trapezoid", path, kossel)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= tz.T
