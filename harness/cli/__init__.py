@@ -24,6 +24,7 @@ COMMANDS = {
     "figures": ("harness.cli.figures", "reproduce the published figures"),
     "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline"),
     "history": ("harness.cli.history", "plot the CI history trend"),
+    "corpus": ("harness.cli.corpus", "every planner on every corpus path: table and performance profile"),
     "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine"),
 }
 

@@ -1,0 +1,79 @@
+"""`pkmbench corpus`: every planner on every path of the toolpath corpus (plan + the independent
+check at T), a table, a performance profile and a per-path T/T_best chart.
+
+    pkmbench corpus --out results/corpus                          # all paths × all planners
+    pkmbench corpus --quick --out /tmp/c                          # 3 paths × the fast planners
+    pkmbench corpus --paths 'butterfly_*,rand_*kossel' --planners scurve,scurve_joint --out D
+    pkmbench corpus --suite benchmarks/suites/corpus.toml --out D  # the nightly run
+
+Writes OUT/corpus.csv, OUT/corpus.md, OUT/performance_profile.png, OUT/ratio_to_best.png.
+Exit 0 when every planner returned a profile or a PlanningError, 1 when a planner raised
+something else (an internal error, listed), 2 on a user error.
+"""
+from __future__ import annotations
+
+from harness.cli import CliError
+from harness.outdir import OutDirError, output_dir
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--planners", default=None,
+                   help="comma-separated planners (default: all but linuxcnc; --quick: trapezoid,scurve,scurve_joint)")
+    p.add_argument("--paths", default=None, metavar="GLOB[,GLOB…]",
+                   help="corpus path names (or files) matching these globs (default: all)")
+    p.add_argument("--quick", action="store_true",
+                   help="a small subset (3 paths, one per machine; the fast planners unless --planners)")
+    p.add_argument("--suite", default=None,
+                   help="take machines × paths × planners from a suite file (e.g. benchmarks/suites/corpus.toml)")
+
+
+def main(args) -> int:
+    import planners
+    from harness.corpus import (FAST_PLANNERS, CorpusError, entries_from_suite, load_manifest,
+                                run_corpus, select, summary, write_outputs)
+    try:
+        if args.suite:
+            if args.paths or args.quick:
+                raise CliError("--suite takes its paths from the suite: no --paths / --quick with it")
+            selection = entries_from_suite(args.suite)
+            if args.planners:
+                want = _planners(args.planners, planners.PLANNERS)
+                selection = [(e, [p for p in ps if p in want]) for e, ps in selection]
+        else:
+            names = _planners(args.planners, planners.PLANNERS) if args.planners else \
+                (list(FAST_PLANNERS) if args.quick else [p for p in planners.PLANNERS if p != "linuxcnc"])
+            selection = [(e, names) for e in select(load_manifest(), args.paths, args.quick)]
+    except CorpusError as e:
+        raise CliError(str(e)) from None
+    try:
+        out = output_dir(args.out)
+    except OutDirError as e:
+        raise CliError(str(e)) from None
+    n = sum(len(ps) for _, ps in selection)
+    print(f"corpus: {len(selection)} paths, {n} plans → {out}")
+
+    def progress(r):
+        what = (f"T = {r.execution_time_s:.4f} s, joint {r.joint_worst:.3f}, cart {r.cart_worst:.3f}, "
+                f"{'feasible' if r.feasible else 'INFEASIBLE'}") if r.status == "ok" else r.error
+        print(f"  {r.path:28s} {r.planner:13s} {r.planning_time_s:8.2f} s  {what}", flush=True)
+
+    rows = run_corpus(selection, progress=progress)
+    files = write_outputs(rows, out)
+    print(f"{'planner':13s} {'profiles':>9s} {'feasible':>9s} {'cart-feas':>9s} {'own-lim':>7s} {'T/Tbest med':>11s} {'worst':>7s} {'plan med s':>10s} {'worst':>8s}")
+    for k, s in summary(rows).items():
+        print(f"{k:13s} {s['profiles']:4d}/{s['paths']:<4d} {s['feasible']:9d} {s['cartesian_feasible']:9d} {s['own_limits']:7d} "
+              f"{s['ratio_median']:11.4g} {s['ratio_worst']:7.4g} {s['plan_median_s']:10.3g} {s['plan_worst_s']:8.3g}")
+    print("wrote " + ", ".join(str(f) for f in files.values()))
+    errors = [r for r in rows if r.status == "error"]
+    for r in errors:
+        print(f"  INTERNAL ERROR {r.path} / {r.planner}: {r.error}")
+    return 1 if errors else 0
+
+
+def _planners(spec: str, valid) -> list[str]:
+    names = [n.strip() for n in spec.split(",") if n.strip()]
+    bad = [n for n in names if n not in valid]
+    if bad or not names:
+        raise CliError(f"--planners {spec}: unknown planner(s) {', '.join(bad) or '(none given)'}; valid: {', '.join(valid)}")
+    return names
