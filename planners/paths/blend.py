@@ -29,7 +29,9 @@ def line_blend(u1: np.ndarray, u2: np.ndarray, room: float, tolerance: float):
     The arc touches the lines at d = R·tan(δ/2) from the corner and passes the corner at
     R·(1/cos(δ/2) − 1), δ being the turn angle.
     """
-    delta = math.acos(max(-1.0, min(1.0, float(u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2]))))
+    # atan2(|u1 × u2|, u1 · u2), not acos(u1 · u2): acos loses the angle of a nearly straight
+    # corner to rounding (~1e-8 rad), and R·δ then puts the arc's end 1e-7 mm off its line
+    delta = math.atan2(float(norm3(cross3(u1, u2))), float(u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2]))
     half = 0.5 * delta
     R_room = room / math.tan(half)
     sec_m1 = 1.0 / math.cos(half) - 1.0
@@ -59,7 +61,8 @@ def blend_corners(segments, tolerances):
     if cand:
         U = np.array([g.direction if g.kind == "line" else (0.0, 0.0, 0.0) for g in segs])
         c = np.array(cand)
-        turns = np.arccos(np.clip(np.einsum("ij,ij->i", U[c], U[c + 1]), -1.0, 1.0)).tolist()
+        turns = np.arctan2(np.linalg.norm(np.cross(U[c], U[c + 1]), axis=1),
+                           np.einsum("ij,ij->i", U[c], U[c + 1])).tolist()
     for i, turn in zip(cand, turns):
         a, b, tol = segs[i], segs[i + 1], tolerances[i]
         if not tol > 0:
@@ -92,6 +95,10 @@ def blend_corners(segments, tolerances):
             m = u2 - math.cos(delta) * u1
             m /= norm3(m)
             n = cross3(u1, u2)
+            n /= norm3(n)
+            # n exactly ⟂ m: on a nearly straight corner both carry ~1e-10 rounding, and Arc
+            # projects start − centre (= −R·m, R up to 10⁴ mm) onto n's plane, moving the arc 1e-6 mm
+            n = n - (n[0] * m[0] + n[1] * m[1] + n[2] * m[2]) * m
             n /= norm3(n)
             t1 = g.end - d * u1
             out.append(Arc.exact(t1, t1 + R * m, n, delta, segs[i + 1].line))
