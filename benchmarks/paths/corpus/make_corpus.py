@@ -156,7 +156,11 @@ def measure(path, machine, step=0.01):
 
 
 class Corpus:
-    def __init__(self):
+    """Builds the paths in order (path k draws from SEED + 1000·k); ``out``: where the files
+    go; ``only``: names to build (the others are skipped but keep their seeds)."""
+
+    def __init__(self, out=HERE, only=None):
+        self.out, self.only = Path(out), only
         self.entries = []
         self.machines = {m: load_machine(m) for m in FRAME}
         self.k = 0
@@ -169,6 +173,8 @@ class Corpus:
     def nurbs(self, name, machine, kind, source, hard, build):
         """build(rng) -> NURBS dict; redrawn (next sub-seed) until the path fits the machine."""
         self.k += 1
+        if self.only is not None and name not in self.only:
+            return
         for attempt in range(40):
             seed = SEED + 1000 * self.k + attempt
             rng = np.random.default_rng(seed)
@@ -185,7 +191,7 @@ class Corpus:
         else:
             raise SystemExit(f"{name}: no draw fits {machine} in 40 attempts (last: {last})")
         file = f"{name}.json"
-        with open(HERE / file, "w") as f:
+        with open(self.out / file, "w") as f:
             json.dump(d, f, indent=1)
             f.write("\n")
         self.entries.append({"name": name, "file": file, "machine": machine, "kind": kind,
@@ -196,13 +202,15 @@ class Corpus:
     def gcode(self, name, machine, kind, hard, lines_fn):
         """lines_fn(rng) -> program lines; redrawn (next sub-seed) until it fits the machine."""
         self.k += 1
+        if self.only is not None and name not in self.only:
+            return
         m = self.machines[machine]
         file = f"{name}.ngc"
         for attempt in range(40):
             seed = SEED + 1000 * self.k + attempt
             text = "\n".join(lines_fn(np.random.default_rng(seed))) + "\n"
-            (HERE / file).write_text(text)
-            path = load_path(HERE / file, home=m.home)
+            (self.out / file).write_text(text)
+            path = load_path(self.out / file, home=m.home)
             facts, bad = self._check(name, path, machine)
             if bad is None:
                 break
@@ -413,8 +421,8 @@ def cam_program(machine, n_harm=5, step=(0.15, 0.6), blend=0.01, fill=0.85, turn
 
 
 # --- the corpus ---------------------------------------------------------------------------
-def build() -> Corpus:
-    C = Corpus()
+def build(out=HERE, only=None) -> Corpus:
+    C = Corpus(out, only)
     lit = BUTTERFLY_SOURCE
     # literature: the butterfly on each machine, flat and tilted
     C.nurbs("butterfly_keops", "keops", "nurbs-literature", lit,
