@@ -104,6 +104,17 @@ POLISH_MAX_SPANS = 90
 POLISH_SAMPLES_PER_SPAN = 16
 POLISH_ACTIVE = 0.7
 POLISH_ROWS_PER_COEFF = 20
+# Size bound of a piece (issue 17): the seed's switch times as knots give a piece as many control
+# points as its seed has jerk phases, and the dense (samples × control points) basis and seed fit
+# grew with the square of its length (a 44 s kossel piece: 1685 knots, 44 000 seed samples,
+# 2.5 GB).  Above BASIS_MAX_ELEMENTS (2.5 × test_part's largest, 19 505 × 99) a piece is searched
+# on its share of `control_points` at the seed's jerk quantiles (as exact_knots=False), on at most
+# FALLBACK_SAMPLES samples, its seed fitted on at most FALLBACK_SAMPLES of its samples; the
+# profile's info['fallback'] lists those pieces.  The price: the seed is no longer represented, and
+# on the 60 s bench_long_programs program pso ends at 663 s against 120 s unbounded (2.5 GB);
+# at quantile knots up to the bound (~200 control points) it was 1292 s.
+BASIS_MAX_ELEMENTS = 5_000_000
+FALLBACK_SAMPLES = 20_000
 
 
 class _Shape:
@@ -162,6 +173,20 @@ class _Shape:
         return np.maximum(x, 1e-6 * max(v.max(), 1e-9))
 
 
+def _first_at_or_after(s, points):
+    """(P, J) index of each row's first sample ≥ each point, 0 where none is (np.argmax of
+    s ≥ point, as the join terms had it), clipped to [1, M − 1].  By a search in each row's
+    running maximum: O(P·J·log M), where a (P, M) comparison per join made a piece's evaluation
+    quadratic in its length (a 44 s kossel piece: 800 joins × 8900 samples × 40 particles)."""
+    out = np.zeros((s.shape[0], len(points)), dtype=np.intp)
+    if len(points):
+        top = np.maximum.accumulate(s, axis=1)
+        for r in range(s.shape[0]):
+            i = np.searchsorted(top[r], points, side="left")
+            out[r] = np.where(i < s.shape[1], i, 0)
+    return np.clip(out, 1, s.shape[1] - 1)
+
+
 def local_need(table, s, v, a, j, lim, m, cap_grid, cap_vals, each=False):
     """(P, M) time stretch each sample alone asks for: the λ at which its joint velocity,
     acceleration and jerk (÷ λ, λ², λ³) and its feed (÷ λ) meet the limits tightened by m.
@@ -206,12 +231,12 @@ class _PieceProblem:
         cols = [local_need(self.table, s, v, a, j, self.lim, m, self.cap_grid, self.cap_vals, each)]
         rows = np.arange(len(v))
         Jm = self.lim.j * m
-        for (sj, dq2), (D1, D2, D3) in zip(self.joins, self.join_derivs):
+        first = _first_at_or_after(s, [sj for sj, _ in self.joins])
+        for (sj, dq2), (D1, D2, D3), i in zip(self.joins, self.join_derivs, first.T):
             # the join as `optimal` bounds it: its T-reading 0.75·Δq″·ṡ²/T plus the continuous
             # jerk on either side within the jerk limit.  ṡ, s̈, s⃛ at the join are interpolated
             # between the samples around it: the sample after a 0.04 mm blend arc may already be
             # far up the next line's ramp
-            i = np.clip(np.argmax(s >= sj, axis=1), 1, s.shape[1] - 1)
             sa, sb = s[rows, i - 1], s[rows, i]
             f = np.clip((sj - sa) / np.maximum(sb - sa, 1e-12), 0.0, 1.0)
             vj, aj, jj = ((1 - f) * x[rows, i - 1] + f * x[rows, i] for x in (v, a, j))
@@ -551,6 +576,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     # cut wins on keops' bird (swarm alone: 1.878 s against 2.132 s), whole on kossel's
     # bird_kossel, whose seconds-long sub-pieces 10 uniform control points cannot shape
     probs, X0, tags = [], [], []                 # tags: (piece, "whole" | "cut")
+    fallback = []                                # pieces over the size bound (BASIS_MAX_ELEMENTS)
     for g, ((s0, s1), K) in enumerate(zip(pcs, Ks)):
         tau, vv, jj, D, knots = _seed_window(seed_prof, s0, s1)
         # with the seed's jerk switch times as knots a quadratic B-spline holds the s-curve
@@ -558,8 +584,16 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         # samples at least every 8 servo periods of the seed's time on the piece (a 17 s piece
         # of kossel's test_part would get one per 42 ms, coarser than its feed dips)
         M = max(samples, int(math.ceil(D / (8 * T))))
-        pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K * extra_knots) if knots is not None and exact_knots else int(K), M, table.s, cap,
-                           knot_density(tau, jj), inner=knots if exact_knots else None)
+        exact = knots is not None and exact_knots
+        if exact and (M + 2 * len(knots) + len(tau)) * (len(knots) + K) > BASIS_MAX_ELEMENTS:
+            exact, M = False, min(M, FALLBACK_SAMPLES)
+            keep = np.unique(np.concatenate([np.arange(0, len(tau), int(math.ceil(len(tau) / FALLBACK_SAMPLES))),
+                                             [len(tau) - 1]]))
+            tau, vv, jj = tau[keep], vv[keep], jj[keep]
+            fallback.append({"piece": g, "s_mm": [round(float(s0), 6), round(float(s1), 6)],
+                             "seed_knots": len(knots), "control_points": int(K), "samples": M})
+        pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K * extra_knots) if exact else int(K), M,
+                           table.s, cap, knot_density(tau, jj), inner=knots if exact else None)
         probs.append(pr)
         X0.append(pr.shape.fit(tau, vv))
         tags.append((g, "whole"))
@@ -692,6 +726,9 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                         for i in sorted(set(range(0, len(history), max(1, len(history) // 50)))
                                         | {len(history) - 1})],
             "swarm_time_s": float(swarm_total), "polish": polished,
+            **({"fallback": {"reason": f"piece over the size bound of {BASIS_MAX_ELEMENTS} basis elements: "
+                                       "searched at the seed's jerk quantiles, not its switch times",
+                             "pieces": fallback}} if fallback else {}),
             "time_to_target_s": time_to_target}
     # check at T with the independent metrics; stretch the pieces whose samples at T read
     # above a limit (the swarm saw only its own samples) by just that excess

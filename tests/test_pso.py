@@ -178,3 +178,32 @@ def test_polish_climbs_to_the_feed_cap():
     assert need[0] <= 1 + 1e-7 and f == pytest.approx(d[0], rel=1e-6)
     assert d[0] == pytest.approx(L / c, rel=1e-4)
     assert 0 < its <= 60
+
+
+def test_join_index_search_is_the_first_sample_at_or_after_each_join():
+    # the per-join (P, M) comparison it replaces: first index with s ≥ join, 0 if none, clipped
+    rng = np.random.default_rng(5)
+    s = np.cumsum(rng.random((7, 50)), axis=1)
+    s[2, 20:23] = s[2, 19] - 0.5                 # a row that dips (rounding at a plateau)
+    pts = [-1.0, 0.3, 3.0, 10.0, 24.9, 25.0, 1e9]
+    want = np.stack([np.clip(np.argmax(s >= p, axis=1), 1, 49) for p in pts], axis=1)
+    assert np.array_equal(pso._first_at_or_after(s, pts), want)
+    assert pso._first_at_or_after(s, []).shape == (7, 0)
+
+
+def test_piece_over_the_size_bound_is_searched_at_quantile_knots_and_reported(monkeypatch):
+    monkeypatch.setattr(pso, "BASIS_MAX_ELEMENTS", 1000)
+    a = plan("pso", PATH, KEOPS, seed=3, **FAST)
+    b = plan("pso", PATH, KEOPS, seed=3, **FAST)
+    assert np.array_equal(a.s, b.s) and a.info["fallback"] == b.info["fallback"]
+    (fb,) = a.info["fallback"]["pieces"]             # one rest-to-rest piece, over the bound
+    assert fb["piece"] == 0 and fb["s_mm"] == [0.0, round(PATH.length, 6)] and fb["seed_knots"] > 8
+    # what it documents: the search of exact_knots=False (its few samples need no thinning)
+    c = plan("pso", PATH, KEOPS, seed=3, exact_knots=False, **FAST)
+    assert np.array_equal(a.s, c.s) and np.array_equal(a.sddd, c.sddd) and "fallback" not in c.info
+    r = command_metrics(KEOPS, PATH.point(a.s), a.T, a.s)
+    assert r["feasible"]
+    # under the bound: the seed's switch times as knots, no fallback
+    monkeypatch.undo()
+    d = plan("pso", PATH, KEOPS, seed=3, **FAST)
+    assert "fallback" not in d.info and not np.array_equal(d.s, a.s)
