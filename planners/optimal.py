@@ -324,7 +324,20 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
     pcs = toppra_ref.pieces(path)
     problems, starts, bounds = [], [], []
     budgets = [max_nodes_per_piece] * len(pcs)
-    for s0, s1 in pcs:
+    for g, (s0, s1) in enumerate(pcs):
+        # node budget (issue 17): every phase between G1 joins needs MIN_PHASE_NODES, so a piece
+        # of many short blended chords outgrew any budget (a 44 s piece of a CAM-like kossel
+        # program: 830 phases, 20 000 nodes) and IPOPT ran for hours: refused up front instead
+        phases = 1 + sum(1 for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6)
+        if phases * MIN_PHASE_NODES > MAX_NODES_REFINED:
+            where = ""
+            if hasattr(path, "line_at"):
+                la, lb = (int(x) for x in path.line_at(np.array([s0, s1])))
+                where = f", G-code lines {la}…{lb}" if la >= 0 and lb >= 0 else ""
+            raise PlanningError(f"optimal: piece {g} (s = {s0:.6g}…{s1:.6g} mm{where}) has {phases} phases "
+                                f"between G1 joins, needing {phases * MIN_PHASE_NODES} nodes "
+                                f"({MIN_PHASE_NODES} a phase): over the node budget of "
+                                f"{MAX_NODES_REFINED} nodes a piece")
         piece = _Piece(table, cap, s0, s1, limits, margin, joins, T)
         bounds.append([s0] + [sj for sj, _ in piece.joins] + [s1])
         problems.append(piece)
