@@ -318,16 +318,12 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
     table = PathTable(path, machine)
     cap = cap_table(path, table, limits, T)
     joins = join_jumps(path, table, machine)
-    if warm is None:
-        from .scurve import plan_joint
-        warm = plan_joint(path, machine, limits)
     pcs = toppra_ref.pieces(path)
-    problems, starts, bounds = [], [], []
-    budgets = [max_nodes_per_piece] * len(pcs)
     for g, (s0, s1) in enumerate(pcs):
         # node budget (issue 17): every phase between G1 joins needs MIN_PHASE_NODES, so a piece
         # of many short blended chords outgrew any budget (a 44 s piece of a CAM-like kossel
-        # program: 830 phases, 20 000 nodes) and IPOPT ran for hours: refused up front instead
+        # program: 830 phases, 20 000 nodes) and IPOPT ran for hours: refused before the warm start
+        # (the seed) is planned
         phases = 1 + sum(1 for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6)
         if phases * MIN_PHASE_NODES > MAX_NODES_REFINED:
             where = ""
@@ -338,6 +334,12 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
                                 f"between G1 joins, needing {phases * MIN_PHASE_NODES} nodes "
                                 f"({MIN_PHASE_NODES} a phase): over the node budget of "
                                 f"{MAX_NODES_REFINED} nodes a piece")
+    if warm is None:
+        from .scurve import plan_joint
+        warm = plan_joint(path, machine, limits)
+    problems, starts, bounds = [], [], []
+    budgets = [max_nodes_per_piece] * len(pcs)
+    for s0, s1 in pcs:
         piece = _Piece(table, cap, s0, s1, limits, margin, joins, T)
         bounds.append([s0] + [sj for sj, _ in piece.joins] + [s1])
         problems.append(piece)
