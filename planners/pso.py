@@ -112,7 +112,9 @@ POLISH_ROWS_PER_COEFF = 20
 # FALLBACK_SAMPLES samples, its seed fitted on at most FALLBACK_SAMPLES of its samples; the
 # profile's info['fallback'] lists those pieces.  The price: the seed is no longer represented, and
 # on the 60 s bench_long_programs program pso ends at 663 s against 120 s unbounded (2.5 GB);
-# at quantile knots up to the bound (~200 control points) it was 1292 s.
+# at quantile knots up to the bound (~200 control points) it was 1292 s.  On the 600 s program
+# it ends at 18 546 s, and sampling that at T peaks at 5.6 GB: not yet a usable fallback
+# (a banded basis keeping the switch-time knots would be).
 BASIS_MAX_ELEMENTS = 5_000_000
 FALLBACK_SAMPLES = 20_000
 
