@@ -58,7 +58,9 @@ import math
 import time
 
 import numpy as np
+from scipy import sparse as sp
 from scipy.interpolate import BSpline
+from scipy.linalg import LinAlgError, solveh_banded
 
 from .joint_limits import (PathTable, PlanningError, check_limits, check_path, corner_list,
                            feed_cap, joint_derivs, second_derivative_jumps)
@@ -106,25 +108,44 @@ POLISH_ACTIVE = 0.7
 POLISH_ROWS_PER_COEFF = 20
 # Size bound of a piece (issue 17): the seed's switch times as knots give a piece as many control
 # points as its seed has jerk phases, and the dense (samples × control points) basis and seed fit
-# grew with the square of its length (a 44 s kossel piece: 1685 knots, 44 000 seed samples,
-# 2.5 GB).  Above BASIS_MAX_ELEMENTS (2.5 × test_part's largest, 19 505 × 99) a piece is searched
-# on its share of `control_points` at the seed's jerk quantiles (as exact_knots=False), on at most
-# FALLBACK_SAMPLES samples, its seed fitted on at most FALLBACK_SAMPLES of its samples; the
-# profile's info['fallback'] lists those pieces.  The price: the seed is no longer represented, and
-# on the 60 s bench_long_programs program pso ends at 663 s against 120 s unbounded (2.5 GB);
-# at quantile knots up to the bound (~200 control points) it was 1292 s.  On the 600 s program
-# it ends at 18 546 s, and sampling that at T peaks at 5.6 GB: not yet a usable fallback
-# (a banded basis keeping the switch-time knots would be).
+# grow with the square of its length (a 44 s kossel piece: 1685 knots, 44 000 seed samples,
+# 2.5 GB).  Above BASIS_MAX_ELEMENTS (2.5 × test_part's largest, 19 505 × 99) a piece keeps those
+# knots but holds its basis sparse (`_sparse_basis`, a banded seed fit) and is not polished; the
+# profile's info['fallback'] lists those pieces.  Under the bound the dense arrays are kept.
 BASIS_MAX_ELEMENTS = 5_000_000
-FALLBACK_SAMPLES = 20_000
+
+
+def _sparse_basis(knots, p, tau):
+    """CSR design matrices at τ of the degree-p B-splines on ``knots`` (M, K), of their first
+    and second derivatives, and of the antiderivative (M, K + 1, degree p + 1 on the knots with
+    one more at each end), with the weights wₖ = ∫₀¹Bₖ = (t_{k+p+1} − t_k)/(p + 1): the
+    antiderivative of Σcₖ Bₖ has the coefficients 0, w₀c₀, w₀c₀ + w₁c₁, …  Each row holds at
+    most p + 2 nonzeros, so memory grows with M + K, not M·K as the dense arrays do."""
+    K = len(knots) - p - 1
+
+    def diff(t, q, n):
+        # (n − 1, n): coefficients of the derivative of a degree-q spline on t (knots t[1:−1])
+        h = t[q + 1:n + q] - t[1:n]
+        g = np.where(h > 0, q / np.where(h > 0, h, 1.0), 0.0)
+        return sp.diags([-g, g], [0, 1], shape=(n - 1, n), format="csr")
+
+    d1 = diff(knots, p, K)
+    B = BSpline.design_matrix(tau, knots, p)
+    B1 = BSpline.design_matrix(tau, knots[1:-1], p - 1) @ d1
+    B2 = BSpline.design_matrix(tau, knots[2:-2], p - 2) @ (diff(knots[1:-1], p - 1, K - 1) @ d1)
+    A = BSpline.design_matrix(tau, np.concatenate([knots[:1], knots, knots[-1:]]), p + 1)
+    w = (knots[p + 1:] - knots[:K]) / (p + 1)
+    return B.tocsr(), B1.tocsr(), B2.tocsr(), A.tocsr(), w
 
 
 class _Shape:
     """B-spline basis over τ ∈ [0, 1] sampled at M points (and its antiderivative)."""
 
-    def __init__(self, K: int, M: int, density=None, degree: int = DEGREE, inner=None):
+    def __init__(self, K: int, M: int, density=None, degree: int = DEGREE, inner=None,
+                 sparse: bool = False):
         """``density``: (τ grid, weights) — knots and samples at its quantiles (uniform if
-        None); ``inner``: explicit knots in [0, 1] (then K follows from them)."""
+        None); ``inner``: explicit knots in [0, 1] (then K follows from them); ``sparse``: the
+        basis as CSR matrices (see `_sparse_basis`), for a piece over BASIS_MAX_ELEMENTS."""
         self.degree = p = degree
         if inner is not None:
             if density is not None and K > 0:      # add K knots at the density's quantiles
@@ -152,6 +173,11 @@ class _Shape:
         if len(inner) != K - p + 1:
             inner = np.interp(np.linspace(0, 1, K - p + 1), np.linspace(0, 1, len(inner)), inner)
         self.knots = np.concatenate([[0] * p, inner, [1] * p])
+        self.free = np.arange(2, K - 2)
+        self.sparse = sparse
+        if sparse:
+            self.B, self.B1, self.B2, self.A, self.w = _sparse_basis(self.knots, p, self.tau)
+            return
         eye = np.eye(K)
         basis = [BSpline(self.knots, eye[k], self.degree) for k in range(K)]
         self.B = np.stack([b(self.tau) for b in basis], 1)               # (M, K)
@@ -159,7 +185,6 @@ class _Shape:
         self.B2 = np.stack([b.derivative(2)(self.tau) for b in basis], 1)
         anti = [b.antiderivative(1) for b in basis]
         self.I = np.stack([a(self.tau) - a(0.0) for a in anti], 1)        # ∫₀^τ Bₖ
-        self.free = np.arange(2, K - 2)
 
     def full(self, X):
         """Control points (P, K) from free coefficients (P, K−4), ends pinned at rest."""
@@ -167,8 +192,33 @@ class _Shape:
         C[:, self.free] = np.maximum(X, 0.0)
         return C
 
+    def eval(self, C):
+        """(∫₀¹ṡ dτ (P,), ∫₀^τ ṡ, ṡ, ṡ′, ṡ″ (P, M) each) of control points C (P, K)."""
+        if not self.sparse:
+            return C @ self.I[-1], C @ self.I.T, C @ self.B.T, C @ self.B1.T, C @ self.B2.T
+        # the antiderivative's coefficients: running sums of wₖcₖ from 0 (see _sparse_basis)
+        anti = np.concatenate([np.zeros((C.shape[0], 1)), np.cumsum(C * self.w, axis=1)], axis=1)
+        return (C @ self.w, (self.A @ anti.T).T, (self.B @ C.T).T, (self.B1 @ C.T).T,
+                (self.B2 @ C.T).T)
+
     def fit(self, tau, v):
         """Least-squares free coefficients of a sampled feed v(τ)."""
+        if self.sparse:
+            # normal equations of a B-spline basis are banded (half-bandwidth = degree): a
+            # banded Cholesky solve, O(samples + K) memory where lstsq needs samples × K
+            B = BSpline.design_matrix(tau, self.knots, self.degree).tocsc()[:, self.free]
+            N, rhs, p = (B.T @ B).todia(), B.T @ v, self.degree
+            ab = np.zeros((p + 1, len(self.free)))
+            for d in range(p + 1):
+                ab[p - d, d:] = N.diagonal(d)
+            try:
+                x = solveh_banded(ab, rhs)
+            except LinAlgError:
+                # a span without samples (seed switch times closer than its sampling) leaves
+                # the fit singular there; a tiny ridge picks the small-norm coefficients
+                ab[p] += 1e-12 * ab[p].max()
+                x = solveh_banded(ab, rhs)
+            return np.maximum(x, 1e-6 * max(v.max(), 1e-9))
         eye = np.eye(self.K)
         B = np.stack([BSpline(self.knots, eye[k], self.degree)(tau) for k in range(self.K)], 1)
         x, *_ = np.linalg.lstsq(B[:, self.free], v, rcond=None)
@@ -208,10 +258,10 @@ def local_need(table, s, v, a, j, lim, m, cap_grid, cap_vals, each=False):
 
 class _PieceProblem:
     def __init__(self, table, s0, s1, limits, T, joins, K, M, cap_grid, cap_vals, density=None,
-                 inner=None):
+                 inner=None, sparse=False):
         self.table, self.s0, self.s1, self.L = table, s0, s1, s1 - s0
         self.limits, self.lim, self.T, self.all_joins = limits, limits.joint, T, joins
-        self.shape = _Shape(K, M, density, inner=inner)
+        self.shape = _Shape(K, M, density, inner=inner, sparse=sparse)
         self.joins = [(sj, d) for sj, d in joins if s0 + 1e-6 < sj < s1 - 1e-6]
         # one-sided joint derivatives at each join (q″ jumps there)
         self.join_derivs = [table.joints(np.array([sj - 1e-9, sj + 1e-9])) for sj, _ in self.joins]
@@ -222,12 +272,12 @@ class _PieceProblem:
         profile arrays at λ = 1: the piece's λ is the row maximum (``each``: see local_need)."""
         sh = self.shape
         C = sh.full(X)
-        area = C @ sh.I[-1]                                  # ∫₀¹ ṡ dτ per particle
+        area, S, V, A, J = sh.eval(C)                        # area: ∫₀¹ ṡ dτ per particle
         bad = area <= 1e-12
         area = np.where(bad, 1.0, area)
         k = (self.L / area)[:, None]
-        s = self.s0 + k * (C @ sh.I.T)                       # (P, M), exact
-        v, a, j = k * (C @ sh.B.T), k * (C @ sh.B1.T), k * (C @ sh.B2.T)
+        s = self.s0 + k * S                                  # (P, M), exact
+        v, a, j = k * V, k * A, k * J
         s = np.clip(s, self.s0 + 1e-9, self.s1 - 1e-9)
         m = 1 - margin
         cols = [local_need(self.table, s, v, a, j, self.lim, m, self.cap_grid, self.cap_vals, each)]
@@ -587,15 +637,14 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         # of kossel's test_part would get one per 42 ms, coarser than its feed dips)
         M = max(samples, int(math.ceil(D / (8 * T))))
         exact = knots is not None and exact_knots
-        if exact and (M + 2 * len(knots) + len(tau)) * (len(knots) + K) > BASIS_MAX_ELEMENTS:
-            exact, M = False, min(M, FALLBACK_SAMPLES)
-            keep = np.unique(np.concatenate([np.arange(0, len(tau), int(math.ceil(len(tau) / FALLBACK_SAMPLES))),
-                                             [len(tau) - 1]]))
-            tau, vv, jj = tau[keep], vv[keep], jj[keep]
-            fallback.append({"piece": g, "s_mm": [round(float(s0), 6), round(float(s1), 6)],
-                             "seed_knots": len(knots), "control_points": int(K), "samples": M})
+        over = exact and (M + 2 * len(knots) + len(tau)) * (len(knots) + K) > BASIS_MAX_ELEMENTS
         pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K * extra_knots) if exact else int(K), M,
-                           table.s, cap, knot_density(tau, jj), inner=knots if exact else None)
+                           table.s, cap, knot_density(tau, jj), inner=knots if exact else None,
+                           sparse=over)
+        if over:
+            fallback.append({"piece": g, "s_mm": [round(float(s0), 6), round(float(s1), 6)],
+                             "seed_knots": len(knots), "control_points": int(pr.shape.K),
+                             "samples": int(len(pr.shape.tau)), "polish": "skipped"})
         probs.append(pr)
         X0.append(pr.shape.fit(tau, vv))
         tags.append((g, "whole"))
@@ -692,6 +741,11 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         for k, (pr, sw, (g, opt)) in enumerate(zip(probs, swarm, tags)):
             if sw is None or chosen[g][0] != opt:
                 continue
+            if isinstance(pr, _PieceProblem) and pr.shape.sparse:
+                # over the size bound: the polish's forward differences evaluate K + 1 particles
+                # at every sample (K ~ the seed's jerk phases), and its finer uniform spline of
+                # at most POLISH_MAX_SPANS spans could not hold the seed; the swarm's best stays
+                continue
             fine, x = pr.refined(sw["g"])
             x, f, its = polish(fine, x, margin, polish_steps)
             polished.append([g, round(sw["fg"], 6), round(f, 6), its])
@@ -729,7 +783,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                                         | {len(history) - 1})],
             "swarm_time_s": float(swarm_total), "polish": polished,
             **({"fallback": {"reason": f"piece over the size bound of {BASIS_MAX_ELEMENTS} basis elements: "
-                                       "searched at the seed's jerk quantiles, not its switch times",
+                                       "sparse basis at the seed's switch times, no polish",
                              "pieces": fallback}} if fallback else {}),
             "time_to_target_s": time_to_target}
     # check at T with the independent metrics; stretch the pieces whose samples at T read

@@ -191,19 +191,42 @@ def test_join_index_search_is_the_first_sample_at_or_after_each_join():
     assert pso._first_at_or_after(s, []).shape == (7, 0)
 
 
-def test_piece_over_the_size_bound_is_searched_at_quantile_knots_and_reported(monkeypatch):
+def test_sparse_basis_is_the_dense_basis():
+    # a small piece's knots (uneven, as the seed's switch times are); dense arrays from
+    # BSpline per basis function, the sparse ones from design matrices and the derivative
+    # and antiderivative recurrences
+    rng = np.random.default_rng(2)
+    inner = np.sort(rng.random(25))
+    d = pso._Shape(0, 300, inner=inner)
+    s = pso._Shape(0, 300, inner=inner, sparse=True)
+    assert s.K == d.K and np.array_equal(s.tau, d.tau)
+    for D, S in ((d.B, s.B), (d.B1, s.B1), (d.B2, s.B2)):
+        assert np.abs(D - S.toarray()).max() <= 1e-12 * np.abs(D).max()
+    C = rng.random((4, d.K))
+    for x, y in zip(d.eval(C), s.eval(C)):
+        assert np.abs(x - y).max() <= 1e-12 * np.abs(x).max()
+    tau = np.linspace(0.0, 1.0, 2000)
+    v = 1.5 + np.sin(3 * tau)
+    assert np.allclose(s.fit(tau, v), d.fit(tau, v), rtol=0, atol=1e-12)
+
+
+def test_piece_over_the_size_bound_is_searched_sparse_from_its_seed(monkeypatch):
+    seed = plan("scurve_joint", PATH, KEOPS)
+    opts = dict(seed=3, seed_profile=seed, particles=16, iterations=20, control_points=30)
     monkeypatch.setattr(pso, "BASIS_MAX_ELEMENTS", 1000)
-    a = plan("pso", PATH, KEOPS, seed=3, **FAST)
-    b = plan("pso", PATH, KEOPS, seed=3, **FAST)
-    assert np.array_equal(a.s, b.s) and a.info["fallback"] == b.info["fallback"]
+    a = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
+    b = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
+    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
     (fb,) = a.info["fallback"]["pieces"]             # one rest-to-rest piece, over the bound
-    assert fb["piece"] == 0 and fb["s_mm"] == [0.0, round(PATH.length, 6)] and fb["seed_knots"] > 8
-    # what it documents: the search of exact_knots=False (its few samples need no thinning)
-    c = plan("pso", PATH, KEOPS, seed=3, exact_knots=False, **FAST)
-    assert np.array_equal(a.s, c.s) and np.array_equal(a.sddd, c.sddd) and "fallback" not in c.info
+    assert fb["piece"] == 0 and fb["s_mm"] == [0.0, round(PATH.length, 6)] and fb["polish"] == "skipped"
+    assert fb["seed_knots"] > 8 and fb["control_points"] > fb["seed_knots"]
+    assert a.execution_time_s <= seed.execution_time_s
     r = command_metrics(KEOPS, PATH.point(a.s), a.T, a.s)
-    assert r["feasible"]
-    # under the bound: the seed's switch times as knots, no fallback
+    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
+    # the whole piece's swarm is the dense one's (same knots, same start, same random numbers):
+    # its best per iteration agrees to rounding
     monkeypatch.undo()
-    d = plan("pso", PATH, KEOPS, seed=3, **FAST)
-    assert "fallback" not in d.info and not np.array_equal(d.s, a.s)
+    d = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
+    assert "fallback" not in d.info
+    assert np.allclose([h[1] for h in a.info["history"]], [h[1] for h in d.info["history"]],
+                       rtol=1e-9, atol=0)
