@@ -33,7 +33,9 @@ samples; the swarm only searches shapes.  A sub-piece's ends are fixed, so its o
 its duration × max(1, worst ratio)^PENALTY_POWER instead.  The whole swarm is evaluated at
 once (particles × samples arrays).  After the search the best profile is sampled at T and
 checked with the independent metrics; a discretisation excess is removed by a further small
-stretch of the whole piece (with its join feeds).
+stretch of the whole piece (with its join feeds).  The seed is returned where it is faster and
+feasible; where it is faster but breaks a limit at T, its fit is stretched at T the same way
+and each rest-to-rest piece takes the shorter of that and the swarm's.
 
 Polish (a memetic step, after the swarm).  A swarm finds the basin — which pieces to cut,
 the shape of each stretch — but converges slowly in it (bird: 1.916 s after 40 iterations,
@@ -559,6 +561,38 @@ def knot_density(tau, jerk):
     return tau, 1.0 + (w / area if area > 0 else 0.0)
 
 
+def _stretch_at_T(pieces, groups, T, path, machine, limits, info):
+    """(profile, its metrics) of the pieces sampled at T, each group (a rest-to-rest piece)
+    stretched, up to 8 times, by the worst need of the samples whose time falls in it; profile
+    None if still infeasible.  Mutates the pieces' λ."""
+    from harness.metrics import command_metrics, differences
+    lim = limits.joint
+    for _ in range(8):
+        prof = _sample(pieces, T, path, info)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
+            return prof, r
+        D = {o: np.abs(x).max(axis=1) for o, x in differences(machine.ik(path.point(prof.s)), T).items()}
+        feed = np.diff(prof.s) / T / limits.feed_max
+        need = np.zeros(len(prof.s))
+        need[1:] = np.maximum(D["velocity"] / lim.v, feed)
+        need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
+        need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
+        starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
+        k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
+        grp = np.array([p["group"] for p in pieces])[k]
+        for g in range(groups):
+            # a whole rest-to-rest piece is stretched (its sub-pieces' join feeds scale with it),
+            # by the worst need of the samples whose time falls in it
+            near = grp == g
+            worst = float(need[near].max()) if near.any() else 0.0
+            if worst > 1.0:
+                for p in pieces:
+                    if p["group"] == g:
+                        p["lam"] *= worst * (1 + 1e-4)
+    return None, r
+
+
 def _sample(pieces, T, path, info) -> Profile:
     """Evaluate each piece's B-spline exactly at multiples of T and join them."""
     starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
@@ -598,7 +632,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     proportion to the seed's time on each); ``polish_steps``: SLP steps per piece after the
     swarm (POLISH_ITERATIONS if None, 0: none); ``target_time_s``: record when the best total
     (swarm, then polished) first reaches it (``info['time_to_target_s']``), for the benchmark."""
-    from harness.metrics import command_metrics, differences
+    from harness.metrics import command_metrics
     from .scurve import plan_joint
 
     t0 = time.perf_counter()
@@ -628,6 +662,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     # cut wins on keops' bird (swarm alone: 1.878 s against 2.132 s), whole on kossel's
     # bird_kossel, whose seconds-long sub-pieces 10 uniform control points cannot shape
     probs, X0, tags = [], [], []                 # tags: (piece, "whole" | "cut")
+    seed_pieces = []                             # the seed's fit per piece, in _sample's form
     fallback = []                                # pieces over the size bound (BASIS_MAX_ELEMENTS)
     for g, ((s0, s1), K) in enumerate(zip(pcs, Ks)):
         tau, vv, jj, D, knots = _seed_window(seed_prof, s0, s1)
@@ -648,6 +683,12 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         probs.append(pr)
         X0.append(pr.shape.fit(tau, vv))
         tags.append((g, "whole"))
+        if seed_pieces is not None and exact:
+            seed_pieces.append({"lam": D, "lam0": D, "C": pr.shape.full(X0[-1][None, :])[0],
+                                "knots": pr.shape.knots, "degree": pr.shape.degree, "s0": s0, "L": s1 - s0,
+                                "group": g})
+        else:
+            seed_pieces = None                   # not every piece has the seed's switch times
         inside = [(sj, d) for sj, d in joins if s0 + 1e-6 < sj < s1 - 1e-6]
         if not inside or len(inside) > MAX_JOINS_CUT:
             continue
@@ -788,31 +829,8 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
             "time_to_target_s": time_to_target}
     # check at T with the independent metrics; stretch the pieces whose samples at T read
     # above a limit (the swarm saw only its own samples) by just that excess
-    lim = limits.joint
-    for _ in range(8):
-        prof = _sample(pieces, T, path, info)
-        r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
-            break
-        D = {o: np.abs(x).max(axis=1) for o, x in differences(machine.ik(path.point(prof.s)), T).items()}
-        feed = np.diff(prof.s) / T / limits.feed_max
-        need = np.zeros(len(prof.s))
-        need[1:] = np.maximum(D["velocity"] / lim.v, feed)
-        need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
-        need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
-        starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
-        k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
-        grp = np.array([p["group"] for p in pieces])[k]
-        for g in range(len(pcs)):
-            # a whole rest-to-rest piece is stretched (its sub-pieces' join feeds scale with it),
-            # by the worst need of the samples whose time falls in it
-            near = grp == g
-            worst = float(need[near].max()) if near.any() else 0.0
-            if worst > 1.0:
-                for p in pieces:
-                    if p["group"] == g:
-                        p["lam"] *= worst * (1 + 1e-4)
-    else:
+    prof, r = _stretch_at_T(pieces, len(pcs), T, path, machine, limits, info)
+    if prof is None:
         raise PlanningError(f"pso: best particle breaks a joint limit at T: {r['joint_peak_ratio']}")
     first = {}
     for p in pieces:
@@ -829,5 +847,36 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                            info=dict(prof.info, continuous_time_s=seed_prof.info.get("continuous_time_s"),
                                      returned=f"seed ({seed_prof.planner}): the swarm's best was "
                                               f"{prof.execution_time_s:.6g} s"))
+        elif seed_pieces:
+            # the seed breaks a limit at T (on CAM-like kossel programs scurve_joint reads up to
+            # 1.10 × the jerk limit), while the swarm's start, its fit stretched to the swarm's
+            # stricter sample model (the continuous jerk on 0.04 mm blend arcs, the joins' T
+            # reading, the margin), can be slower still: the seed's fit stretched at T by just
+            # its excess per piece is feasible too.  Per rest-to-rest piece the shorter of the
+            # two is kept (the fit misses the seed where switch times closer than
+            # MIN_KNOT_GAP_T share a knot, and reads higher there), checked at T once more
+            sp_prof, _ = _stretch_at_T(seed_pieces, len(pcs), T, path, machine, limits, info)
+            if sp_prof is not None:
+                dur = {}
+                for name, pp in (("swarm", pieces), ("seed", seed_pieces)):
+                    for q in pp:
+                        dur[name, q["group"]] = dur.get((name, q["group"]), 0.0) + q["lam"]
+                pick = ["seed" if dur["seed", g] < dur["swarm", g] else "swarm" for g in range(len(pcs))]
+                mixed = [dict(q) for q in pieces if pick[q["group"]] == "swarm"] + \
+                        [dict(q) for q in seed_pieces if pick[q["group"]] == "seed"]
+                mixed.sort(key=lambda q: q["s0"])
+                mx_prof, _ = _stretch_at_T(mixed, len(pcs), T, path, machine, limits, info)
+                if mx_prof is not None and mx_prof.execution_time_s < prof.execution_time_s:
+                    first = {}
+                    for q in mixed:
+                        first.setdefault(q["group"], q)
+                    mx_prof.info.update(
+                        t_check_stretch=[round(q["lam"] / q["lam0"], 6) for q in first.values()],
+                        pieces_from=pick,
+                        returned=f"per piece the swarm's best or the seed ({seed_prof.planner}) fitted "
+                                 f"on its switch times, each stretched at T (the seed read "
+                                 f"{max(rs['joint_peak_ratio'].values()):.4g} × a joint limit): "
+                                 f"the swarm's best alone was {prof.execution_time_s:.6g} s")
+                    prof = mx_prof
     prof.planning_time_s = time.perf_counter() - t0
     return prof

@@ -1,4 +1,5 @@
 """pso: seeded determinism, beats its scurve_joint seed, feasible at T, clear errors."""
+import dataclasses
 import numpy as np
 import pytest
 
@@ -230,3 +231,24 @@ def test_piece_over_the_size_bound_is_searched_sparse_from_its_seed(monkeypatch)
     assert "fallback" not in d.info
     assert np.allclose([h[1] for h in a.info["history"]], [h[1] for h in d.info["history"]],
                        rtol=1e-9, atol=0)
+
+
+def test_an_infeasible_seed_is_stretched_at_T_where_the_swarm_is_slower():
+    # a seed planned for 1.3 × the jerk and 1.2 × the acceleration limit breaks the limits at T;
+    # with a wide margin the swarm's start (the seed stretched to 0.8 × every limit) is slower
+    # than the seed stretched at T by just its excess: ∛(jerk ratio), the jerk ruling
+    hot = dataclasses.replace(KEOPS.limits, joint=dataclasses.replace(
+        KEOPS.limits.joint, a=1.2 * KEOPS.limits.joint.a, j=1.3 * KEOPS.limits.joint.j))
+    seed = plan("scurve_joint", PATH, KEOPS, limits=hot)
+    rs = command_metrics(KEOPS, PATH.point(seed.s), seed.T, seed.s)
+    assert not rs["feasible"] and rs["joint_peak_ratio"]["jerk"] > 1.1
+    opts = dict(seed=3, seed_profile=seed, iterations=0, polish_steps=0, margin=0.2, control_points=30)
+    a = plan("pso", PATH, KEOPS, **opts)
+    b = plan("pso", PATH, KEOPS, **opts)
+    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
+    assert a.info["returned"].startswith("per piece") and a.info["pieces_from"] == ["seed"]
+    r = command_metrics(KEOPS, PATH.point(a.s), a.T, a.s)
+    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
+    assert a.execution_time_s < a.info["swarm_time_s"]
+    stretched = seed.execution_time_s * rs["joint_peak_ratio"]["jerk"] ** (1 / 3)
+    assert a.execution_time_s == pytest.approx(stretched, abs=3 * a.T)
