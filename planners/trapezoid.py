@@ -93,7 +93,7 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
 
 def program_stops(path: SegmentPath):
     """(segments after which LinuxCNC stops, segments at half acceleration) from the G-code
-    moves' ``stop``/``parabolic_end`` (planners.gcode): an M-code queue sync or a rapid ↔ feed
+    moves' ``stop``/``parabolic_end`` (planners.paths.gcode): an M-code queue sync or a rapid ↔ feed
     change stops motion even between collinear moves; the move before a sync or the program
     end keeps term_cond PARABOLIC under G64, i.e. half acceleration (tc.c
     ``tcGetOverallMaxAccel``). Blend arcs (LinuxCNC's own segments) keep full acceleration."""
