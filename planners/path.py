@@ -32,6 +32,7 @@ END_TOL = 1e-6          # mm: an arc's redundant "end" must agree this closely
 CORNER_ANGLE = 1e-6     # rad: a tangent turn larger than this is a corner (exact stop)
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 _SUBDIV = 64            # Gauss–Legendre sub-intervals per knot span (Hermite first guess → 2 Newton steps)
+_CHUNK = 65536          # arc lengths per block when a segment path evaluates many at once
 
 
 class PathError(ValueError):
@@ -533,6 +534,11 @@ class SegmentPath(Path):
         return np.clip(np.searchsorted(self.seg_start, s, side="right") - 1, 0, len(self.segments) - 1)
 
     def _derivs(self, s: np.ndarray, order: int) -> list[np.ndarray]:
+        if len(s) > _CHUNK:
+            # ~15 temporaries of (N, 3) each: a 10⁶-sample profile in one go peaked at ~0.5 GB;
+            # element-wise, so chunks give the same bits
+            parts = [self._derivs(s[k:k + _CHUNK], order) for k in range(0, len(s), _CHUNK)]
+            return [np.concatenate([p[d] for p in parts]) for d in range(order + 1)]
         i = self.segment_index(s)
         t = np.minimum(s - self.seg_start[i], self._lens[i])[:, None]
         arc = self._is_arc[i][:, None]
