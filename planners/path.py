@@ -418,6 +418,16 @@ class Arc:
         g._derive()
         return g
 
+    @classmethod
+    def from_parts(cls, start, center, normal, angle: float, line, a, b, radius: float, length: float,
+                   end) -> "Arc":
+        """A circular arc whose derived values (what _derive computes) the caller computed
+        for many arcs at once (planners.blend)."""
+        g = cls.__new__(cls)
+        g.start, g.center, g.normal, g.angle, g.rise, g.line = start, center, normal, angle, 0.0, line
+        g.a, g.b, g.radius, g.length, g.end = a, b, radius, length, end
+        return g
+
     def _derive(self) -> float:
         """In-plane basis a, b, radius, length and end; returns the centre's offset from the plane."""
         a = self.start - self.center
@@ -492,9 +502,11 @@ class SegmentPath(Path):
         segs = list(segments)
         if not segs:
             raise PathError(f"{source}: empty path (no segments)")
+        # np.stack of the rows: np.array() of a list of 10⁵ small arrays costs ~3× more
+        starts_all = np.stack([g.start for g in segs])
         if len(segs) > 1:
-            starts = np.array([g.start for g in segs[1:]])
-            gaps = np.linalg.norm(starts - np.array([g.end for g in segs[:-1]]), axis=1)
+            starts = starts_all[1:]
+            gaps = np.linalg.norm(starts - np.stack([g.end for g in segs[:-1]]), axis=1)
             bad = np.nonzero(gaps > CONTIG_TOL * np.maximum(1.0, np.abs(starts).max(axis=1)))[0]
             if len(bad):
                 i, gap = int(bad[0]) + 1, float(gaps[bad[0]])
@@ -505,15 +517,22 @@ class SegmentPath(Path):
         lens = np.array([g.length for g in segs])
         self.seg_start = np.concatenate([[0.0], np.cumsum(lens)])
         self.length = float(self.seg_start[-1])
-        # Vectorised tables (lines use a = direction, arcs the circle frame).
+        # Vectorised tables (lines use a = direction, arcs the circle frame; zeros elsewhere).
         n = len(segs)
         self._is_arc = np.array([g.kind == "arc" for g in segs])
-        self._origin = np.array([g.start if g.kind == "line" else g.center for g in segs])
-        self._dir = np.array([g.direction if g.kind == "line" else np.zeros(3) for g in segs])
-        self._a = np.array([g.a if g.kind == "arc" else np.zeros(3) for g in segs])
-        self._b = np.array([g.b if g.kind == "arc" else np.zeros(3) for g in segs])
-        self._hn = np.array([(g.rise / g.angle) * g.normal if g.kind == "arc" else np.zeros(3) for g in segs])
-        self._k = np.array([g.angle / g.length if g.kind == "arc" else 0.0 for g in segs])
+        arcs = [g for g in segs if g.kind == "arc"]
+        ia, il = np.nonzero(self._is_arc)[0], np.nonzero(~self._is_arc)[0]
+        self._origin = starts_all.copy()
+        self._dir, self._a, self._b, self._hn = (np.zeros((n, 3)) for _ in range(4))
+        self._k = np.zeros(n)
+        if len(il):
+            self._dir[il] = np.stack([segs[i].direction for i in il.tolist()])
+        if arcs:
+            self._origin[ia] = np.stack([g.center for g in arcs])
+            self._a[ia] = np.stack([g.a for g in arcs])
+            self._b[ia] = np.stack([g.b for g in arcs])
+            self._hn[ia] = np.stack([(g.rise / g.angle) * g.normal for g in arcs])
+            self._k[ia] = [g.angle / g.length for g in arcs]
         self._lens = lens
         assert len(self._k) == n
 
