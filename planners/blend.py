@@ -93,10 +93,10 @@ def blend_corners(segments, tolerances):
     trimmed = {}
     if lines:
         li = np.array(lines)
-        D = np.stack([segs[i].direction for i in lines])
+        D = np.array([segs[i].direction for i in lines])
         ts, te = np.array(trim_start)[li][:, None], np.array(trim_end)[li][:, None]
-        S = np.stack([segs[i].start for i in lines]) + ts * D
-        E = np.stack([segs[i].end for i in lines]) - te * D
+        S = np.array([segs[i].start for i in lines]) + ts * D
+        E = np.array([segs[i].end for i in lines]) - te * D
         lens = [segs[i].length - trim_start[i] - trim_end[i] for i in lines]
         trimmed = {i: (S[k], E[k], D[k], lens[k]) for k, i in enumerate(lines)}
     built = {}
@@ -105,13 +105,13 @@ def blend_corners(segments, tolerances):
         R = np.array([arcs[i][0] for i in ai])[:, None]
         d = np.array([arcs[i][1] for i in ai])[:, None]
         delta = [arcs[i][2] for i in ai]
-        U1 = np.stack([segs[i].direction for i in ai])
-        U2 = np.stack([segs[i + 1].direction for i in ai])
+        U1 = np.array([segs[i].direction for i in ai])
+        U2 = np.array([segs[i + 1].direction for i in ai])
         m = U2 - np.array([math.cos(x) for x in delta])[:, None] * U1
         m /= _norms(m)[:, None]
         n = _cross(U1, U2)
         n /= _norms(n)[:, None]
-        t1 = np.stack([segs[i].end for i in ai]) - d * U1
+        t1 = np.array([segs[i].end for i in ai]) - d * U1
         C = t1 + R * m
         # Arc._derive's in-plane basis, radius, length and end, column-wise (rise = 0)
         a = t1 - C

@@ -502,11 +502,10 @@ class SegmentPath(Path):
         segs = list(segments)
         if not segs:
             raise PathError(f"{source}: empty path (no segments)")
-        # np.stack of the rows: np.array() of a list of 10⁵ small arrays costs ~3× more
-        starts_all = np.stack([g.start for g in segs])
+        starts_all = np.array([g.start for g in segs])
         if len(segs) > 1:
             starts = starts_all[1:]
-            gaps = np.linalg.norm(starts - np.stack([g.end for g in segs[:-1]]), axis=1)
+            gaps = np.linalg.norm(starts - np.array([g.end for g in segs[:-1]]), axis=1)
             bad = np.nonzero(gaps > CONTIG_TOL * np.maximum(1.0, np.abs(starts).max(axis=1)))[0]
             if len(bad):
                 i, gap = int(bad[0]) + 1, float(gaps[bad[0]])
@@ -526,12 +525,12 @@ class SegmentPath(Path):
         self._dir, self._a, self._b, self._hn = (np.zeros((n, 3)) for _ in range(4))
         self._k = np.zeros(n)
         if len(il):
-            self._dir[il] = np.stack([segs[i].direction for i in il.tolist()])
+            self._dir[il] = np.array([segs[i].direction for i in il.tolist()])
         if arcs:
-            self._origin[ia] = np.stack([g.center for g in arcs])
-            self._a[ia] = np.stack([g.a for g in arcs])
-            self._b[ia] = np.stack([g.b for g in arcs])
-            self._hn[ia] = np.stack([(g.rise / g.angle) * g.normal for g in arcs])
+            self._origin[ia] = np.array([g.center for g in arcs])
+            self._a[ia] = np.array([g.a for g in arcs])
+            self._b[ia] = np.array([g.b for g in arcs])
+            self._hn[ia] = np.array([(g.rise / g.angle) * g.normal for g in arcs])
             self._k[ia] = [g.angle / g.length for g in arcs]
         self._lens = lens
         assert len(self._k) == n
