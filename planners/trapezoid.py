@@ -127,6 +127,7 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
     base = 0.0
     excess = 0.0
     sqrt = math.sqrt
+    length = path.length
     a, Li, vfi, vmi = amax[0], L[0], vf[0], vmax[0]
     vf2 = vfi ** 2
     end = Li - 1e-12
@@ -155,19 +156,23 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
                 v = v_new
                 break
             # The end of segment i is reached within this cycle at τ: v·τ + acc·τ²/2 = dx.
-            if abs(acc) * t_left < 1e-12 * max(v, 1.0):
+            if abs(acc) * t_left < 1e-12 * (1.0 if 1.0 > v else v):
                 tau = dx / v if v > 0 else t_left
             else:
                 r = v * v + 2 * acc * dx
-                tau = (-v + sqrt(max(r, 0.0))) / acc
-            tau = min(max(tau, 0.0), t_left)
+                tau = (-v + sqrt(0.0 if 0.0 > r else r)) / acc
+            if 0.0 > tau:
+                tau = 0.0
+            if t_left < tau:
+                tau = t_left
             v_end = v + acc * tau
             if i == n - 1:
-                s_out.append(path.length)
+                s_out.append(length)
                 v_out.append(0.0)
                 return np.array(s_out), np.array(v_out), excess
-            excess = max(excess, v_end - vfi)
-            v = min(v_end, vfi)
+            if v_end - vfi > excess:
+                excess = v_end - vfi
+            v = vfi if vfi < v_end else v_end
             base += Li
             x = 0.0
             i += 1
@@ -175,7 +180,8 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
             vf2 = vfi ** 2
             end = Li - 1e-12
             t_left -= tau
-        s_out.append(min(base + x, path.length))
+        pos = base + x
+        s_out.append(length if length < pos else pos)
         v_out.append(v)
     raise PlanningError(f"trapezoid: no arrival after {MAX_CYCLES} cycles (a limit too small?)")
 
