@@ -94,6 +94,24 @@ def reachable(v0, L, A, J, vmax):
     return lo
 
 
+def phase_samples(tcum, T):
+    """np.linspace(a, b, min(4000, max(16, ⌈(b − a)/T⌉))) of every phase [a, b] with b > a,
+    concatenated: the same values as numpy's linspace (k·step + a, the end set to b; k/div·Δ
+    + a where the step underflows), without a Python call per phase."""
+    a, b = tcum[:-1], tcum[1:]
+    keep = b > a
+    a, b = a[keep], b[keep]
+    n = np.minimum(4000, np.maximum(16, np.ceil((b - a) / T))).astype(np.int64)
+    first = np.cumsum(n) - n
+    ph = np.repeat(np.arange(len(n)), n)
+    k = (np.arange(int(n.sum())) - first[ph]).astype(float)
+    delta, div = b - a, (n - 1).astype(float)
+    step = delta / div
+    y = np.where(step[ph] == 0, k / div[ph] * delta[ph], k * step[ph]) + a[ph]
+    y[first + n - 1] = b
+    return y
+
+
 class Segment:
     """One ruckig profile between two critical points, as arrays of its seven phases."""
 
@@ -284,9 +302,7 @@ class _Planner:
         """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits)."""
         # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
         # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
-        tt = np.unique(np.concatenate([
-            np.linspace(a, b, int(min(4000, max(16, math.ceil((b - a) / self.T)))))
-            for a, b in zip(seg.tcum[:-1], seg.tcum[1:]) if b > a] + [[0.0, seg.duration]]))
+        tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
         p, v, a, j = seg.at(tt)
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
