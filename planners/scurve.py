@@ -147,8 +147,9 @@ class Segment:
 
     def at(self, tt):
         """(p, v, a, j) at local times tt (clipped to the segment)."""
-        tt = np.clip(np.asarray(tt, float), 0.0, self.duration)
-        k = np.clip(np.searchsorted(self.tcum, tt, side="right") - 1, 0, 6)
+        # np.minimum/np.maximum: np.clip's Python wrapper cost more than the arithmetic here
+        tt = np.minimum(np.maximum(np.asarray(tt, float), 0.0), self.duration)
+        k = np.minimum(np.maximum(np.searchsorted(self.tcum, tt, side="right") - 1, 0), 6)
         dt = tt - self.tcum[k]
         j = self.j[k]
         a = self.a[k] + j * dt
@@ -250,23 +251,27 @@ class _Planner:
 
     # -- segments -----------------------------------------------------------------
     def consistent(self, v, Ls, A, J):
-        v = v.copy()
+        # Both passes in plain floats with the memo read inline (10⁵ segments a round).
+        # Each repair round changes a few segments: the rest of both passes repeats the same
+        # bisections, which made every round cost the whole path again, hence the memo.
+        v = v.tolist()
+        Lr, A, J = (Ls * (1 - 1e-9)).tolist(), A.tolist(), J.tolist()
         memo = self._reachable
-        for i in range(len(Ls) - 1, -1, -1):
-            v[i] = min(v[i], self.reach(memo, v[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], v[i]))
-        for i in range(len(Ls)):
-            v[i + 1] = min(v[i + 1], self.reach(memo, v[i], Ls[i] * (1 - 1e-9), A[i], J[i], v[i + 1]))
-        return v
-
-    @staticmethod
-    def reach(memo, v0, L, A, J, vmax):
-        # each repair round changes a few segments: the rest of both passes repeats the same
-        # bisections, which made every round cost the whole path again
-        key = (v0, L, A, J, vmax)
-        r = memo.get(key)
-        if r is None:
-            r = memo[key] = reachable(v0, L, A, J, vmax)
-        return r
+        for i in range(len(Lr) - 1, -1, -1):
+            key = (v[i + 1], Lr[i], A[i], J[i], v[i])
+            r = memo.get(key)
+            if r is None:
+                r = memo[key] = reachable(*key)
+            if r < v[i]:                     # min(v[i], r)
+                v[i] = r
+        for i in range(len(Lr)):
+            key = (v[i], Lr[i], A[i], J[i], v[i + 1])
+            r = memo.get(key)
+            if r is None:
+                r = memo[key] = reachable(*key)
+            if r < v[i + 1]:
+                v[i + 1] = r
+        return np.array(v)
 
     def fit_peak(self, seg: Segment, vcap: float) -> bool:
         """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection)."""

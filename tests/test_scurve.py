@@ -227,3 +227,22 @@ def test_path_table_interpolation_equals_the_written_out_hermite_terms():
            (1 - w) * X3[i] + w * X3[i + 1])
     for got, want in zip(tab.cartesian(s), ref):
         assert np.array_equal(got, want)
+
+
+def test_consistent_equals_the_plain_two_passes():
+    """consistent() (plain floats, memo inline) against the two passes written with reachable()."""
+    rng = np.random.default_rng(9)
+    pl = scurve._Planner.__new__(scurve._Planner)
+    pl._reachable = {}
+    n = 60
+    Ls = rng.uniform(0.01, 3.0, n)
+    A, J = np.full(n, 2000.0) * rng.uniform(0.3, 1, n), np.full(n, 5e4) * rng.uniform(0.3, 1, n)
+    for _ in range(3):                           # rounds share the memo
+        v_c = rng.choice([0.0, 5.0, 40.0, 200.0], n + 1)
+        v_c[0] = v_c[-1] = 0.0
+        ref = v_c.copy()
+        for i in range(n - 1, -1, -1):
+            ref[i] = min(ref[i], scurve.reachable(ref[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i]))
+        for i in range(n):
+            ref[i + 1] = min(ref[i + 1], scurve.reachable(ref[i], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i + 1]))
+        assert np.array_equal(pl.consistent(v_c, Ls, A, J), ref)
