@@ -254,23 +254,27 @@ class _Planner:
         # Both passes in plain floats with the memo read inline (10⁵ segments a round).
         # Each repair round changes a few segments: the rest of both passes repeats the same
         # bisections, which made every round cost the whole path again, hence the memo.
+        # The memo keeps the last round's keys only (all rounds: ~10⁷ keys on a 10⁵-line program).
         v = v.tolist()
         Lr, A, J = (Ls * (1 - 1e-9)).tolist(), A.tolist(), J.tolist()
-        memo = self._reachable
+        old, memo = self._reachable, {}
         for i in range(len(Lr) - 1, -1, -1):
             key = (v[i + 1], Lr[i], A[i], J[i], v[i])
             r = memo.get(key)
             if r is None:
-                r = memo[key] = reachable(*key)
+                r = old.get(key)
+                memo[key] = r = reachable(*key) if r is None else r
             if r < v[i]:                     # min(v[i], r)
                 v[i] = r
         for i in range(len(Lr)):
             key = (v[i], Lr[i], A[i], J[i], v[i + 1])
             r = memo.get(key)
             if r is None:
-                r = memo[key] = reachable(*key)
+                r = old.get(key)
+                memo[key] = r = reachable(*key) if r is None else r
             if r < v[i + 1]:
                 v[i + 1] = r
+        self._reachable = memo
         return np.array(v)
 
     def fit_peak(self, seg: Segment, vcap: float) -> bool:
@@ -330,10 +334,13 @@ class _Planner:
         J = np.full(nseg, c.j * shrink)
         vcap = np.full(nseg, self.limits.feed_max)
         repairs = 0
+        # key → (segment, ratios) of the last round only: every key component only decreases
+        # over the rounds, so a key absent from one round never comes back (keeping all rounds
+        # held ~10⁶ segments on a 10⁵-line program)
         cache = {}
         for rnd in range(max_rounds):
             v = self.consistent(v_c, Ls, A, J)
-            segs, bad = [], []
+            segs, bad, kept = [], [], {}
             for i in range(nseg):
                 key = (i, v[i], v[i + 1], A[i], J[i], vcap[i])
                 if key in cache:                      # unchanged since the last round
@@ -345,10 +352,11 @@ class _Planner:
                             f"scurve: ruckig found no profile for segment {i} (s = {s_c[i]:.6g}…"
                             f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
                     r = self.ratios(seg)
-                    cache[key] = (seg, r)
+                kept[key] = (seg, r)
                 segs.append(seg)
                 if np.any(r > 1.0):
                     bad.append((i, r))
+            cache = kept
             if not bad:
                 return segs, {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
                               "critical_points_mm": s_c.tolist()}
