@@ -298,10 +298,23 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
     table = PathTable(path, machine)
     cap = table_feed_cap(path, table, limits, T)
     joins = join_jumps(path, table, machine)
+    pcs = rest_pieces(path)
+    for g, (s0, s1) in enumerate(pcs):
+        # node budget (issue 17): every phase between G1 joins needs MIN_PHASE_NODES, so a piece
+        # of many short blended chords outgrew any budget (a 44 s piece of a CAM-like kossel
+        # program: 830 phases, 20 000 nodes) and IPOPT ran for hours: refused before the warm start
+        # (the seed) is planned
+        phases = 1 + sum(1 for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6)
+        if phases * MIN_PHASE_NODES > MAX_NODES_REFINED:
+            la, lb = (int(x) for x in path.line_at(np.array([s0, s1])))
+            where = f", G-code lines {la}…{lb}" if la >= 0 and lb >= 0 else ""
+            raise PlanningError(f"optimal: piece {g} (s = {s0:.6g}…{s1:.6g} mm{where}) has {phases} phases "
+                                f"between G1 joins, needing {phases * MIN_PHASE_NODES} nodes "
+                                f"({MIN_PHASE_NODES} a phase): over the node budget of "
+                                f"{MAX_NODES_REFINED} nodes a piece")
     if warm is None:
         from .scurve import plan_joint
         warm = plan_joint(path, machine, limits)
-    pcs = rest_pieces(path)
     problems, starts, bounds = [], [], []
     budgets = [max_nodes_per_piece] * len(pcs)
     for s0, s1 in pcs:

@@ -32,7 +32,9 @@ samples; the swarm only searches shapes.  A sub-piece's ends are fixed, so its o
 its duration × max(1, worst ratio)^PENALTY_POWER instead.  The whole swarm is evaluated at
 once (particles × samples arrays).  After the search the best profile is sampled at T and
 checked with the independent metrics; a discretisation excess is removed by a further small
-stretch of the whole piece (with its join feeds).
+stretch of the whole piece (with its join feeds).  The seed is returned where it is faster and
+feasible; where it is faster but breaks a limit at T, its fit is stretched at T the same way
+and each rest-to-rest piece takes the shorter of that and the swarm's.
 
 Polish (a memetic step, after the swarm).  A swarm finds the basin — which pieces to cut,
 the shape of each stretch — but converges slowly in it (docs/TUNING.md).  So its best
@@ -59,7 +61,9 @@ import math
 import time
 
 import numpy as np
+from scipy import sparse as sp
 from scipy.interpolate import BSpline
+from scipy.linalg import LinAlgError, solveh_banded
 
 from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, check_limits, check_path,
                           join_jumps, rest_pieces, table_feed_cap)
@@ -103,14 +107,46 @@ POLISH_MAX_SPANS = 90
 POLISH_SAMPLES_PER_SPAN = 16
 POLISH_ACTIVE = 0.7
 POLISH_ROWS_PER_COEFF = 20
+# Size bound of a piece (issue 17): the seed's switch times as knots give a piece as many control
+# points as its seed has jerk phases, and the dense (samples × control points) basis and seed fit
+# grow with the square of its length (a 44 s kossel piece: 1685 knots, 44 000 seed samples,
+# 2.5 GB).  Above BASIS_MAX_ELEMENTS (2.5 × test_part's largest, 19 505 × 99) a piece keeps those
+# knots but holds its basis sparse (`_sparse_basis`, a banded seed fit) and is not polished; the
+# profile's info['fallback'] lists those pieces.  Under the bound the dense arrays are kept.
+BASIS_MAX_ELEMENTS = 5_000_000
+
+
+def _sparse_basis(knots, p, tau):
+    """CSR design matrices at τ of the degree-p B-splines on ``knots`` (M, K), of their first
+    and second derivatives, and of the antiderivative (M, K + 1, degree p + 1 on the knots with
+    one more at each end), with the weights wₖ = ∫₀¹Bₖ = (t_{k+p+1} − t_k)/(p + 1): the
+    antiderivative of Σcₖ Bₖ has the coefficients 0, w₀c₀, w₀c₀ + w₁c₁, …  Each row holds at
+    most p + 2 nonzeros, so memory grows with M + K, not M·K as the dense arrays do."""
+    K = len(knots) - p - 1
+
+    def diff(t, q, n):
+        # (n − 1, n): coefficients of the derivative of a degree-q spline on t (knots t[1:−1])
+        h = t[q + 1:n + q] - t[1:n]
+        g = np.where(h > 0, q / np.where(h > 0, h, 1.0), 0.0)
+        return sp.diags([-g, g], [0, 1], shape=(n - 1, n), format="csr")
+
+    d1 = diff(knots, p, K)
+    B = BSpline.design_matrix(tau, knots, p)
+    B1 = BSpline.design_matrix(tau, knots[1:-1], p - 1) @ d1
+    B2 = BSpline.design_matrix(tau, knots[2:-2], p - 2) @ (diff(knots[1:-1], p - 1, K - 1) @ d1)
+    A = BSpline.design_matrix(tau, np.concatenate([knots[:1], knots, knots[-1:]]), p + 1)
+    w = (knots[p + 1:] - knots[:K]) / (p + 1)
+    return B.tocsr(), B1.tocsr(), B2.tocsr(), A.tocsr(), w
 
 
 class _Shape:
     """B-spline basis over τ ∈ [0, 1] sampled at M points (and its antiderivative)."""
 
-    def __init__(self, K: int, M: int, density=None, degree: int = DEGREE, inner=None):
+    def __init__(self, K: int, M: int, density=None, degree: int = DEGREE, inner=None,
+                 sparse: bool = False):
         """``density``: (τ grid, weights) — knots and samples at its quantiles (uniform if
-        None); ``inner``: explicit knots in [0, 1] (then K follows from them)."""
+        None); ``inner``: explicit knots in [0, 1] (then K follows from them); ``sparse``: the
+        basis as CSR matrices (see `_sparse_basis`), for a piece over BASIS_MAX_ELEMENTS."""
         self.degree = p = degree
         if inner is not None:
             if density is not None and K > 0:      # add K knots at the density's quantiles
@@ -138,6 +174,11 @@ class _Shape:
         if len(inner) != K - p + 1:
             inner = np.interp(np.linspace(0, 1, K - p + 1), np.linspace(0, 1, len(inner)), inner)
         self.knots = np.concatenate([[0] * p, inner, [1] * p])
+        self.free = np.arange(2, K - 2)
+        self.sparse = sparse
+        if sparse:
+            self.B, self.B1, self.B2, self.A, self.w = _sparse_basis(self.knots, p, self.tau)
+            return
         eye = np.eye(K)
         basis = [BSpline(self.knots, eye[k], self.degree) for k in range(K)]
         self.B = np.stack([b(self.tau) for b in basis], 1)               # (M, K)
@@ -145,7 +186,6 @@ class _Shape:
         self.B2 = np.stack([b.derivative(2)(self.tau) for b in basis], 1)
         anti = [b.antiderivative(1) for b in basis]
         self.I = np.stack([a(self.tau) - a(0.0) for a in anti], 1)        # ∫₀^τ Bₖ
-        self.free = np.arange(2, K - 2)
 
     def full(self, X):
         """Control points (P, K) from free coefficients (P, K−4), ends pinned at rest."""
@@ -153,12 +193,51 @@ class _Shape:
         C[:, self.free] = np.maximum(X, 0.0)
         return C
 
+    def eval(self, C):
+        """(∫₀¹ṡ dτ (P,), ∫₀^τ ṡ, ṡ, ṡ′, ṡ″ (P, M) each) of control points C (P, K)."""
+        if not self.sparse:
+            return C @ self.I[-1], C @ self.I.T, C @ self.B.T, C @ self.B1.T, C @ self.B2.T
+        # the antiderivative's coefficients: running sums of wₖcₖ from 0 (see _sparse_basis)
+        anti = np.concatenate([np.zeros((C.shape[0], 1)), np.cumsum(C * self.w, axis=1)], axis=1)
+        return (C @ self.w, (self.A @ anti.T).T, (self.B @ C.T).T, (self.B1 @ C.T).T,
+                (self.B2 @ C.T).T)
+
     def fit(self, tau, v):
         """Least-squares free coefficients of a sampled feed v(τ)."""
+        if self.sparse:
+            # normal equations of a B-spline basis are banded (half-bandwidth = degree): a
+            # banded Cholesky solve, O(samples + K) memory where lstsq needs samples × K
+            B = BSpline.design_matrix(tau, self.knots, self.degree).tocsc()[:, self.free]
+            N, rhs, p = (B.T @ B).todia(), B.T @ v, self.degree
+            ab = np.zeros((p + 1, len(self.free)))
+            for d in range(p + 1):
+                ab[p - d, d:] = N.diagonal(d)
+            try:
+                x = solveh_banded(ab, rhs)
+            except LinAlgError:
+                # a span without samples (seed switch times closer than its sampling) leaves
+                # the fit singular there; a tiny ridge picks the small-norm coefficients
+                ab[p] += 1e-12 * ab[p].max()
+                x = solveh_banded(ab, rhs)
+            return np.maximum(x, 1e-6 * max(v.max(), 1e-9))
         eye = np.eye(self.K)
         B = np.stack([BSpline(self.knots, eye[k], self.degree)(tau) for k in range(self.K)], 1)
         x, *_ = np.linalg.lstsq(B[:, self.free], v, rcond=None)
         return np.maximum(x, 1e-6 * max(v.max(), 1e-9))
+
+
+def _first_at_or_after(s, points):
+    """(P, J) index of each row's first sample ≥ each point, 0 where none is (np.argmax of
+    s ≥ point, as the join terms had it), clipped to [1, M − 1].  By a search in each row's
+    running maximum: O(P·J·log M), where a (P, M) comparison per join made a piece's evaluation
+    quadratic in its length (a 44 s kossel piece: 800 joins × 8900 samples × 40 particles)."""
+    out = np.zeros((s.shape[0], len(points)), dtype=np.intp)
+    if len(points):
+        top = np.maximum.accumulate(s, axis=1)
+        for r in range(s.shape[0]):
+            i = np.searchsorted(top[r], points, side="left")
+            out[r] = np.where(i < s.shape[1], i, 0)
+    return np.clip(out, 1, s.shape[1] - 1)
 
 
 def local_need(table, s, v, a, j, lim, m, cap_grid, cap_vals, each=False):
@@ -180,10 +259,10 @@ def local_need(table, s, v, a, j, lim, m, cap_grid, cap_vals, each=False):
 
 class _PieceProblem:
     def __init__(self, table, s0, s1, limits, T, joins, K, M, cap_grid, cap_vals, density=None,
-                 inner=None):
+                 inner=None, sparse=False):
         self.table, self.s0, self.s1, self.L = table, s0, s1, s1 - s0
         self.limits, self.lim, self.T, self.all_joins = limits, limits.joint, T, joins
-        self.shape = _Shape(K, M, density, inner=inner)
+        self.shape = _Shape(K, M, density, inner=inner, sparse=sparse)
         self.joins = [(sj, d) for sj, d in joins if s0 + 1e-6 < sj < s1 - 1e-6]
         # one-sided joint derivatives at each join (q″ jumps there)
         self.join_derivs = [table.joints(np.array([sj - 1e-9, sj + 1e-9])) for sj, _ in self.joins]
@@ -194,23 +273,23 @@ class _PieceProblem:
         profile arrays at λ = 1: the piece's λ is the row maximum (``each``: see local_need)."""
         sh = self.shape
         C = sh.full(X)
-        area = C @ sh.I[-1]                                  # ∫₀¹ ṡ dτ per particle
+        area, S, V, A, J = sh.eval(C)                        # area: ∫₀¹ ṡ dτ per particle
         bad = area <= 1e-12
         area = np.where(bad, 1.0, area)
         k = (self.L / area)[:, None]
-        s = self.s0 + k * (C @ sh.I.T)                       # (P, M), exact
-        v, a, j = k * (C @ sh.B.T), k * (C @ sh.B1.T), k * (C @ sh.B2.T)
+        s = self.s0 + k * S                                  # (P, M), exact
+        v, a, j = k * V, k * A, k * J
         s = np.clip(s, self.s0 + 1e-9, self.s1 - 1e-9)
         m = 1 - margin
         cols = [local_need(self.table, s, v, a, j, self.lim, m, self.cap_grid, self.cap_vals, each)]
         rows = np.arange(len(v))
         Jm = self.lim.j * m
-        for (sj, dq2), (D1, D2, D3) in zip(self.joins, self.join_derivs):
+        first = _first_at_or_after(s, [sj for sj, _ in self.joins])
+        for (sj, dq2), (D1, D2, D3), i in zip(self.joins, self.join_derivs, first.T):
             # the join as `optimal` bounds it: its T-reading 0.75·Δq″·ṡ²/T plus the continuous
             # jerk on either side within the jerk limit.  ṡ, s̈, s⃛ at the join are interpolated
             # between the samples around it: the sample after a 0.04 mm blend arc may already be
             # far up the next line's ramp
-            i = np.clip(np.argmax(s >= sj, axis=1), 1, s.shape[1] - 1)
             sa, sb = s[rows, i - 1], s[rows, i]
             f = np.clip((sj - sa) / np.maximum(sb - sa, 1e-12), 0.0, 1.0)
             vj, aj, jj = ((1 - f) * x[rows, i - 1] + f * x[rows, i] for x in (v, a, j))
@@ -481,6 +560,32 @@ def knot_density(tau, jerk):
     return tau, 1.0 + (w / area if area > 0 else 0.0)
 
 
+def _stretch_at_T(pieces, groups, T, path, machine, limits, info):
+    """(profile, its metrics) of the pieces sampled at T, each group (a rest-to-rest piece)
+    stretched, up to 8 times, by the worst need of the samples whose time falls in it; profile
+    None if still infeasible.  Mutates the pieces' λ."""
+    from planners.verify import command_metrics, stretch_need
+    for _ in range(8):
+        prof = _sample(pieces, T, path, info)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
+            return prof, r
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
+        starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
+        k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
+        grp = np.array([p["group"] for p in pieces])[k]
+        for g in range(groups):
+            # a whole rest-to-rest piece is stretched (its sub-pieces' join feeds scale with it),
+            # by the worst need of the samples whose time falls in it
+            near = grp == g
+            worst = float(need[near].max()) if near.any() else 0.0
+            if worst > 1.0:
+                for p in pieces:
+                    if p["group"] == g:
+                        p["lam"] *= worst * (1 + 1e-4)
+    return None, r
+
+
 def _sample(pieces, T, path, info) -> Profile:
     """Evaluate each piece's B-spline exactly at multiples of T and join them."""
     starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
@@ -546,6 +651,8 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
     # cut wins on keops' bird (swarm alone: 1.878 s against 2.132 s), whole on kossel's
     # bird_kossel, whose seconds-long sub-pieces 10 uniform control points cannot shape
     probs, X0, tags = [], [], []                 # tags: (piece, "whole" | "cut")
+    seed_pieces = []                             # the seed's fit per piece, in _sample's form
+    fallback = []                                # pieces over the size bound (BASIS_MAX_ELEMENTS)
     for g, ((s0, s1), K) in enumerate(zip(pcs, Ks)):
         tau, vv, jj, D, knots = _seed_window(seed_prof, s0, s1)
         # with the seed's jerk switch times as knots a quadratic B-spline holds the s-curve
@@ -553,11 +660,24 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         # samples at least every 8 servo periods of the seed's time on the piece (a 17 s piece
         # of kossel's test_part would get one per 42 ms, coarser than its feed dips)
         M = max(samples, int(math.ceil(D / (8 * T))))
-        pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K * extra_knots) if knots is not None and exact_knots else int(K), M, table.s, cap,
-                           knot_density(tau, jj), inner=knots if exact_knots else None)
+        exact = knots is not None and exact_knots
+        over = exact and (M + 2 * len(knots) + len(tau)) * (len(knots) + K) > BASIS_MAX_ELEMENTS
+        pr = _PieceProblem(table, s0, s1, limits, T, joins, int(K * extra_knots) if exact else int(K), M,
+                           table.s, cap, knot_density(tau, jj), inner=knots if exact else None,
+                           sparse=over)
+        if over:
+            fallback.append({"piece": g, "s_mm": [round(float(s0), 6), round(float(s1), 6)],
+                             "seed_knots": len(knots), "control_points": int(pr.shape.K),
+                             "samples": int(len(pr.shape.tau)), "polish": "skipped"})
         probs.append(pr)
         X0.append(pr.shape.fit(tau, vv))
         tags.append((g, "whole"))
+        if seed_pieces is not None and exact:
+            seed_pieces.append({"lam": D, "lam0": D, "C": pr.shape.full(X0[-1][None, :])[0],
+                                "knots": pr.shape.knots, "degree": pr.shape.degree, "s0": s0, "L": s1 - s0,
+                                "group": g})
+        else:
+            seed_pieces = None                   # not every piece has the seed's switch times
         inside = [(sj, d) for sj, d in joins if s0 + 1e-6 < sj < s1 - 1e-6]
         if not inside or len(inside) > MAX_JOINS_CUT:
             continue
@@ -651,6 +771,11 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         for k, (pr, sw, (g, opt)) in enumerate(zip(probs, swarm, tags)):
             if sw is None or chosen[g][0] != opt:
                 continue
+            if isinstance(pr, _PieceProblem) and pr.shape.sparse:
+                # over the size bound: the polish's forward differences evaluate K + 1 particles
+                # at every sample (K ~ the seed's jerk phases), and its finer uniform spline of
+                # at most POLISH_MAX_SPANS spans could not hold the seed; the swarm's best stays
+                continue
             fine, x = pr.refined(sw["g"])
             x, f, its = polish(fine, x, margin, polish_steps)
             polished.append([g, round(sw["fg"], 6), round(f, 6), its])
@@ -687,28 +812,14 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                         for i in sorted(set(range(0, len(history), max(1, len(history) // 50)))
                                         | {len(history) - 1})],
             "swarm_time_s": float(swarm_total), "polish": polished,
+            **({"fallback": {"reason": f"piece over the size bound of {BASIS_MAX_ELEMENTS} basis elements: "
+                                       "sparse basis at the seed's switch times, no polish",
+                             "pieces": fallback}} if fallback else {}),
             "time_to_target_s": time_to_target}
     # check at T with the independent metrics; stretch the pieces whose samples at T read
     # above a limit (the swarm saw only its own samples) by just that excess
-    for _ in range(8):
-        prof = _sample(pieces, T, path, info)
-        r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
-            break
-        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
-        starts = np.concatenate([[0.0], np.cumsum([p["lam"] for p in pieces])])
-        k = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
-        grp = np.array([p["group"] for p in pieces])[k]
-        for g in range(len(pcs)):
-            # a whole rest-to-rest piece is stretched (its sub-pieces' join feeds scale with it),
-            # by the worst need of the samples whose time falls in it
-            near = grp == g
-            worst = float(need[near].max()) if near.any() else 0.0
-            if worst > 1.0:
-                for p in pieces:
-                    if p["group"] == g:
-                        p["lam"] *= worst * (1 + 1e-4)
-    else:
+    prof, r = _stretch_at_T(pieces, len(pcs), T, path, machine, limits, info)
+    if prof is None:
         raise PlanningError(f"pso: best particle breaks a joint limit at T: {r['joint_peak_ratio']}")
     first = {}
     for p in pieces:
@@ -725,5 +836,36 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
                            info=dict(prof.info, continuous_time_s=seed_prof.info.get("continuous_time_s"),
                                      returned=f"seed ({seed_prof.planner}): the swarm's best was "
                                               f"{prof.execution_time_s:.6g} s"))
+        elif seed_pieces:
+            # the seed breaks a limit at T (on CAM-like kossel programs scurve_joint reads up to
+            # 1.10 × the jerk limit), while the swarm's start, its fit stretched to the swarm's
+            # stricter sample model (the continuous jerk on 0.04 mm blend arcs, the joins' T
+            # reading, the margin), can be slower still: the seed's fit stretched at T by just
+            # its excess per piece is feasible too.  Per rest-to-rest piece the shorter of the
+            # two is kept (the fit misses the seed where switch times closer than
+            # MIN_KNOT_GAP_T share a knot, and reads higher there), checked at T once more
+            sp_prof, _ = _stretch_at_T(seed_pieces, len(pcs), T, path, machine, limits, info)
+            if sp_prof is not None:
+                dur = {}
+                for name, pp in (("swarm", pieces), ("seed", seed_pieces)):
+                    for q in pp:
+                        dur[name, q["group"]] = dur.get((name, q["group"]), 0.0) + q["lam"]
+                pick = ["seed" if dur["seed", g] < dur["swarm", g] else "swarm" for g in range(len(pcs))]
+                mixed = [dict(q) for q in pieces if pick[q["group"]] == "swarm"] + \
+                        [dict(q) for q in seed_pieces if pick[q["group"]] == "seed"]
+                mixed.sort(key=lambda q: q["s0"])
+                mx_prof, _ = _stretch_at_T(mixed, len(pcs), T, path, machine, limits, info)
+                if mx_prof is not None and mx_prof.execution_time_s < prof.execution_time_s:
+                    first = {}
+                    for q in mixed:
+                        first.setdefault(q["group"], q)
+                    mx_prof.info.update(
+                        t_check_stretch=[round(q["lam"] / q["lam0"], 6) for q in first.values()],
+                        pieces_from=pick,
+                        returned=f"per piece the swarm's best or the seed ({seed_prof.planner}) fitted "
+                                 f"on its switch times, each stretched at T (the seed read "
+                                 f"{max(rs['joint_peak_ratio'].values()):.4g} × a joint limit): "
+                                 f"the swarm's best alone was {prof.execution_time_s:.6g} s")
+                    prof = mx_prof
     prof.planning_time_s = time.perf_counter() - t0
     return prof

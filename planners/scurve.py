@@ -96,6 +96,24 @@ def reachable(v0, L, A, J, vmax):
     return lo
 
 
+def phase_samples(tcum, T):
+    """np.linspace(a, b, min(4000, max(16, ⌈(b − a)/T⌉))) of every phase [a, b] with b > a,
+    concatenated: the same values as numpy's linspace (k·step + a, the end set to b; k/div·Δ
+    + a where the step underflows), without a Python call per phase."""
+    a, b = tcum[:-1], tcum[1:]
+    keep = b > a
+    a, b = a[keep], b[keep]
+    n = np.minimum(4000, np.maximum(16, np.ceil((b - a) / T))).astype(np.int64)
+    first = np.cumsum(n) - n
+    ph = np.repeat(np.arange(len(n)), n)
+    k = (np.arange(int(n.sum())) - first[ph]).astype(float)
+    delta, div = b - a, (n - 1).astype(float)
+    step = delta / div
+    y = np.where(step[ph] == 0, k / div[ph] * delta[ph], k * step[ph]) + a[ph]
+    y[first + n - 1] = b
+    return y
+
+
 class Segment:
     """One ruckig profile between two critical points, as arrays of its seven phases."""
 
@@ -131,8 +149,9 @@ class Segment:
 
     def at(self, tt):
         """(p, v, a, j) at local times tt (clipped to the segment)."""
-        tt = np.clip(np.asarray(tt, float), 0.0, self.duration)
-        k = np.clip(np.searchsorted(self.tcum, tt, side="right") - 1, 0, 6)
+        # np.minimum/np.maximum: np.clip's Python wrapper cost more than the arithmetic here
+        tt = np.minimum(np.maximum(np.asarray(tt, float), 0.0), self.duration)
+        k = np.minimum(np.maximum(np.searchsorted(self.tcum, tt, side="right") - 1, 0), 6)
         dt = tt - self.tcum[k]
         j = self.j[k]
         a = self.a[k] + j * dt
@@ -234,23 +253,31 @@ class _Planner:
 
     # -- segments -----------------------------------------------------------------
     def consistent(self, v, Ls, A, J):
-        v = v.copy()
-        memo = self._reachable
-        for i in range(len(Ls) - 1, -1, -1):
-            v[i] = min(v[i], self.reach(memo, v[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], v[i]))
-        for i in range(len(Ls)):
-            v[i + 1] = min(v[i + 1], self.reach(memo, v[i], Ls[i] * (1 - 1e-9), A[i], J[i], v[i + 1]))
-        return v
-
-    @staticmethod
-    def reach(memo, v0, L, A, J, vmax):
-        # each repair round changes a few segments: the rest of both passes repeats the same
-        # bisections, which made every round cost the whole path again
-        key = (v0, L, A, J, vmax)
-        r = memo.get(key)
-        if r is None:
-            r = memo[key] = reachable(v0, L, A, J, vmax)
-        return r
+        # Both passes in plain floats with the memo read inline (10⁵ segments a round).
+        # Each repair round changes a few segments: the rest of both passes repeats the same
+        # bisections, which made every round cost the whole path again, hence the memo.
+        # The memo keeps the last round's keys only (all rounds: ~10⁷ keys on a 10⁵-line program).
+        v = v.tolist()
+        Lr, A, J = (Ls * (1 - 1e-9)).tolist(), A.tolist(), J.tolist()
+        old, memo = self._reachable, {}
+        for i in range(len(Lr) - 1, -1, -1):
+            key = (v[i + 1], Lr[i], A[i], J[i], v[i])
+            r = memo.get(key)
+            if r is None:
+                r = old.get(key)
+                memo[key] = r = reachable(*key) if r is None else r
+            if r < v[i]:                     # min(v[i], r)
+                v[i] = r
+        for i in range(len(Lr)):
+            key = (v[i], Lr[i], A[i], J[i], v[i + 1])
+            r = memo.get(key)
+            if r is None:
+                r = old.get(key)
+                memo[key] = r = reachable(*key) if r is None else r
+            if r < v[i + 1]:
+                v[i + 1] = r
+        self._reachable = memo
+        return np.array(v)
 
     def fit_peak(self, seg: Segment, vcap: float) -> bool:
         """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection)."""
@@ -286,9 +313,7 @@ class _Planner:
         """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits)."""
         # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
         # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
-        tt = np.unique(np.concatenate([
-            np.linspace(a, b, int(min(4000, max(16, math.ceil((b - a) / self.T)))))
-            for a, b in zip(seg.tcum[:-1], seg.tcum[1:]) if b > a] + [[0.0, seg.duration]]))
+        tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
         p, v, a, j = seg.at(tt)
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
@@ -311,10 +336,13 @@ class _Planner:
         J = np.full(nseg, c.j * shrink)
         vcap = np.full(nseg, self.limits.feed_max)
         repairs = 0
+        # key → (segment, ratios) of the last round only: every key component only decreases
+        # over the rounds, so a key absent from one round never comes back (keeping all rounds
+        # held ~10⁶ segments on a 10⁵-line program)
         cache = {}
         for rnd in range(max_rounds):
             v = self.consistent(v_c, Ls, A, J)
-            segs, bad = [], []
+            segs, bad, kept = [], [], {}
             for i in range(nseg):
                 key = (i, v[i], v[i + 1], A[i], J[i], vcap[i])
                 if key in cache:                      # unchanged since the last round
@@ -326,10 +354,11 @@ class _Planner:
                             f"scurve: ruckig found no profile for segment {i} (s = {s_c[i]:.6g}…"
                             f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
                     r = self.ratios(seg)
-                    cache[key] = (seg, r)
+                kept[key] = (seg, r)
                 segs.append(seg)
                 if np.any(r > 1.0):
                     bad.append((i, r))
+            cache = kept
             if not bad:
                 return segs, {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
                               "critical_points_mm": s_c.tolist()}

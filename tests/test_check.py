@@ -185,3 +185,24 @@ def test_one_move_program_is_checked_from_home(tmp_path):
     assert not rep.invalid and rep.stats["moves"] == 1
     assert rep.stats["length_mm"] == pytest.approx(50 * 2 ** 0.5)
     assert rep.stats["samples"] > 1000          # ≥ 70.7 mm at ≤ 20 mm/s: > 3.5 s at 1 ms
+
+
+def test_dynamics_findings_read_the_metrics_differences(tmp_path):
+    """check takes its differences one order at a time: each finding's value is the worst
+    |difference| of its line from planners.verify.differences on the same samples."""
+    import planners
+    from planners import verify as M
+    from planners.paths.gcode import program_path, read_gcode
+    m = load_machine("kossel")
+    f = tmp_path / "p.ngc"
+    f.write_text("G21 G90 G64 P0.01\nG0 X0 Y0 Z-250\nF6000\nG1 X30 Y0\nG1 X30 Y20\nG1 X0 Y20\nG1 X0 Y0\nM2\n")
+    rep = check_program(f, m, "trapezoid")
+    prof = planners.plan("trapezoid", program_path(read_gcode(f, home=m.home)), m)
+    Q = m.ik(prof.path.point(prof.s))
+    lines = prof.path.line_at(prof.s)
+    found = [x for x in rep.findings if x.kind.startswith("joint_")]
+    assert found
+    for x in found:
+        D = M.differences(Q, m.servo_period_s)[x.kind[len("joint_"):]]
+        worst = np.abs(D).max(axis=1)[lines[-len(D):] == x.lines[0]]
+        assert x.value == worst.max()

@@ -158,3 +158,18 @@ def test_flower_passes_with_a_and_j_bounded_between_nodes():
     assert command_metrics(keops, path.point(p.s), p.T, p.s)["feasible"]
     tp, sj = plan("toppra", path, keops), plan("scurve_joint", path, keops)
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
+
+
+def test_piece_over_the_node_budget_is_refused_naming_it():
+    # 40 chords of a zigzag under G64 P0.01: each corner a blend arc, so 2 G1 joins a corner
+    # (line → arc → line, q″ jumps at both) and 2·39 + 1 = 79 phases of 24 nodes > 1500
+    from planners.paths.gcode import parse_gcode, program_path
+    pts = [(-20 + i, 3.0 * (i % 2), -250.0) for i in range(41)]
+    text = "G21 G90 G64 P0.01\nG0 X-20 Y0 Z-250\n" + "".join(
+        f"G1 X{x:g} Y{y:g} F1200\n" for x, y, _ in pts[1:]) + "M2\n"
+    path = program_path(parse_gcode(text, "zigzag.ngc"))
+    with pytest.raises(PlanningError) as e:
+        plan("optimal", path, KOSSEL)
+    msg = str(e.value)
+    assert "piece 0 " in msg and "79 phases" in msg and "1896 nodes" in msg and "1500 nodes" in msg
+    assert "G-code lines 3…42" in msg

@@ -184,3 +184,15 @@ def test_bad_segments_and_queries(tmp_path):
     with pytest.raises(PathError, match="standard: .*bird"):
         resolve_path("no_such_path")
     assert {"bird", "flower", "helix", "test_part.ngc"} <= set(standard_paths())
+
+
+def test_segment_path_many_points_in_blocks_equal_small_calls():
+    """A large query is evaluated in blocks (memory); the values are those of small calls."""
+    from planners.paths.segments import _CHUNK
+    path = resolve_path("test_part")
+    s = np.linspace(0.0, path.length, 2 * _CHUNK + 123)
+    big = path.derivs(s)
+    for lo in (0, _CHUNK - 5, 2 * _CHUNK):
+        small = path.derivs(s[lo:lo + 50])
+        for d in range(4):
+            assert np.array_equal(big[d][lo:lo + 50], small[d])

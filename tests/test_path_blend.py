@@ -114,3 +114,25 @@ def test_blended_polylines_are_contiguous_g1_and_within_tolerance(pts, tol):
              for i in range(len(lines) - 1)]
     kept = sum(1 for t in turns if t >= math.pi - 1e-6)
     assert len(path.corners()) == kept
+
+
+def test_blend_arcs_built_column_wise_equal_arc_exact(tmp_path):
+    """blend_corners derives every arc's frame, radius, length and end for all corners at
+    once: each equals, bit for bit, what Arc.exact (one arc at a time) derives from the same
+    start, centre, normal and angle; trimmed lines keep their direction."""
+    from planners.paths.gcode import load_gcode_path
+    f = tmp_path / "p.ngc"
+    f.write_text("G21 G90 G64 P0.05\nG0 X0 Y0 Z-250\nF600\n"
+                 + "".join(f"G1 X{(k + 1) * 0.7:.3f} Y{0.3 * (k % 3):.3f} Z{-250 + 0.1 * (k % 2):.3f}\n"
+                           for k in range(40)) + "M2\n")
+    path = load_gcode_path(f)
+    arcs = [g for g in path.segments if g.kind == "arc"]
+    assert len(arcs) > 20
+    for g in arcs:
+        ref = Arc.exact(g.start, g.center, g.normal, g.angle, g.line)
+        for attr in ("a", "b", "end"):
+            assert np.array_equal(getattr(g, attr), getattr(ref, attr))
+        assert g.radius == ref.radius and g.length == ref.length
+    for g in path.segments:
+        if g.kind == "line":
+            assert np.abs(g.start + g.length * g.direction - g.end).max() < 1e-12

@@ -1,4 +1,5 @@
 """pso: seeded determinism, beats its scurve_joint seed, feasible at T, clear errors."""
+import dataclasses
 import numpy as np
 import pytest
 
@@ -182,3 +183,76 @@ def test_polish_climbs_to_the_feed_cap():
     assert need[0] <= 1 + 1e-7 and f == pytest.approx(d[0], rel=1e-6)
     assert d[0] == pytest.approx(L / c, rel=1e-4)
     assert 0 < its <= 60
+
+
+def test_join_index_search_is_the_first_sample_at_or_after_each_join():
+    # the per-join (P, M) comparison it replaces: first index with s ≥ join, 0 if none, clipped
+    rng = np.random.default_rng(5)
+    s = np.cumsum(rng.random((7, 50)), axis=1)
+    s[2, 20:23] = s[2, 19] - 0.5                 # a row that dips (rounding at a plateau)
+    pts = [-1.0, 0.3, 3.0, 10.0, 24.9, 25.0, 1e9]
+    want = np.stack([np.clip(np.argmax(s >= p, axis=1), 1, 49) for p in pts], axis=1)
+    assert np.array_equal(pso._first_at_or_after(s, pts), want)
+    assert pso._first_at_or_after(s, []).shape == (7, 0)
+
+
+def test_sparse_basis_is_the_dense_basis():
+    # a small piece's knots (uneven, as the seed's switch times are); dense arrays from
+    # BSpline per basis function, the sparse ones from design matrices and the derivative
+    # and antiderivative recurrences
+    rng = np.random.default_rng(2)
+    inner = np.sort(rng.random(25))
+    d = pso._Shape(0, 300, inner=inner)
+    s = pso._Shape(0, 300, inner=inner, sparse=True)
+    assert s.K == d.K and np.array_equal(s.tau, d.tau)
+    for D, S in ((d.B, s.B), (d.B1, s.B1), (d.B2, s.B2)):
+        assert np.abs(D - S.toarray()).max() <= 1e-12 * np.abs(D).max()
+    C = rng.random((4, d.K))
+    for x, y in zip(d.eval(C), s.eval(C)):
+        assert np.abs(x - y).max() <= 1e-12 * np.abs(x).max()
+    tau = np.linspace(0.0, 1.0, 2000)
+    v = 1.5 + np.sin(3 * tau)
+    assert np.allclose(s.fit(tau, v), d.fit(tau, v), rtol=0, atol=1e-12)
+
+
+def test_piece_over_the_size_bound_is_searched_sparse_from_its_seed(monkeypatch):
+    seed = plan("scurve_joint", PATH, KEOPS)
+    opts = dict(seed=3, seed_profile=seed, particles=16, iterations=20, control_points=30)
+    monkeypatch.setattr(pso, "BASIS_MAX_ELEMENTS", 1000)
+    a = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
+    b = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
+    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
+    (fb,) = a.info["fallback"]["pieces"]             # one rest-to-rest piece, over the bound
+    assert fb["piece"] == 0 and fb["s_mm"] == [0.0, round(PATH.length, 6)] and fb["polish"] == "skipped"
+    assert fb["seed_knots"] > 8 and fb["control_points"] > fb["seed_knots"]
+    assert a.execution_time_s <= seed.execution_time_s
+    r = command_metrics(KEOPS, PATH.point(a.s), a.T, a.s)
+    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
+    # the whole piece's swarm is the dense one's (same knots, same start, same random numbers):
+    # its best per iteration agrees to rounding
+    monkeypatch.undo()
+    d = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
+    assert "fallback" not in d.info
+    assert np.allclose([h[1] for h in a.info["history"]], [h[1] for h in d.info["history"]],
+                       rtol=1e-9, atol=0)
+
+
+def test_an_infeasible_seed_is_stretched_at_T_where_the_swarm_is_slower():
+    # a seed planned for 1.3 × the jerk and 1.2 × the acceleration limit breaks the limits at T;
+    # with a wide margin the swarm's start (the seed stretched to 0.8 × every limit) is slower
+    # than the seed stretched at T by just its excess: ∛(jerk ratio), the jerk ruling
+    hot = dataclasses.replace(KEOPS.limits, joint=dataclasses.replace(
+        KEOPS.limits.joint, a=1.2 * KEOPS.limits.joint.a, j=1.3 * KEOPS.limits.joint.j))
+    seed = plan("scurve_joint", PATH, KEOPS, limits=hot)
+    rs = command_metrics(KEOPS, PATH.point(seed.s), seed.T, seed.s)
+    assert not rs["feasible"] and rs["joint_peak_ratio"]["jerk"] > 1.1
+    opts = dict(seed=3, seed_profile=seed, iterations=0, polish_steps=0, margin=0.2, control_points=30)
+    a = plan("pso", PATH, KEOPS, **opts)
+    b = plan("pso", PATH, KEOPS, **opts)
+    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
+    assert a.info["returned"].startswith("per piece") and a.info["pieces_from"] == ["seed"]
+    r = command_metrics(KEOPS, PATH.point(a.s), a.T, a.s)
+    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
+    assert a.execution_time_s < a.info["swarm_time_s"]
+    stretched = seed.execution_time_s * rs["joint_peak_ratio"]["jerk"] ** (1 / 3)
+    assert a.execution_time_s == pytest.approx(stretched, abs=3 * a.T)

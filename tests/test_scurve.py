@@ -201,3 +201,52 @@ def test_cruise_over_an_axis_velocity_limit_is_repaired_without_a_numpy_warning(
     assert p.info["repairs"] >= 1
     assert 190.0 < p.sd.max() <= 200.0 * 0.995
     assert p.execution_time_s > 120.0 / 200.0
+
+
+def test_phase_samples_equal_numpy_linspace_per_phase():
+    """The limit check's sample times: the per-phase np.linspace of the first version, bit for bit."""
+    from planners.scurve import phase_samples
+    rng = np.random.default_rng(5)
+    T = 1e-3
+    for _ in range(300):
+        d = rng.choice([0.0, 1e-9, 3e-4, 2e-3, 0.4, 7.0], size=7) * rng.uniform(0.5, 1.5, 7)
+        tcum = np.concatenate([[0.0], np.cumsum(d)]) * rng.uniform(0.5, 2)
+        ref = np.concatenate([np.linspace(a, b, int(min(4000, max(16, math.ceil((b - a) / T)))))
+                              for a, b in zip(tcum[:-1], tcum[1:]) if b > a] or [np.zeros(0)])
+        assert np.array_equal(phase_samples(tcum, T), ref)
+
+
+def test_path_table_interpolation_equals_the_written_out_hermite_terms():
+    from planners.constraints import PathTable
+    from planners.paths import resolve_path
+    tab = PathTable(resolve_path("test_part"), None, ds=0.05)
+    s = np.random.default_rng(2).uniform(0, tab.length, 5000)
+    i, w, h = tab._locate(s)
+    X, X1, X2, X3 = tab.cart
+    w, h = w[..., None], h[..., None]
+    h00, h10 = 2 * w ** 3 - 3 * w ** 2 + 1, w ** 3 - 2 * w ** 2 + w
+    h01, h11 = -2 * w ** 3 + 3 * w ** 2, w ** 3 - w ** 2
+    ref = (h00 * X1[i] + h10 * h * X2[i] + h01 * X1[i + 1] + h11 * h * X2[i + 1],
+           h00 * X2[i] + h10 * h * X3[i] + h01 * X2[i + 1] + h11 * h * X3[i + 1],
+           (1 - w) * X3[i] + w * X3[i + 1])
+    for got, want in zip(tab.cartesian(s), ref):
+        assert np.array_equal(got, want)
+
+
+def test_consistent_equals_the_plain_two_passes():
+    """consistent() (plain floats, memo inline) against the two passes written with reachable()."""
+    rng = np.random.default_rng(9)
+    pl = scurve._Planner.__new__(scurve._Planner)
+    pl._reachable = {}
+    n = 60
+    Ls = rng.uniform(0.01, 3.0, n)
+    A, J = np.full(n, 2000.0) * rng.uniform(0.3, 1, n), np.full(n, 5e4) * rng.uniform(0.3, 1, n)
+    for _ in range(3):                           # rounds share the memo
+        v_c = rng.choice([0.0, 5.0, 40.0, 200.0], n + 1)
+        v_c[0] = v_c[-1] = 0.0
+        ref = v_c.copy()
+        for i in range(n - 1, -1, -1):
+            ref[i] = min(ref[i], scurve.reachable(ref[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i]))
+        for i in range(n):
+            ref[i + 1] = min(ref[i + 1], scurve.reachable(ref[i], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i + 1]))
+        assert np.array_equal(pl.consistent(v_c, Ls, A, J), ref)

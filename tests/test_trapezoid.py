@@ -1,6 +1,7 @@
 """planners.trapezoid (LinuxCNC type 0) against closed forms and the independent metrics."""
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,3 +155,72 @@ def test_programmed_feed_option(keops, tmp_path):
     d_up1, d_up2, d_down = 100**2 / (2 * a), (500**2 - 100**2) / (2 * a), 500**2 / (2 * a)
     t = (100 / a + (50 - d_up1) / 100 + 400 / a + (50 - d_up2 - d_down) / 500 + 500 / a)
     assert abs(slow.execution_time_s - t) <= 2 * slow.T
+
+
+def _simulate_reference(path, vmax, amax, vf, T):
+    """The per-cycle loop as first written (min/max builtins, values read per pass): the
+    reference the faster trapezoid.simulate must reproduce bit for bit."""
+    from planners.trapezoid import MAX_CYCLES
+    L = [g.length for g in path.segments]
+    vmax, amax, vf = np.asarray(vmax).tolist(), np.asarray(amax).tolist(), np.asarray(vf).tolist()
+    n = len(L)
+    s_out, v_out = [0.0], [0.0]
+    i, x, v, base, excess = 0, 0.0, 0.0, 0.0, 0.0
+    for _ in range(MAX_CYCLES):
+        t_left = T
+        while t_left > 0.0:
+            a = amax[i]
+            dx = L[i] - x
+            half = 0.5 * a * t_left
+            disc = vf[i] ** 2 + a * (2 * dx - v * t_left) + half * half
+            v_new = -half + math.sqrt(disc) if disc > 0 else 0.0
+            v_new = min(max(v_new, 0.0), vmax[i])
+            acc = min(max((v_new - v) / t_left, -a), a)
+            v_new = max(v + acc * t_left, 0.0)
+            disp = 0.5 * (v + v_new) * t_left
+            if x + disp < L[i] - 1e-12:
+                x += disp
+                v = v_new
+                break
+            if abs(acc) * t_left < 1e-12 * max(v, 1.0):
+                tau = dx / v if v > 0 else t_left
+            else:
+                tau = (-v + math.sqrt(max(v * v + 2 * acc * dx, 0.0))) / acc
+            tau = min(max(tau, 0.0), t_left)
+            v_end = v + acc * tau
+            if i == n - 1:
+                return np.array(s_out + [path.length]), np.array(v_out + [0.0]), excess
+            excess = max(excess, v_end - vf[i])
+            v = min(v_end, vf[i])
+            base += L[i]
+            x = 0.0
+            i += 1
+            t_left -= tau
+        s_out.append(min(base + x, path.length))
+        v_out.append(v)
+    raise AssertionError("no arrival")
+
+
+@pytest.mark.parametrize("machine,name", [("kossel", "test_part"), ("keops", "bird"), ("keops", "helix"),
+                                          ("kossel", "cam")])
+def test_simulate_equals_the_reference_loop_bit_for_bit(tmp_path, machine, name):
+    import importlib.util
+    from planners.trapezoid import final_velocities, prepare_geometry, segment_limits, simulate
+    m = load_machine(machine)
+    if name == "cam":
+        spec = importlib.util.spec_from_file_location(
+            "cam_program", Path(__file__).resolve().parents[1] / "benchmarks" / "perf" / "cam_program.py")
+        cam = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(cam)
+        cam.make_cam_program(300, seed=3, file=tmp_path / "cam.ngc")
+        path = resolve_path(str(tmp_path / "cam.ngc"))
+    else:
+        path = resolve_path(name)
+    lim = m.limits
+    planned, _ = prepare_geometry(path, lim.chord_error_mm, lim.chord_error_mm)
+    vmax, amax = segment_limits(planned, lim.cartesian.v, lim.cartesian.a, lim.feed_max)
+    vf = final_velocities(planned, vmax, amax)
+    s, sd, ex = simulate(planned, vmax, amax, vf, m.servo_period_s)
+    s0, sd0, ex0 = _simulate_reference(planned, vmax, amax, vf, m.servo_period_s)
+    assert len(s) > 100
+    assert np.array_equal(s, s0) and np.array_equal(sd, sd0) and ex == ex0

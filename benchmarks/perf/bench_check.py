@@ -62,7 +62,9 @@ def run_case(program: Path, planner: str, timeout: float) -> dict:
         p.returncode = status        # reaped: keep Popen from waiting on it again
         out.seek(0)
         lines = out.read().strip().splitlines()
-    res = {"peak_rss_mb": round(ru.ru_maxrss / 1024.0, 1)}
+    # CPU seconds of the whole child (imports included): on a shared, loaded machine the
+    # wall time varies 2× between runs, the CPU time much less
+    res = {"peak_rss_mb": round(ru.ru_maxrss / 1024.0, 1), "cpu_s": round(ru.ru_utime + ru.ru_stime, 2)}
     if os.WIFSIGNALED(status):
         res["error"] = f"killed after the {timeout:g} s timeout"
     elif os.WEXITSTATUS(status) != 0 or not lines:
@@ -83,7 +85,8 @@ def main(lines=LINES, planners=PLANNERS, timeout: float = 900.0) -> dict:
                 results[f"{planner}@{n}"] = r
                 what = r.get("error") or (f"{r['seconds']:8.2f} s  {r['samples']:>8} samples  "
                                           f"{r['findings']:>7} findings  text {r['text_bytes'] / 1e3:.1f} kB")
-                print(f"check {planner:<10} {n:>7} lines: {what}  peak RSS {r['peak_rss_mb']:.0f} MB", flush=True)
+                print(f"check {planner:<10} {n:>7} lines: {what}  peak RSS {r['peak_rss_mb']:.0f} MB  "
+                      f"CPU {r['cpu_s']:.1f} s", flush=True)
     return results
 
 

@@ -62,12 +62,13 @@ class Report:
         """Per (kind, severity): count, lines, and the worst finding (value against limit)."""
         rows: dict[tuple, dict] = {}
         for f in self.findings:
+            b = _badness(f)           # once per finding (10⁵ of them on a long program)
             r = rows.setdefault((f.kind, f.severity), {"kind": f.kind, "severity": f.severity, "count": 0,
-                                                       "lines": set(), "worst": f})
+                                                       "lines": set(), "worst": f, "bad": b})
             r["count"] += 1
             r["lines"].update(f.lines)
-            if _badness(f) > _badness(r["worst"]):
-                r["worst"] = f
+            if b > r["bad"]:
+                r["worst"], r["bad"] = f, b
         out = []
         for r in sorted(rows.values(), key=lambda r: (r["severity"] != "error", -_badness(r["worst"])[0], r["kind"])):
             w = r["worst"]
@@ -212,17 +213,30 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     order = np.lexsort((-np.abs(values[idx]), lines[idx]))
     idx, ln = idx[order], lines[idx][order]
     first = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
-    count = np.diff(np.r_[first, len(idx)])
-    for f0, c in zip(first, count):
-        v = float(values[idx[f0]])
-        name = what if joints is None else f"joint {int(joints[idx[f0]]) + 1} {what}"
-        out.append(Finding(kind, "error", [int(ln[f0])], v, limit, unit,
+    count = np.diff(np.r_[first, len(idx)]).tolist()
+    # plain Python numbers for the loop: a 10⁵-line program has 10⁵ findings, and indexing
+    # numpy arrays one element at a time cost most of this function
+    vals = values[idx[first]].tolist()
+    lns = ln[first].tolist()
+    jts = None if joints is None else joints[idx[first]].tolist()
+    for k, (v, c) in enumerate(zip(vals, count)):
+        name = what if jts is None else f"joint {int(jts[k]) + 1} {what}"
+        out.append(Finding(kind, "error", [int(lns[k])], v, limit, unit,
                            f"{name} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
                            f"(ratio {abs(v) / limit:.3f}, {c} sample(s))"))
     return out
 
 
 def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5) -> Report:
+    from planners.paths.base import gc_paused
+
+    # the cyclic GC's full passes over the 10⁵–10⁶ objects a long program makes (segments,
+    # findings, planner pieces) cost ~15 % of a check; none of them needs it to be freed
+    with gc_paused():
+        return _check(file, machine, planner, workspace_step_mm)
+
+
+def _check(file, machine, planner: str, workspace_step_mm: float) -> Report:
     import planners
     from planners.paths.gcode import GCodeError, program_path, read_gcode
 
@@ -302,11 +316,17 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
     rep.stats["samples"] = int(len(P))
     rep.stats["execution_time_s"] = prof.execution_time_s
     for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
-        for order, D in M.differences(X, T).items():
+        D = X
+        for order in M.ORDERS:
+            # the differences of M.differences, one order at a time (a 10⁶-sample profile
+            # holds one (N, 3) difference and its |·| instead of six)
+            D = np.diff(D, 1, axis=0) / T
             L = {"velocity": lim.v, "acceleration": lim.a, "jerk": lim.j}[order]
             unit = {"velocity": "mm/s", "acceleration": "mm/s²", "jerk": "mm/s³"}[order]
-            worst = np.abs(D).max(axis=1)
-            col = np.abs(D).argmax(axis=1)
+            absd = np.abs(D)
+            worst = absd.max(axis=1)
+            col = absd.argmax(axis=1)
+            del absd
             mask = worst > L * (1 + M.FEASIBLE_TOL)
             if not mask.any():
                 continue

@@ -9,6 +9,8 @@ import numpy as np
 
 from planners.paths.base import CONTIG_TOL, CORNER_ANGLE, END_TOL, Path, PathError, cross3, norm3, vec3
 
+_CHUNK = 65536          # arc lengths per block when a segment path evaluates many at once
+
 class Line:
     kind = "line"
 
@@ -97,6 +99,16 @@ class Arc:
         g._derive()
         return g
 
+    @classmethod
+    def from_parts(cls, start, center, normal, angle: float, line, a, b, radius: float, length: float,
+                   end) -> "Arc":
+        """A circular arc whose derived values (what _derive computes) the caller computed
+        for many arcs at once (planners.paths.blend)."""
+        g = cls.__new__(cls)
+        g.start, g.center, g.normal, g.angle, g.rise, g.line = start, center, normal, angle, 0.0, line
+        g.a, g.b, g.radius, g.length, g.end = a, b, radius, length, end
+        return g
+
     def _derive(self) -> float:
         """In-plane basis a, b, radius, length and end; returns the centre's offset from the plane."""
         a = self.start - self.center
@@ -174,8 +186,9 @@ class SegmentPath(Path):
         segs = list(segments)
         if not segs:
             raise PathError(f"{source}: empty path (no segments)")
+        starts_all = np.array([g.start for g in segs])
         if len(segs) > 1:
-            starts = np.array([g.start for g in segs[1:]])
+            starts = starts_all[1:]
             gaps = np.linalg.norm(starts - np.array([g.end for g in segs[:-1]]), axis=1)
             bad = np.nonzero(gaps > CONTIG_TOL * np.maximum(1.0, np.abs(starts).max(axis=1)))[0]
             if len(bad):
@@ -187,15 +200,22 @@ class SegmentPath(Path):
         lens = np.array([g.length for g in segs])
         self.seg_start = np.concatenate([[0.0], np.cumsum(lens)])
         self.length = float(self.seg_start[-1])
-        # Vectorised tables (lines use a = direction, arcs the circle frame).
+        # Vectorised tables (lines use a = direction, arcs the circle frame; zeros elsewhere).
         n = len(segs)
         self._is_arc = np.array([g.kind == "arc" for g in segs])
-        self._origin = np.array([g.start if g.kind == "line" else g.center for g in segs])
-        self._dir = np.array([g.direction if g.kind == "line" else np.zeros(3) for g in segs])
-        self._a = np.array([g.a if g.kind == "arc" else np.zeros(3) for g in segs])
-        self._b = np.array([g.b if g.kind == "arc" else np.zeros(3) for g in segs])
-        self._hn = np.array([(g.rise / g.angle) * g.normal if g.kind == "arc" else np.zeros(3) for g in segs])
-        self._k = np.array([g.angle / g.length if g.kind == "arc" else 0.0 for g in segs])
+        arcs = [g for g in segs if g.kind == "arc"]
+        ia, il = np.nonzero(self._is_arc)[0], np.nonzero(~self._is_arc)[0]
+        self._origin = starts_all.copy()
+        self._dir, self._a, self._b, self._hn = (np.zeros((n, 3)) for _ in range(4))
+        self._k = np.zeros(n)
+        if len(il):
+            self._dir[il] = np.array([segs[i].direction for i in il.tolist()])
+        if arcs:
+            self._origin[ia] = np.array([g.center for g in arcs])
+            self._a[ia] = np.array([g.a for g in arcs])
+            self._b[ia] = np.array([g.b for g in arcs])
+            self._hn[ia] = np.array([(g.rise / g.angle) * g.normal for g in arcs])
+            self._k[ia] = [g.angle / g.length for g in arcs]
         self._lens = lens
         assert len(self._k) == n
 
@@ -216,6 +236,11 @@ class SegmentPath(Path):
         return np.clip(np.searchsorted(self.seg_start, s, side="right") - 1, 0, len(self.segments) - 1)
 
     def _derivs(self, s: np.ndarray, order: int) -> list[np.ndarray]:
+        if len(s) > _CHUNK:
+            # ~15 temporaries of (N, 3) each: a 10⁶-sample profile in one go peaked at ~0.5 GB;
+            # element-wise, so chunks give the same bits
+            parts = [self._derivs(s[k:k + _CHUNK], order) for k in range(0, len(s), _CHUNK)]
+            return [np.concatenate([p[d] for p in parts]) for d in range(order + 1)]
         i = self.segment_index(s)
         t = np.minimum(s - self.seg_start[i], self._lens[i])[:, None]
         arc = self._is_arc[i][:, None]

@@ -22,7 +22,7 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from planners.paths.base import PathError
+from planners.paths.base import PathError, gc_paused
 from planners.paths.blend import blend_corners
 from planners.paths.segments import Arc, Line, SegmentPath
 
@@ -257,7 +257,8 @@ def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
         # CAM posts and old editors write Latin-1 comments (é, °, µ); LinuxCNC reads them:
         # every byte is a Latin-1 character, and the G-code words themselves are ASCII
         text, latin1 = data.decode("latin-1"), True
-    prog = parse_gcode(text, str(file), start, home, **options)
+    with gc_paused():
+        prog = parse_gcode(text, str(file), start, home, **options)
     if latin1:
         prog.notes.insert(0, (0, "not UTF-8: read as Latin-1"))
     return prog
@@ -265,8 +266,9 @@ def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
 
 def program_path(prog: GCodeProgram) -> SegmentPath:
     """The blended path of a program (G61 corners kept sharp, G64 corners rounded)."""
-    segs, _ = blend_corners(prog.segments(), prog.blend_tolerances())
-    return SegmentPath(segs, prog.source, program=prog)
+    with gc_paused():
+        segs, _ = blend_corners(prog.segments(), prog.blend_tolerances())
+        return SegmentPath(segs, prog.source, program=prog)
 
 
 def load_gcode_path(file, start=None, **options) -> SegmentPath:
