@@ -31,6 +31,7 @@ EXPECTED = {
     "planners": "planning time per planner × path",
     "fmus": "FMU per-step cost (doStep µs) per FMU",
     "sweep": "sweep speed-up, 2 workers over 1",
+    "corpus": "planning time per planner over the toolpath corpus (median, worst)",
 }
 
 
