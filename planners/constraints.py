@@ -34,10 +34,6 @@ STENCIL_H_MM = 0.02
 # most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
 # difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
 JUMP_READ_FACTOR = 0.75
-# PathTable: a cell is at most this many curvature radii wide (q‴ is interpolated linearly, its
-# relative error ~ (h/ρ)²/8 = 0.1 %), and never split below REFINE_MIN_MM
-REFINE_RADII = 0.1
-REFINE_MIN_MM = 1e-5
 
 
 def check_limits(limits, planner: str = "planner") -> None:
@@ -175,8 +171,7 @@ class PathTable:
 
     Evaluating a NURBS at arc length needs a Newton inversion per call; planners that check
     limits thousands of times (s-curve repair, PSO swarms, IPOPT) read these tables instead.
-    The grid is uniform within each piece between joins (segment ends, corners), refined where
-    a cell is wider than REFINE_RADII curvature radii (lobe tips), and holds each corner
+    The grid is uniform within each piece between exact-stop corners, and holds each corner
     twice (its value from the left and from the right), so no interpolation blends the two
     sides of a corner.  x′ and x″ are interpolated by cubic Hermite with the next derivative
     as slope (O(h⁴)), x‴ linearly (O(h²)), for the Cartesian axes and, with a machine, the
@@ -191,62 +186,23 @@ class PathTable:
         # still gets points of its own (a 0.04 mm G64 blend arc)
         self.edges = np.array([0.0] + breakpoints(path) + [L])
         per_mm = max(1.0 / ds, (min_points - 1) / L)
-        grids, self.hs = [], []
+        grids, self.offset, self.hs = [], [], []
+        n0 = 0
         for a, b in zip(self.edges[:-1], self.edges[1:]):
             n = max(8, int(math.ceil((b - a) * per_mm)) + 1)
             g = np.linspace(a, b, n)
             grids.append(g)
+            self.offset.append(n0)
             self.hs.append(g[1] - g[0])
-        self.hs = np.array(self.hs)       # each piece's base spacing (refined cells are finer)
-        S = np.concatenate(grids)
-        piece = np.repeat(np.arange(len(grids)), [len(g) for g in grids])
-        # a NURBS's P‴ jumps at its knots: rows 1e-7 mm either side keep a cell from blending the
-        # two sides of a knot over a whole grid step (0.5 % low on q‴ at the butterfly's tip)
-        U = getattr(path, "knots", None)
-        if U is not None and hasattr(path, "s_of_u"):
-            uk = np.unique(np.asarray(U, float))[1:-1]
-            if len(uk):
-                sk = np.asarray(path.s_of_u(uk), float)
-                sk = np.concatenate([sk - 1e-7, sk + 1e-7])
-                pk = np.clip(np.searchsorted(self.edges, sk, side="right") - 1, 0, len(grids) - 1)
-                keep = (sk > self.edges[pk] + 1e-9) & (sk < self.edges[pk + 1] - 1e-9)
-                S, piece = np.concatenate([S, sk[keep]]), np.concatenate([piece, pk[keep]])
-                order = np.lexsort((S, piece))
-                S, piece = S[order], piece[order]
-        S, piece, self.cart = self._refine(path, S, piece)
-        self.s, self._piece = S, piece
-        self.counts = np.bincount(piece, minlength=len(grids))
-        self.offset = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
-        self.joint = joint_derivs(machine, path, self._inner(S, piece), cart=self.cart) if machine is not None else None
-
-    def _inner(self, S, piece):
-        """Grid points a hair inside their piece: each piece's ends are evaluated one-sidedly."""
-        return np.clip(S, self.edges[piece] + 1e-9, self.edges[piece + 1] - 1e-9)
-
-    def _refine(self, path, S, piece):
-        """Split every cell wider than REFINE_RADII × the curvature radius at its ends, until
-        none is: a lobe tip of ρ = 0.02 mm is a curvature peak narrower than the base spacing,
-        which the interpolated tables missed (the s-curve's joint check read 0.88 there where
-        the exact derivatives give 1.09). Returns (grid, piece of each row, Cartesian tables)."""
-        cart = cartesian_derivs(path, self._inner(S, piece))
-        for _ in range(12):
-            kap = np.linalg.norm(np.cross(cart[1], cart[2]), axis=1)
-            h = np.diff(S)
-            k = np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII)
-            need = np.nonzero((piece[1:] == piece[:-1]) & (k > 1) & (h > REFINE_MIN_MM))[0]
-            if len(need) == 0:
-                break
-            k = np.minimum(k[need], 64).astype(np.int64)
-            cell = np.repeat(need, k - 1)
-            frac = (np.arange(len(cell)) - np.repeat(np.cumsum(k - 1) - (k - 1), k - 1) + 1) / np.repeat(k, k - 1)
-            s_new = S[cell] + h[cell] * frac
-            p_new = piece[cell]
-            c_new = cartesian_derivs(path, self._inner(s_new, p_new))
-            S, piece = np.concatenate([S, s_new]), np.concatenate([piece, p_new])
-            order = np.lexsort((S, piece))
-            S, piece = S[order], piece[order]
-            cart = tuple(np.concatenate([a, b])[order] for a, b in zip(cart, c_new))
-        return S, piece, cart
+            n0 += n
+        self.offset, self.hs = np.array(self.offset), np.array(self.hs)
+        self.counts = np.array([len(g) for g in grids])
+        self.s = np.concatenate(grids)
+        # evaluate one-sidedly: the end points of each piece a hair inside it
+        inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
+                                zip(grids, self.edges[:-1], self.edges[1:])])
+        self.cart = cartesian_derivs(path, inner)
+        self.joint = joint_derivs(machine, path, inner, cart=self.cart) if machine is not None else None
 
     @staticmethod
     def _interp(tab, i, w, h):
@@ -270,10 +226,10 @@ class PathTable:
         A corner itself counts to the piece after it (callers stay inside pieces)."""
         s = np.clip(np.asarray(s, float), 0.0, self.length)
         p = np.clip(np.searchsorted(self.edges, s, side="right") - 1, 0, len(self.hs) - 1)
-        # the grid is sorted, each corner held twice: the last row ≤ s, kept inside s's piece
-        i = np.clip(np.searchsorted(self.s, s, side="right") - 1, self.offset[p], self.offset[p] + self.counts[p] - 2)
-        h = self.s[i + 1] - self.s[i]
-        return i, (s - self.s[i]) / h, h
+        h = self.hs[p]
+        x = (s - self.edges[p]) / h
+        k = np.clip(x.astype(np.int64), 0, self.counts[p] - 2)
+        return self.offset[p] + k, x - k, h
 
     def cartesian(self, s):
         """(P′, P″, P‴) at s; any shape of s, results with a trailing axis of 3."""
