@@ -47,8 +47,20 @@ ACC_RATIO_NORMAL = math.sqrt(1 - ACC_RATIO_TANGENTIAL**2)  # ≈ 0.866
 MAX_CYCLES = 20_000_000
 
 
-def prepare_geometry(path: Path, chord_tol: float, blend_tol: float | None):
-    """(segment path planned on, info) — the path as LinuxCNC would receive it."""
+def prepare_geometry(path: Path, chord_tol: float, blend_tol: float | None, limits=None,
+                     programmed_feed: bool = True):
+    """(segment path planned on, info) — the path as LinuxCNC would receive it.
+
+    A G-code path with ``limits`` is re-blended from its program with LinuxCNC's speed-sized
+    blend arcs (planners.paths.gcode.program_path; the feeds the path runs at)."""
+    if isinstance(path, SegmentPath) and path.program is not None and limits is not None:
+        from planners.paths.gcode import program_path
+        programmed = programmed_feed and path.feed_mode != "max"
+        sized = program_path(path.program, (limits.cartesian.v, limits.cartesian.a, limits.feed_max, programmed))
+        sized.feed_mode = path.feed_mode
+        return sized, {"geometry_deviation_mm": 0.0, "chord_deviation_mm": 0.0,
+                       "blend_deviation_mm": 0.0, "segments": len(sized.segments),
+                       "blends": "speed-sized (LinuxCNC blendComputeParameters)"}
     if isinstance(path, SegmentPath):
         return path, {"geometry_deviation_mm": 0.0, "chord_deviation_mm": 0.0,
                       "blend_deviation_mm": 0.0, "segments": len(path.segments)}
@@ -85,8 +97,10 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
         scale = np.sqrt(u ** 2 + v ** 2 + n ** 2).max(axis=1)
         a_plane = a_axis / scale
         rho = r + (rise / np.array([g.angle for g in A])) ** 2 / r     # helix radius of curvature
+        # a speed-sized blend arc also has LinuxCNC's v_plan as its maxvel (tpCreateLineLineBlend)
+        cap = np.array([getattr(g, "v_cap", None) or math.inf for g in A])
         vmax[arc] = np.minimum.reduce([np.full(len(A), feed_max), v_axis / scale,
-                                       np.sqrt(ACC_RATIO_NORMAL * a_plane * rho)])
+                                       np.sqrt(ACC_RATIO_NORMAL * a_plane * rho), cap])
         amax[arc] = ACC_RATIO_TANGENTIAL * a_plane
     return vmax, amax
 
@@ -235,7 +249,7 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     if blend < 0:
         raise PlanningError(f"trapezoid: blend tolerance {blend} mm must be ≥ 0")
     check_path_in_workspace(path, machine, check_workspace_step_mm)
-    planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
+    planned, info = prepare_geometry(path, chord, blend if blend > 0 else None, limits, programmed_feed)
     vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)
     feeds = segment_feeds(planned, limits.feed_max) if programmed_feed else None
     if feeds is not None:

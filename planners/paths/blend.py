@@ -7,6 +7,13 @@ the tolerance allows, but using at most half of each adjoining line so that neig
 blends never overlap. The blended path is then tangent-continuous there. What is *not*
 blended (documented limits): corners touching an arc segment (kept as exact stops, as
 LinuxCNC does when a blend arc does not fit), and near-reversals (turn > π − 1e-6 rad).
+
+With ``speed`` (a :class:`BlendSpeed`: the moves' feeds and the machine's axis limits) the
+arc is sized to the speed as LinuxCNC 2.9's tp sizes it (blendmath.c
+``blendInit3FromLineLine``, ``blendParamKinematics``, ``blendComputeParameters``; tc.c
+``tcFindBlendTolerance``) instead of "as large as fits": at most a quarter of each line as
+tolerance, half of each line as room, and a radius only as large as the corner speed needs.
+Such an arc carries ``v_cap`` (LinuxCNC's blend maxvel v_plan).
 """
 from __future__ import annotations
 
@@ -18,6 +25,68 @@ from planners.paths.base import CORNER_ANGLE, Path, PathError, cross3, norm3
 from planners.paths.segments import Arc, Line, SegmentPath
 
 REVERSAL_ANGLE = math.pi - 1e-6
+
+
+class BlendSpeed:
+    """What LinuxCNC's blend sizing needs: per segment the requested speed (min(F, F_max);
+    rapids F_max) and the line's own velocity limit (tc->maxvel), and the X/Y/Z axis
+    velocity and acceleration limits (equal on every axis here)."""
+
+    def __init__(self, req, maxvel, v_axis: float, a_axis: float):
+        self.req, self.maxvel = list(req), list(maxvel)
+        self.v_axis, self.a_axis = float(v_axis), float(a_axis)
+
+
+def _plane_bound(binormal, bound: float) -> float:
+    """blendmath.c calculateInscribedDiameter with one bound on every axis: the largest
+    magnitude of a vector in the plane ⊥ ``binormal`` keeping each axis within ``bound``."""
+    scale = max(math.sqrt(max(1.0 - float(b) * float(b), 0.0)) for b in binormal)
+    return bound / max(scale, 1e-300)
+
+
+def speed_blend(u1, u2, L1: float, L2: float, nominal1: float, nominal2: float, tol: float,
+                req1: float, req2: float, maxvel1: float, maxvel2: float, v_axis: float, a_axis: float):
+    """(radius, tangent length d, deviation, turn angle, v_plan) of LinuxCNC's line–line blend arc.
+
+    Follows blendmath.c blendInit3FromLineLine / blendParamKinematics / blendComputeParameters
+    (planner type 0, feed override scale 1): θ is half the interior angle, φ = π − 2θ the turn.
+    L1, L2: the room on each line (LinuxCNC: min(what is left of the previous line, half its
+    nominal length) and half the next line); tol: the G64 P (inf = none → a quarter of a line).
+    """
+    dot = float(u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2])
+    theta = 0.5 * math.acos(max(-1.0, min(1.0, -dot)))
+    phi = math.pi - 2.0 * theta
+    # tc.c tcFindBlendTolerance: no P → a quarter of the line; never more than a quarter of either
+    T1 = tol if math.isfinite(tol) else 0.25 * nominal1
+    T2 = tol if math.isfinite(tol) else 0.25 * nominal2
+    T = min(T1, T2, 0.25 * nominal1, 0.25 * nominal2)
+    binormal = cross3(np.asarray(u1, float), np.asarray(u2, float))
+    binormal = binormal / norm3(binormal)
+    a_max = _plane_bound(binormal, a_axis)
+    a_n = a_max * math.sqrt(1.0 - 0.25)                  # BLEND_ACC_RATIO_NORMAL
+    v_planar = _plane_bound(binormal, v_axis)
+    v_goal = max(min(req1, maxvel1), min(req2, maxvel2))   # tcGetMaxTargetVel, scale 1
+    # blendParamKinematics: the "altitude" speed of the velocity triangle (lines only)
+    phi_eff = min(phi, math.pi * 0.49)
+    vm1 = min(maxvel1, maxvel2 / math.cos(phi_eff))
+    vm2 = min(maxvel2, maxvel1 / math.cos(phi_eff))
+    base = norm3(np.asarray(u2, float) * vm2 - np.asarray(u1, float) * vm1)
+    v_alt = 2.0 * (vm1 * vm2 / 2.0 * math.sin(phi)) / base if base > 0 else 0.0
+    v_goal = min(v_goal, max(v_alt, v_planar))
+    # blendComputeParameters
+    h_tol = T / (1.0 - math.sin(theta))
+    d_tol = math.cos(theta) * h_tol
+    d_geom = min(L1, L2, d_tol)
+    R_geom = math.tan(theta) * d_geom
+    v_plan = min(math.sqrt(a_n * R_geom), v_goal)
+    a_par = 0.5 * a_max
+    v_tri = math.sqrt(2.0 * a_par * d_geom)
+    s_blend = min(v_tri, v_plan) / a_par * v_plan
+    R_blend = min(s_blend / phi, R_geom)
+    R = max(v_plan * v_plan / a_n, R_blend)
+    d = R / math.tan(theta)
+    dev = R / math.sin(theta) - R                       # centre to corner minus the radius
+    return R, d, dev, phi, v_plan
 
 
 def line_blend(u1: np.ndarray, u2: np.ndarray, room: float, tolerance: float):
@@ -49,11 +118,12 @@ def _cross(A: np.ndarray, B: np.ndarray) -> np.ndarray:
                             A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0]])
 
 
-def blend_corners(segments, tolerances):
+def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
     """Round the line–line corners whose tolerance is not None.
 
     ``tolerances[i]`` governs the corner between segments i and i+1: None → exact stop,
-    a number p > 0 → an arc within p mm of the corner, inf → an arc limited only by room.
+    a number p > 0 → an arc within p mm of the corner, inf → an arc limited only by room
+    (with ``speed``: sized to the speed as LinuxCNC does, see the module's doc).
     Returns (new segments, list of (corner index, deviation mm) for each blended corner).
     """
     segs = list(segments)
@@ -77,13 +147,26 @@ def blend_corners(segments, tolerances):
             raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
         if turn <= CORNER_ANGLE or turn >= REVERSAL_ANGLE:
             continue                      # tangent already, or a reversal: nothing to round
-        room = 0.5 * min(a.length, b.length)
-        R, d, dev, delta = line_blend(a.direction, b.direction, room, tol)
+        if speed is None:
+            room = 0.5 * min(a.length, b.length)
+            R, d, dev, delta = line_blend(a.direction, b.direction, room, tol)
+            v_plan = None
+        else:
+            # corners in program order, as LinuxCNC queues them: the previous line may
+            # already be shortened at its start by the blend before
+            L1 = min(a.length - trim_start[i], 0.5 * a.length)
+            sp = speed
+            R, d, dev, delta, v_plan = speed_blend(a.direction, b.direction, L1, 0.5 * b.length, a.length,
+                                                   b.length, tol, sp.req[i], sp.req[i + 1], sp.maxvel[i],
+                                                   sp.maxvel[i + 1], sp.v_axis, sp.a_axis)
+            # blendComputeParameters aborts an arc below TP_POS_EPSILON / TP_MIN_ARC_LENGTH
+            if not (R >= 1e-12 and R * delta >= 1e-6):
+                continue
         if not (R > 0 and d > 0):
             continue
         trim_end[i] = d
         trim_start[i + 1] = d
-        arcs[i] = (R, d, delta)
+        arcs[i] = (R, d, delta, v_plan)
         done.append((i, dev))
     # Assemble from exact positions: trimmed lines keep their original direction (so a
     # short leftover never gets a direction of rounding noise, i.e. a false corner) and each
@@ -126,6 +209,8 @@ def blend_corners(segments, tolerances):
         for k, i in enumerate(ai):
             built[i] = Arc.from_parts(t1[k], C[k], n[k], delta[k], segs[i + 1].line,
                                       a[k], b[k], radius[k], length[k], end[k])
+            if arcs[i][3] is not None:
+                built[i].v_cap = arcs[i][3]     # tp.c tpCreateLineLineBlend: maxvel = v_plan
     out = []
     for i, g in enumerate(segs):
         if g.kind == "line":

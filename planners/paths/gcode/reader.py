@@ -23,7 +23,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from planners.paths.base import PathError, gc_paused
-from planners.paths.blend import blend_corners
+from planners.paths.blend import BlendSpeed, blend_corners
 from planners.paths.segments import Arc, Line, SegmentPath
 
 INCH_MM = 25.4
@@ -264,11 +264,30 @@ def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
     return prog
 
 
-def program_path(prog: GCodeProgram) -> SegmentPath:
-    """The blended path of a program (G61 corners kept sharp, G64 corners rounded)."""
+def program_path(prog: GCodeProgram, speed_limits=None) -> SegmentPath:
+    """The blended path of a program (G61 corners kept sharp, G64 corners rounded).
+
+    ``speed_limits`` = (axis v, axis a, F_max, programmed F?) sizes each G64 blend arc to the
+    speed as LinuxCNC's tp does (planners.paths.blend.BlendSpeed); without it (the standard
+    paths) a corner gets the largest arc its tolerance and half of each line allow."""
     with gc_paused():
-        segs, _ = blend_corners(prog.segments(), prog.blend_tolerances())
+        speed = None if speed_limits is None else blend_speed(prog, *speed_limits)
+        segs, _ = blend_corners(prog.segments(), prog.blend_tolerances(), speed)
         return SegmentPath(segs, prog.source, program=prog)
+
+
+def blend_speed(prog: GCodeProgram, v_axis: float, a_axis: float, feed_max: float,
+                programmed: bool = True) -> BlendSpeed:
+    """Each move's requested speed (its F, or F_max for a rapid or without programmed feed) and
+    its own velocity limit (the fastest axis at v_axis along a line, F_max at most: tc->maxvel)."""
+    req, maxvel = [], []
+    for m in prog.moves:
+        f = feed_max if (m.rapid or not programmed or m.feed_mm_s is None) else min(feed_max, m.feed_mm_s)
+        req.append(f)
+        g = m.segment
+        worst = float(np.abs(g.direction).max()) if g.kind == "line" else 1.0
+        maxvel.append(min(feed_max, v_axis / worst))
+    return BlendSpeed(req, maxvel, v_axis, a_axis)
 
 
 def load_gcode_path(file, start=None, **options) -> SegmentPath:
