@@ -106,3 +106,28 @@ def test_trapezoid_matches_linuxcnc_on_a_single_g64_line(line_runs, kossel):
     path, (lc, _) = line_runs
     tz = plan("trapezoid", path, kossel)
     assert abs(tz.execution_time_s - lc.execution_time_s) <= tz.T
+
+
+CORNERS_G64 = """G21 G90 G17 G64
+G0 X-10 Y-10 Z-250
+G1 X10 F1200
+Y10
+X-10 Y-5
+M2
+"""
+
+
+@needs_linuxcnc
+def test_trapezoid_matches_linuxcnc_on_speed_sized_g64_corners(tmp_path, kossel):
+    # G64 without P: LinuxCNC sizes each blend arc to the corner speed (blendmath.c
+    # blendComputeParameters), far smaller than the largest arc that fits. A 90° and a 127° turn.
+    from planners.verify import command_metrics
+    path = gcode_path(tmp_path, "corners.ngc", CORNERS_G64)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.01 * lc.execution_time_s
+    jv = [command_metrics(kossel, p.path.point(p.s), p.T, p.s)["joint_peak_ratio"]["velocity"] for p in (lc, tz)]
+    assert abs(jv[1] - jv[0]) <= 0.02 * jv[0]
+    # the arcs trapezoid planned on: the first one, long lines at 20 mm/s, 4v²/(π·a)
+    arcs = [g for g in tz.path.segments if g.kind == "arc"]
+    assert len(arcs) == 2
+    assert arcs[0].radius == pytest.approx(4 * 20.0 ** 2 / (math.pi * kossel.limits.cartesian.a), rel=1e-12)

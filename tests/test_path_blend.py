@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from planners.paths.blend import blend_corners, cut_into_lines
+from planners.paths.blend import BlendSpeed, blend_corners, cut_into_lines
 from planners.paths import Arc, Line, NurbsPath, SegmentPath
 
 
@@ -36,6 +36,47 @@ def test_room_limited_blend_uses_half_the_shorter_line():
     assert arc.radius == pytest.approx(2.0)                      # d = R·tan(45°) = 4/2
     assert done[0][1] == pytest.approx(2.0 * (math.sqrt(2) - 1))
     assert segs[-1].length == pytest.approx(2.0)                 # half of the 4 mm line is left
+
+
+# LinuxCNC 2.9's speed-sized blend (blendmath.c blendComputeParameters, planner type 0):
+# kossel-like limits, 20 mm/s on every axis, 500 mm/s²; a 90° corner in the XY plane
+# (a_max = 500, a_n = 500·√0.75, φ = π/2, θ = π/4 so d = R).
+V_AX, A_AX = 20.0, 500.0
+
+
+def speed_corner(L, v, tol=math.inf):
+    segs, done = blend_corners(corner(L, L), [tol], BlendSpeed([v, v], [V_AX, V_AX], V_AX, A_AX))
+    return [g for g in segs if g.kind == "arc"][0], segs, done
+
+
+def test_speed_sized_blend_long_lines_take_the_parabolic_blend_radius():
+    # long lines at 10 mm/s: v_plan = F; the "equivalent parabolic blend" of half the
+    # acceleration lasts v/(a/2) and covers s = 2v²/a, R = s/φ = 4v²/(π·a) (> v²/a_n)
+    v = 10.0
+    arc, segs, _ = speed_corner(40.0, v)
+    R = 4 * v * v / (math.pi * A_AX)
+    assert R > v * v / (A_AX * math.sqrt(0.75))
+    assert arc.radius == pytest.approx(R, rel=1e-12)
+    assert arc.v_cap == pytest.approx(v, rel=1e-15)
+    assert segs[0].length == pytest.approx(40.0 - R, rel=1e-12)           # d = R at 90°
+
+
+def test_speed_sized_blend_short_lines_are_room_limited():
+    # 1 mm lines at 20 mm/s: half a line (0.5 mm) is the room; the arc's speed is what its
+    # radius allows at the normal acceleration, √(a_n·R) ≈ 14.7 mm/s
+    arc, _, _ = speed_corner(1.0, 20.0)
+    assert arc.radius == pytest.approx(0.5, rel=1e-12)
+    assert arc.v_cap == pytest.approx(math.sqrt(A_AX * math.sqrt(0.75) * 0.5), rel=1e-12)
+
+
+def test_speed_sized_blend_within_the_g64_p_tolerance():
+    # G64 P0.01 on long lines: the tolerance limits the radius, as in the largest-arc blend
+    p = 0.01
+    arc, _, done = speed_corner(40.0, 10.0, p)
+    R = p / (math.sqrt(2) - 1)
+    assert arc.radius == pytest.approx(R, rel=1e-9)
+    assert done[0][1] == pytest.approx(p, rel=1e-9)
+    assert arc.v_cap == pytest.approx(math.sqrt(A_AX * math.sqrt(0.75) * R), rel=1e-9)
 
 
 def test_exact_stop_collinear_reversal_and_arc_corners_are_kept():
