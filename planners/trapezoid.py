@@ -10,8 +10,10 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
 * Segment limits (tc.c ``tcGetTangentialMaxAccel``, ``tcUpdateArcLimits``; blendmath.c
   ``pmCircleActualMaxVel``): LinuxCNC limits only the Cartesian axes and the feed. A line's
   acceleration/velocity is the largest keeping every axis within its limit along the line's
-  direction; an arc's tangential acceleration gets ``BLEND_ACC_RATIO_TANGENTIAL`` = 0.5 of
-  the plane's bound and its speed is capped at √(0.866·a·ρ) (``BLEND_ACC_RATIO_NORMAL``).
+  direction; a G2/G3 arc's tangential acceleration gets √(1 − (v²/ρ / a)²) of the plane's
+  bound a, v its machine speed (``tcUpdateCircleAccRatio``), a blend arc's
+  ``BLEND_ACC_RATIO_TANGENTIAL`` = 0.5; the speed is capped at √(0.866·a·ρ)
+  (``BLEND_ACC_RATIO_NORMAL``).
 * Look-ahead (tp.c ``tpRunOptimization`` / ``tpComputeOptimalVelocity``): backward pass
   v_start = √(v_final² + 2·a·L), so every segment can stop where the path demands; a
   tangent-discontinuous junction (exact stop, or a corner with no blend) ends at rest.
@@ -99,10 +101,33 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
         rho = r + (rise / np.array([g.angle for g in A])) ** 2 / r     # helix radius of curvature
         # a speed-sized blend arc also has LinuxCNC's v_plan as its maxvel (tpCreateLineLineBlend)
         cap = np.array([getattr(g, "v_cap", None) or math.inf for g in A])
-        vmax[arc] = np.minimum.reduce([np.full(len(A), feed_max), v_axis / scale,
-                                       np.sqrt(ACC_RATIO_NORMAL * a_plane * rho), cap])
-        amax[arc] = ACC_RATIO_TANGENTIAL * a_plane
+        blend = np.isfinite(cap)
+        v_machine = np.minimum(feed_max, v_axis / scale)
+        vmax[arc] = np.minimum.reduce([v_machine, np.sqrt(ACC_RATIO_NORMAL * a_plane * rho), cap])
+        # a G2/G3 arc (TC_CIRCULAR) gets the tangential share its machine speed leaves
+        # (tc.c tcUpdateCircleAccRatio, blendmath.c pmCircleActualMaxVel): √(1 − (v²/ρ / a)²),
+        # 0.5 when v²/ρ exceeds a_n; a blend arc (TC_SPHERICAL) keeps 0.5
+        a_n_v = v_machine ** 2 / rho
+        ratio = np.where(a_n_v > ACC_RATIO_NORMAL * a_plane, ACC_RATIO_TANGENTIAL,
+                         np.sqrt(np.maximum(1.0 - (a_n_v / a_plane) ** 2, 0.0)))
+        # ... once finalized (tcFinalizeLength), i.e. when the next move is queued: the last
+        # move before a queue sync or the program end never is, and keeps 0.5
+        last = np.array([_ends_queue(path, k) for k in np.nonzero(arc)[0]])
+        amax[arc] = np.where(blend | last, ACC_RATIO_TANGENTIAL, ratio) * a_plane
     return vmax, amax
+
+
+def _ends_queue(path: SegmentPath, k: int) -> bool:
+    """Segment k is the last of a G-code move after which the motion queue drains (an M-code
+    sync, a dwell, the program end): nothing is queued behind it while it runs."""
+    prog = path.program
+    if prog is None:
+        return k == len(path.segments) - 1
+    segs = path.segments
+    if k + 1 < len(segs) and segs[k + 1].line == segs[k].line:
+        return False
+    m = next((m for m in prog.moves if m.line == segs[k].line), None)
+    return m is not None and m.stop in ("sync", "end")
 
 
 def program_stops(path: SegmentPath):

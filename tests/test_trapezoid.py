@@ -128,8 +128,10 @@ def test_deterministic_and_gcode_part_on_kossel(tmp_path):
     a.save_csv(fa)
     b.save_csv(fb)
     assert fa.read_bytes() == fb.read_bytes()
-    # 4 exact stops (line ↔ full circle), the feed never above F_max = 20 mm/s
-    assert a.info["corners"] == 4
+    # 2 exact stops: each full circle's end (to the 3D line down / the G0 up: not coplanar,
+    # no blend arc in LinuxCNC); the line → circle corners are blended (tpCreateLineArcBlend);
+    # the feed never above F_max = 20 mm/s
+    assert a.info["corners"] == 2
     assert a.sd.max() <= kossel.limits.feed_max * (1 + 1e-12)
     # lower bound: length at F_max; upper: plus a full stop-and-go per corner and per blend
     L = part.length

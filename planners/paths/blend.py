@@ -89,6 +89,102 @@ def speed_blend(u1, u2, L1: float, L2: float, nominal1: float, nominal2: float, 
     return R, d, dev, phi, v_plan
 
 
+def _blend_params(theta: float, binormal, L1, L2, nominal1, nominal2, tol, v1: float, v2: float,
+                  v_axis: float, a_axis: float):
+    """(R_plan, v_plan, tolerance) of blendParamKinematics + blendComputeParameters for a half
+    interior angle θ with an arc on one side (no altitude speed); v1, v2: each move's
+    tcGetMaxTargetVel. speed_blend spells the same steps out for two lines."""
+    phi = math.pi - 2.0 * theta
+    T1 = tol if math.isfinite(tol) else 0.25 * nominal1
+    T2 = tol if math.isfinite(tol) else 0.25 * nominal2
+    T = min(T1, T2, 0.25 * nominal1, 0.25 * nominal2)
+    a_max = _plane_bound(binormal, a_axis)
+    a_n = a_max * math.sqrt(1.0 - 0.25)
+    v_goal = min(max(v1, v2), _plane_bound(binormal, v_axis))
+    d_tol = math.cos(theta) * T / (1.0 - math.sin(theta))
+    d_geom = min(L1, L2, d_tol)
+    R_geom = math.tan(theta) * d_geom
+    v_plan = min(math.sqrt(a_n * R_geom), v_goal)
+    a_par = 0.5 * a_max
+    s_blend = min(math.sqrt(2.0 * a_par * d_geom), v_plan) / a_par * v_plan
+    R_blend = min(s_blend / phi, R_geom)
+    return max(v_plan * v_plan / a_n, R_blend), v_plan, T
+
+
+def _unit(v):
+    v = np.asarray(v, float)
+    return v / norm3(v)
+
+
+def arc_tangent(g, at_end: bool):
+    """Unit tangent of a planar arc at its start or end (direction of travel)."""
+    p = g.end if at_end else g.start
+    return _unit(cross3(g.normal, p - g.center))
+
+
+def line_arc_blend(line, arc, line_room: float, arc_angle: float, line_first: bool, tol: float,
+                   v_line: float, v_arc: float, v_axis: float, a_axis: float):
+    """LinuxCNC's blend arc between a line and a planar circular arc, or None (no blend).
+
+    blendmath.c blendInit3FromLineArc / blendInit3FromArcLine (convexity, φ_max, the reduced
+    θ and the room on the circle), blendComputeParameters, then blendLineArcPostProcess /
+    blendArcLinePostProcess (the arc of radius R_plan tangent to both, the tolerance
+    re-checked; tp.c: the trim angle on the circle at most φ_max). ``line_room``: what is
+    left of the line before the corner (LinuxCNC's target); ``arc`` as it is left (trimmed).
+    Returns (R, line trim, arc trim angle, blend centre, binormal, v_plan, deviation).
+    """
+    if arc.rise != 0.0:
+        return None                                   # a helix: not handled here, exact stop
+    if line_first:
+        u1, u2, P = line.direction, arc_tangent(arc, False), line.end
+    else:
+        u1, u2, P = arc_tangent(arc, True), line.direction, line.start
+    dot = float(np.dot(u1, u2))
+    theta_tan = 0.5 * math.acos(max(-1.0, min(1.0, -dot)))
+    if math.pi / 2 - theta_tan < 1e-6 or theta_tan < 1e-6:
+        return None                                   # blendGeom3Init: tangent, or a reversal
+    binormal = _unit(cross3(u1, u2))
+    if abs(abs(float(np.dot(binormal, arc.normal))) - 1.0) > 1e-9:
+        return None                                   # tp.c: not coplanar → no arc blend
+    C, r = arc.center, arc.radius
+    if line_first:   # arcConvexTest(center2, P, u_tan1, reverse), φ2_max = min(angle/3, …)
+        convex = not (float(np.dot(P - C, u1)) < 0)
+        phi_max = min(arc_angle / 3.0, theta_tan if convex else math.pi / 2)
+    else:            # arcConvexTest(center1, P, u_tan2), φ1_max = min(2·angle/3, …)
+        convex = float(np.dot(P - C, u2)) < 0
+        phi_max = min(arc_angle * 2.0 / 3.0, theta_tan if convex else math.pi / 2)
+    theta = min(theta_tan, theta_tan - phi_max / 4.0) if convex else theta_tan
+    L_arc = math.sin(phi_max / 4.0) * r if convex else phi_max * r
+    L_line = min(line_room, 0.5 * line.length) if line_first else 0.5 * line.length
+    L1, L2 = (L_line, L_arc) if line_first else (L_arc, L_line)
+    n1, n2 = (line.length, arc.length) if line_first else (arc.length, line.length)
+    v1, v2 = (v_line, v_arc) if line_first else (v_arc, v_line)
+    R, v_plan, T = _blend_params(theta, binormal, L1, L2, n1, n2, tol, v1, v2, v_axis, a_axis)
+    if not (R >= 1e-12 and R * (math.pi - 2 * theta) >= 1e-6):
+        return None
+    # the centre: R from the line on the turn's side (x along the line from P), r ∓ R from C
+    d = (-R if convex else R) + r
+    u = line.direction
+    n = _unit(cross3(binormal, u))
+    rc = C - P
+    c_u, c_n = float(np.dot(rc, u)), float(np.dot(rc, n))
+    k = c_u * c_u + (R - c_n) ** 2 - d * d             # x² − 2·c_u·x + k = 0
+    disc = c_u * c_u - k
+    if disc < 0:
+        return None
+    x = min((c_u + math.sqrt(disc), c_u - math.sqrt(disc)), key=abs)   # LinuxCNC: the smaller |root|
+    if (x > 0) if line_first else (x < 0):
+        return None                                   # the tangent point must lie on the line
+    centre = P + x * u + R * n
+    dev = norm3(centre - P) - R
+    if dev > T:
+        return None
+    trim = math.acos(max(-1.0, min(1.0, float(np.dot(_unit(P - C), _unit(centre - C))))))
+    if trim > phi_max or trim >= arc_angle or abs(x) >= L_line:
+        return None
+    return R, abs(x), trim, centre, binormal, v_plan, dev
+
+
 def line_blend(u1: np.ndarray, u2: np.ndarray, room: float, tolerance: float):
     """(radius, tangent length d, deviation, turn angle) of the blend arc of a line corner.
 
@@ -141,8 +237,50 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
         U = np.array([g.direction if g.kind == "line" else (0.0, 0.0, 0.0) for g in segs])
         c = np.array(cand)
         turns = np.arccos(np.clip(np.einsum("ij,ij->i", U[c], U[c + 1]), -1.0, 1.0)).tolist()
-    for i, turn in zip(cand, turns):
+    turn_of = dict(zip(cand, turns))
+    # with speed sizing, line↔arc corners are blended too (tp.c tpCreateLineArcBlend /
+    # tpCreateArcLineBlend), in program order with the line-line ones
+    mixed = [] if speed is None else [i for i, tol in enumerate(tolerances)
+                                      if tol is not None and is_line[i] != is_line[i + 1]]
+    arc_trim = {}                         # arc index → [angle cut at its start, at its end]
+    mixed_built = {}
+    for i in sorted(cand + mixed):
         a, b, tol = segs[i], segs[i + 1], tolerances[i]
+        if i not in turn_of:
+            if not tol > 0:
+                raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
+            sp = speed
+            line_first = a.kind == "line"
+            line, arc = (a, b) if line_first else (b, a)
+            ta = arc_trim.setdefault(i + 1 if line_first else i, [0.0, 0.0])
+            room = a.length - trim_start[i] if line_first else line.length
+            k_line, k_arc = (i, i + 1) if line_first else (i + 1, i)
+            res = line_arc_blend(line, arc, room, arc.angle - ta[0] - ta[1], line_first, tol,
+                                 min(sp.req[k_line], sp.maxvel[k_line]), min(sp.req[k_arc], sp.maxvel[k_arc]),
+                                 sp.v_axis, sp.a_axis)
+            if res is None:
+                continue
+            R, dL, trim, centre, bn, v_plan, dev = res
+            if line_first:
+                trim_end[i] = dL
+                ta[0] = trim
+                t1 = line.end - dL * line.direction
+                t2 = _arc_point(arc, trim)
+            else:
+                trim_start[i + 1] = dL
+                ta[1] = trim
+                t1 = _arc_point(arc, arc.angle - trim)
+                t2 = line.start + dL * line.direction
+            r1, r2 = t1 - centre, t2 - centre
+            ang = math.atan2(float(np.dot(cross3(r1, r2), bn)), float(np.dot(r1, r2)))
+            if not ang > 0:
+                continue
+            g = Arc.exact(t1, centre, bn, ang, segs[i + 1].line)
+            g.v_cap = v_plan                  # tpInitBlendArcFromPrev: maxvel = v_plan
+            mixed_built[i] = g
+            done.append((i, dev))
+            continue
+        turn = turn_of[i]
         if not tol > 0:
             raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
         if turn <= CORNER_ANGLE or turn >= REVERSAL_ANGLE:
@@ -217,11 +355,22 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
             st, en, u, left = trimmed[i]
             if left > 1e-9:
                 out.append(Line.exact(st, en, u, g.line))
+        elif i in arc_trim and (arc_trim[i][0] > 0 or arc_trim[i][1] > 0):
+            t0, t1 = arc_trim[i]
+            out.append(Arc.exact(_arc_point(g, t0), g.center, g.normal, g.angle - t0 - t1, g.line))
         else:
             out.append(g)
         if i in built:
             out.append(built[i])
+        if i in mixed_built:
+            out.append(mixed_built[i])
+    done.sort(key=lambda x: x[0])
     return out, done
+
+
+def _arc_point(g, phi: float):
+    """The point of a planar arc at angle φ from its start."""
+    return g.center + math.cos(phi) * g.a + math.sin(phi) * g.b
 
 
 def cut_into_lines(path: Path, chord_tol: float, grid_mm: float = 0.05):
