@@ -131,3 +131,26 @@ def test_trapezoid_matches_linuxcnc_on_speed_sized_g64_corners(tmp_path, kossel)
     arcs = [g for g in tz.path.segments if g.kind == "arc"]
     assert len(arcs) == 2
     assert arcs[0].radius == pytest.approx(4 * 20.0 ** 2 / (math.pi * kossel.limits.cartesian.a), rel=1e-12)
+
+
+ARCS_G64P = """G21 G90 G17 G64 P0.01
+G0 X5 Y0 Z-250
+G3 X-5 Y0 I-5 J0 F1200
+G1 X-6
+G3 X6 Y0 I6 J0
+M2
+"""
+
+
+@needs_linuxcnc
+def test_trapezoid_matches_linuxcnc_on_line_arc_blends(tmp_path, kossel):
+    # 90° arc → line and line → arc corners under G64 P0.01: LinuxCNC blends them
+    # (tp.c tpCreateArcLineBlend / tpCreateLineArcBlend), and a G2/G3 arc accelerates with
+    # the tangential share its speed leaves (tc.c tcUpdateCircleAccRatio)
+    from planners.verify import command_metrics
+    path = gcode_path(tmp_path, "arcs.ngc", ARCS_G64P)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.01 * lc.execution_time_s
+    jv = [command_metrics(kossel, p.path.point(p.s), p.T, p.s)["joint_peak_ratio"]["velocity"] for p in (lc, tz)]
+    assert abs(jv[1] - jv[0]) <= 0.02 * jv[0]
+    assert len(tz.path.corners()) == 0

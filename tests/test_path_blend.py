@@ -177,3 +177,35 @@ def test_blend_arcs_built_column_wise_equal_arc_exact(tmp_path):
     for g in path.segments:
         if g.kind == "line":
             assert np.abs(g.start + g.length * g.direction - g.end).max() < 1e-12
+
+
+def spiral_piece():
+    # arc r = 5 (G3 half circle) → line 1 mm → arc r = 6 (G3 half circle): 90° corners, as
+    # benchmarks/oracle/programs/spiral_arcs.ngc
+    z = [0, 0, 1]
+    return [Arc([5, 0, 0], [0, 0, 0], z, math.pi), Line([-5, 0, 0], [-6, 0, 0]),
+            Arc([-6, 0, 0], [0, 0, 0], z, math.pi)]
+
+
+def test_speed_sized_line_arc_blends_follow_blendmath():
+    # G64 P0.01 at 20 mm/s. arc → line: not convex (the line leaves the circle outwards), θ is
+    # half the 90° interior angle, the radius the tolerance's P/(√2 − 1) as between lines.
+    # line → arc: convex, φ2_max = min(π/3, π/4), θ = π/4 − φ2_max/4 = 3π/16, R = P·sinθ/(1 − sinθ).
+    # The real LinuxCNC passes these corners at 3.231 and 2.323 mm/s (sampled chord speeds of
+    # √(a_n·R) = 3.233 and 2.327, benchmarks/oracle/README.md)
+    p = 0.01
+    segs, done = blend_corners(spiral_piece(), [p, p], BlendSpeed([20.0] * 3, [20.0] * 3, V_AX, A_AX))
+    path = SegmentPath(segs)                       # contiguous, else it raises
+    assert len(path.corners()) == 0 and len(done) == 2
+    blends = [g for g in segs if getattr(g, "v_cap", None)]
+    a_n = A_AX * math.sqrt(0.75)
+    R1 = p / (math.sqrt(2) - 1)
+    th = 3 * math.pi / 16
+    R2 = p * math.sin(th) / (1 - math.sin(th))
+    assert [g.radius for g in blends] == [pytest.approx(R1, rel=1e-9), pytest.approx(R2, rel=1e-9)]
+    assert [g.v_cap for g in blends] == [pytest.approx(math.sqrt(a_n * R1), rel=1e-9),
+                                         pytest.approx(math.sqrt(a_n * R2), rel=1e-9)]
+    assert all(0 < dev <= p for _, dev in done)
+    # the circles keep their centres and radii, shortened by the trim angles
+    assert segs[0].radius == pytest.approx(5.0) and segs[-1].radius == pytest.approx(6.0)
+    assert segs[0].angle < math.pi and segs[-1].angle < math.pi
