@@ -152,6 +152,58 @@ def program_stops(path: SegmentPath):
     return stops, half
 
 
+IO_CYCLE_S = 0.100          # [EMCIO] CYCLE_TIME of the LinuxCNC sim config (planners/linuxcnc/runner.py)
+# coolant M codes are commands to LinuxCNC's io task: M7 mist on, M8 flood on, M9 both off
+IO_COMMANDS = {7: 1, 8: 1, 9: 2}
+
+
+def queue_waits(path: SegmentPath) -> dict:
+    """{segment index: seconds at rest after it} for a G-code path's queue syncs.
+
+    A dwell waits its P. A coolant M code is a command to the io task, which looks at its
+    command buffer once per io cycle (ioControl.cc main loop, esleep(emc_io_cycle_time)) and
+    then sleeps a full cycle: the first command waits on average half a cycle (a random
+    phase: LinuxCNC's own spread run to run), each further one a whole cycle. The mean is
+    used (same inputs, same outputs). Other M codes (spindle, M62–M65 …) go to motion: no wait."""
+    prog = path.program
+    if prog is None:
+        return {}
+    last_seg = {}
+    for k, g in enumerate(path.segments):
+        last_seg[g.line] = k
+    per_move: dict[int, list] = {}
+    for e in prog.events:
+        if 0 < e.index <= len(prog.moves):
+            per_move.setdefault(e.index - 1, []).append(e)
+    waits = {}
+    for mi, evs in per_move.items():
+        n_io = sum(IO_COMMANDS.get(e.value, 0) for e in evs if e.kind == "m")
+        dwell = sum(float(e.value) for e in evs if e.kind == "dwell")
+        w = dwell + (0.5 * IO_CYCLE_S + (n_io - 1) * IO_CYCLE_S if n_io else 0.0)
+        k = last_seg.get(prog.moves[mi].line)
+        if w > 0 and k is not None and k < len(path.segments) - 1:
+            waits[k] = waits.get(k, 0.0) + w
+    return waits
+
+
+def insert_waits(path: SegmentPath, s: np.ndarray, sd: np.ndarray, waits: dict, T: float):
+    """s, sd with round(wait/T) samples at rest at the end of each segment in ``waits``
+    (the profile reaches the stop, stays, then runs on as simulated)."""
+    if not waits:
+        return s, sd
+    ends = {k: float(path.seg_start[k]) + path.segments[k].length for k in waits}
+    parts_s, parts_v, j0 = [], [], 0
+    for k in sorted(waits):
+        j = int(np.searchsorted(s, ends[k] - 1e-9))
+        n = int(round(waits[k] / T))
+        parts_s += [s[j0:j], np.full(n, ends[k])]
+        parts_v += [sd[j0:j], np.zeros(n)]
+        j0 = j
+    parts_s.append(s[j0:])
+    parts_v.append(sd[j0:])
+    return np.concatenate(parts_s), np.concatenate(parts_v)
+
+
 def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray, stops=()) -> np.ndarray:
     """Backward look-ahead: the speed at the end of each segment (0 at corners, after the
     segments in ``stops`` and at the end)."""
@@ -283,6 +335,8 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     amax = np.where(half, 0.5 * amax, amax)
     vf = final_velocities(planned, vmax, amax, stops)
     s, sd, excess = simulate(planned, vmax, amax, vf, T)
+    waits = queue_waits(planned)
+    s, sd = insert_waits(planned, s, sd, waits, T)
     # s̈ as the mean acceleration of each period (the split cycles make it a mix of two
     # segments' accelerations); s⃛ its difference. Rest at the end: both 0 there.
     sdd = np.zeros_like(sd)
@@ -292,6 +346,7 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     sddd[1:] = np.diff(sdd) / T
     info.update({"corners": int(len(planned.corners())), "lookahead": "whole path",
                  "programmed_feed": feeds is not None,
+                 "queue_waits_s": {int(k): float(w) for k, w in waits.items()},
                  "boundary_speed_excess_mm_s": float(excess),
                  "acc_ratio_tangential": ACC_RATIO_TANGENTIAL})
     return Profile("trapezoid", T, s, sd, sdd, sddd, planned, info=info)

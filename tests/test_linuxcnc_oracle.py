@@ -97,8 +97,10 @@ def test_trapezoid_half_acceleration_and_queue_sync_closed_form(tmp_path, kossel
     assert abs(one.execution_time_s - (20.0 / v + v / a2)) <= one.T
     two = gcode_path(tmp_path, "two.ngc", LINE_G64.replace("G1 X20 F600", "G1 X10 F600\nM8\nG1 X20"))
     pr = plan("trapezoid", two, kossel)
-    assert abs(pr.execution_time_s - 2 * (10.0 / v + v / a2)) <= 2 * pr.T
+    # plus the mean wait for LinuxCNC's io task (M8: one command, half an io cycle of 0.1 s)
+    assert abs(pr.execution_time_s - 2 * (10.0 / v + v / a2) - 0.05) <= 2 * pr.T
     assert pr.sd[np.argmin(np.abs(pr.s - 10.0))] < 0.2       # at rest at the M8
+    assert np.count_nonzero(pr.sd == 0.0) >= 50              # 50 periods of rest there
 
 
 @needs_linuxcnc
@@ -154,3 +156,17 @@ def test_trapezoid_matches_linuxcnc_on_line_arc_blends(tmp_path, kossel):
     jv = [command_metrics(kossel, p.path.point(p.s), p.T, p.s)["joint_peak_ratio"]["velocity"] for p in (lc, tz)]
     assert abs(jv[1] - jv[0]) <= 0.02 * jv[0]
     assert len(tz.path.corners()) == 0
+
+
+@needs_linuxcnc
+def test_trapezoid_waits_for_the_io_task_at_coolant_m_codes(tmp_path, kossel):
+    # M8 / M9 between feed moves: LinuxCNC stops, then waits for its io task (one command for
+    # M8, two for M9: mist and flood off); trapezoid waits the mean, 0.05 s and 0.15 s.
+    # LinuxCNC's own wait is a random phase of the 0.1 s io cycle: the tolerance covers it
+    text = "G21 G90 G17 G64\nG0 X-10 Y0 Z-250\nG1 X0 F1200\nM8\nG1 X10\nM9\nG1 Y10\nM2\n"
+    path = gcode_path(tmp_path, "cool.ngc", text)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert tz.info["queue_waits_s"] == {0: pytest.approx(0.05), 1: pytest.approx(0.15)}
+    rest = lambda p: np.count_nonzero(p.sd[1:-1] == 0.0) * p.T          # noqa: E731
+    assert 0.0 < rest(lc) < 0.3 + 2 * lc.T                            # M8 ≤ 0.1 s, M9 ≤ 0.2 s
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.1 + 2 * tz.T
