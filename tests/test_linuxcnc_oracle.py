@@ -170,3 +170,16 @@ def test_trapezoid_waits_for_the_io_task_at_coolant_m_codes(tmp_path, kossel):
     rest = lambda p: np.count_nonzero(p.sd[1:-1] == 0.0) * p.T          # noqa: E731
     assert 0.0 < rest(lc) < 0.3 + 2 * lc.T                            # M8 ≤ 0.1 s, M9 ≤ 0.2 s
     assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.1 + 2 * tz.T
+
+
+@needs_linuxcnc
+def test_trapezoid_rests_a_dwell_as_linuxcnc(tmp_path, kossel):
+    # G4 P0.5 between feed moves: both stop and rest 0.5 s (LinuxCNC: 0.503 s measured, a
+    # few task cycles more)
+    text = "G21 G90 G17 G64\nG0 X-10 Y0 Z-250\nG1 X0 F1200\nG4 P0.5\nG1 X10\nM2\n"
+    path = gcode_path(tmp_path, "dwell.ngc", text)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    rest = [np.count_nonzero(p.sd[1:-1] == 0.0) * p.T for p in (lc, tz)]
+    assert rest[1] == pytest.approx(0.5, abs=tz.T / 2)
+    assert 0.5 <= rest[0] <= 0.51
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.01 * lc.execution_time_s
