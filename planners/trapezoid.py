@@ -5,8 +5,10 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
 * Geometry as LinuxCNC gets it: lines and arcs. A NURBS is first cut into G1 lines within
   the chord tolerance (as a CAM post does; :func:`planners.paths.blend.cut_into_lines`) and its
   corners are then blended under ``G64 P<tolerance>`` by tangent arcs
-  (:func:`planners.paths.blend.blend_corners`; blendmath.c). A segment path (G-code) is used as
-  read (its corners were already blended per G61/G64 by :mod:`planners.paths.gcode`).
+  (:func:`planners.paths.blend.blend_corners`; blendmath.c). A G-code path is re-blended
+  from its program as LinuxCNC blends it: G64 arcs sized to the speed (the moves' feeds, the
+  axis limits: ``blendComputeParameters``), line↔arc corners too (``tpCreateLineArcBlend``);
+  the arc runs at most at its v_plan. Other segment paths are used as given.
 * Segment limits (tc.c ``tcGetTangentialMaxAccel``, ``tcUpdateArcLimits``; blendmath.c
   ``pmCircleActualMaxVel``): LinuxCNC limits only the Cartesian axes and the feed. A line's
   acceleration/velocity is the largest keeping every axis within its limit along the line's
@@ -26,6 +28,8 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
   speed, v = −a·dt/2 + √(v_f² + a(2·dx − v·dt) + (a·dt/2)²), capped at the segment's
   velocity, the acceleration clamped to ±a, the distance advanced by the trapezoidal
   rule; a cycle that passes the segment end carries the rest into the next segment.
+* Queue syncs (a G-code path): motion rests after the move for a dwell's P and for the
+  mean wait of LinuxCNC's io task at coolant M codes (:func:`queue_waits`).
 
 The profile lives on the geometry it planned on (``profile.path``: the G1 lines and blend
 arcs); ``profile.info["geometry_deviation_mm"]`` bounds its distance from the original path

@@ -13,7 +13,8 @@ arc is sized to the speed as LinuxCNC 2.9's tp sizes it (blendmath.c
 ``blendInit3FromLineLine``, ``blendParamKinematics``, ``blendComputeParameters``; tc.c
 ``tcFindBlendTolerance``) instead of "as large as fits": at most a quarter of each line as
 tolerance, half of each line as room, and a radius only as large as the corner speed needs.
-Such an arc carries ``v_cap`` (LinuxCNC's blend maxvel v_plan).
+Such an arc carries ``v_cap`` (LinuxCNC's blend maxvel v_plan). With ``speed``, line↔arc
+corners are blended too (:func:`line_arc_blend`; arc↔arc corners and helices stay exact stops).
 """
 from __future__ import annotations
 

@@ -10,7 +10,9 @@ zero-length moves are dropped as LinuxCNC's canon drops them. Errors are
 Corners: the path-control mode in force when a move is read governs the corner at its end
 (LinuxCNC's term_cond): G61/G61.1 → exact stop; G64 P p → blended within p mm;
 G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tolerance other
-than the room available (half of each adjoining segment). Blending is done by
+than the room available (half of each adjoining segment); ``program_path(prog, speed_limits)``
+blends as LinuxCNC's tp does instead (arcs sized to the speed, line↔arc corners blended: what
+the ``trapezoid`` planner plans on). Blending is done by
 :mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
 """
