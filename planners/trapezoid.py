@@ -116,22 +116,20 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
                          np.sqrt(np.maximum(1.0 - (a_n_v / a_plane) ** 2, 0.0)))
         # ... once finalized (tcFinalizeLength), i.e. when the next move is queued: the last
         # move before a queue sync or the program end never is, and keeps 0.5
-        last = np.array([_ends_queue(path, k) for k in np.nonzero(arc)[0]])
+        last = np.array(_ends_queue(path, np.nonzero(arc)[0].tolist()), bool)
         amax[arc] = np.where(blend | last, ACC_RATIO_TANGENTIAL, ratio) * a_plane
     return vmax, amax
 
 
-def _ends_queue(path: SegmentPath, k: int) -> bool:
-    """Segment k is the last of a G-code move after which the motion queue drains (an M-code
-    sync, a dwell, the program end): nothing is queued behind it while it runs."""
-    prog = path.program
+def _ends_queue(path: SegmentPath, ks) -> list[bool]:
+    """For each segment k in ``ks``: is it the last of a G-code move after which the motion
+    queue drains (an M-code sync, a dwell, the program end), nothing queued behind it?"""
+    prog, segs = path.program, path.segments
     if prog is None:
-        return k == len(path.segments) - 1
-    segs = path.segments
-    if k + 1 < len(segs) and segs[k + 1].line == segs[k].line:
-        return False
-    m = next((m for m in prog.moves if m.line == segs[k].line), None)
-    return m is not None and m.stop in ("sync", "end")
+        return [k == len(segs) - 1 for k in ks]
+    stop = {m.line: m.stop for m in prog.moves}
+    return [not (k + 1 < len(segs) and segs[k + 1].line == segs[k].line)
+            and stop.get(segs[k].line) in ("sync", "end") for k in ks]
 
 
 def program_stops(path: SegmentPath):
