@@ -11,7 +11,7 @@ LinuxCNC does when a blend arc does not fit), and near-reversals (turn > π − 
 With ``speed`` (a :class:`BlendSpeed`: the moves' feeds and the machine's axis limits) the
 arc is sized to the speed as LinuxCNC 2.9's tp sizes it (blendmath.c
 ``blendInit3FromLineLine``, ``blendParamKinematics``, ``blendComputeParameters``; tc.c
-``tcFindBlendTolerance``) instead of "as large as fits": at most a quarter of each line as
+``tcFindBlendTolerance``; :func:`speed_blends`) instead of "as large as fits": at most a quarter of each line as
 tolerance, half of each line as room, and a radius only as large as the corner speed needs.
 Such an arc carries ``v_cap`` (LinuxCNC's blend maxvel v_plan). With ``speed``, line↔arc
 corners are blended too (:func:`line_arc_blend`; arc↔arc corners and helices stay exact stops).
@@ -45,48 +45,47 @@ def _plane_bound(binormal, bound: float) -> float:
     return bound / max(scale, 1e-300)
 
 
-def speed_blend(u1, u2, L1: float, L2: float, nominal1: float, nominal2: float, tol: float,
-                req1: float, req2: float, maxvel1: float, maxvel2: float, v_axis: float, a_axis: float):
-    """(radius, tangent length d, deviation, turn angle, v_plan) of LinuxCNC's line–line blend arc.
+def speed_blends(U1, U2, n1, n2, tol, v1, v2, mv1, mv2, v_axis: float, a_axis: float):
+    """LinuxCNC's line–line blend arcs, one row per corner: (R, d, deviation, turn φ, v_plan).
 
     Follows blendmath.c blendInit3FromLineLine / blendParamKinematics / blendComputeParameters
-    (planner type 0, feed override scale 1): θ is half the interior angle, φ = π − 2θ the turn.
-    L1, L2: the room on each line (LinuxCNC: min(what is left of the previous line, half its
-    nominal length) and half the next line); tol: the G64 P (inf = none → a quarter of a line).
+    (planner type 0, feed override scale 1), column-wise (a CAM program has 10⁵ corners).
+    U1, U2: unit directions in/out; n1, n2: the lines' lengths; tol: G64 P (inf: none, a
+    quarter of a line); v1, v2: requested speeds; mv1, mv2: the lines' own velocity limits.
+    θ is half the interior angle, φ = π − 2θ the turn. The room on each line is half of it:
+    LinuxCNC's min(what is left of the previous line, half its length) is always the half,
+    since the blend before took at most the other half.
     """
-    dot = float(u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2])
-    theta = 0.5 * math.acos(max(-1.0, min(1.0, -dot)))
-    phi = math.pi - 2.0 * theta
+    dot = np.einsum("ij,ij->i", U1, U2)
+    theta = 0.5 * np.arccos(np.clip(-dot, -1.0, 1.0))
+    phi = np.pi - 2.0 * theta
     # tc.c tcFindBlendTolerance: no P → a quarter of the line; never more than a quarter of either
-    T1 = tol if math.isfinite(tol) else 0.25 * nominal1
-    T2 = tol if math.isfinite(tol) else 0.25 * nominal2
-    T = min(T1, T2, 0.25 * nominal1, 0.25 * nominal2)
-    binormal = cross3(np.asarray(u1, float), np.asarray(u2, float))
-    binormal = binormal / norm3(binormal)
-    a_max = _plane_bound(binormal, a_axis)
+    fin = np.isfinite(tol)
+    T = np.minimum.reduce([np.where(fin, tol, 0.25 * n1), np.where(fin, tol, 0.25 * n2), 0.25 * n1, 0.25 * n2])
+    bn = _cross(U1, U2)
+    bn /= _norms(bn)[:, None]
+    # blendmath.c calculateInscribedDiameter with one bound on every axis
+    scale = np.sqrt(np.maximum(1.0 - bn * bn, 0.0)).max(axis=1)
+    a_max = a_axis / scale
     a_n = a_max * math.sqrt(1.0 - 0.25)                  # BLEND_ACC_RATIO_NORMAL
-    v_planar = _plane_bound(binormal, v_axis)
-    v_goal = max(min(req1, maxvel1), min(req2, maxvel2))   # tcGetMaxTargetVel, scale 1
+    v_goal = np.maximum(np.minimum(v1, mv1), np.minimum(v2, mv2))   # tcGetMaxTargetVel, scale 1
     # blendParamKinematics: the "altitude" speed of the velocity triangle (lines only)
-    phi_eff = min(phi, math.pi * 0.49)
-    vm1 = min(maxvel1, maxvel2 / math.cos(phi_eff))
-    vm2 = min(maxvel2, maxvel1 / math.cos(phi_eff))
-    base = norm3(np.asarray(u2, float) * vm2 - np.asarray(u1, float) * vm1)
-    v_alt = 2.0 * (vm1 * vm2 / 2.0 * math.sin(phi)) / base if base > 0 else 0.0
-    v_goal = min(v_goal, max(v_alt, v_planar))
+    c = np.cos(np.minimum(phi, np.pi * 0.49))
+    vm1, vm2 = np.minimum(mv1, mv2 / c), np.minimum(mv2, mv1 / c)
+    base = _norms(U2 * vm2[:, None] - U1 * vm1[:, None])
+    v_alt = np.where(base > 0, vm1 * vm2 * np.sin(phi) / np.where(base > 0, base, 1.0), 0.0)
+    v_goal = np.minimum(v_goal, np.maximum(v_alt, v_axis / scale))
     # blendComputeParameters
-    h_tol = T / (1.0 - math.sin(theta))
-    d_tol = math.cos(theta) * h_tol
-    d_geom = min(L1, L2, d_tol)
-    R_geom = math.tan(theta) * d_geom
-    v_plan = min(math.sqrt(a_n * R_geom), v_goal)
+    d_tol = np.cos(theta) * T / (1.0 - np.sin(theta))
+    d_geom = np.minimum.reduce([0.5 * n1, 0.5 * n2, d_tol])
+    R_geom = np.tan(theta) * d_geom
+    v_plan = np.minimum(np.sqrt(a_n * R_geom), v_goal)
     a_par = 0.5 * a_max
-    v_tri = math.sqrt(2.0 * a_par * d_geom)
-    s_blend = min(v_tri, v_plan) / a_par * v_plan
-    R_blend = min(s_blend / phi, R_geom)
-    R = max(v_plan * v_plan / a_n, R_blend)
-    d = R / math.tan(theta)
-    dev = R / math.sin(theta) - R                       # centre to corner minus the radius
+    s_blend = np.minimum(np.sqrt(2.0 * a_par * d_geom), v_plan) / a_par * v_plan
+    R_blend = np.minimum(s_blend / phi, R_geom)
+    R = np.maximum(v_plan * v_plan / a_n, R_blend)
+    d = R / np.tan(theta)
+    dev = R / np.sin(theta) - R                          # centre to corner minus the radius
     return R, d, dev, phi, v_plan
 
 
@@ -94,7 +93,7 @@ def _blend_params(theta: float, binormal, L1, L2, nominal1, nominal2, tol, v1: f
                   v_axis: float, a_axis: float):
     """(R_plan, v_plan, tolerance) of blendParamKinematics + blendComputeParameters for a half
     interior angle θ with an arc on one side (no altitude speed); v1, v2: each move's
-    tcGetMaxTargetVel. speed_blend spells the same steps out for two lines."""
+    tcGetMaxTargetVel. speed_blends does the same steps for two lines, column-wise."""
     phi = math.pi - 2.0 * theta
     T1 = tol if math.isfinite(tol) else 0.25 * nominal1
     T2 = tol if math.isfinite(tol) else 0.25 * nominal2
@@ -239,6 +238,14 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
         c = np.array(cand)
         turns = np.arccos(np.clip(np.einsum("ij,ij->i", U[c], U[c + 1]), -1.0, 1.0)).tolist()
     turn_of = dict(zip(cand, turns))
+    sized = {}
+    if speed is not None and cand:
+        sp, c = speed, np.array(cand)
+        L = np.array([g.length for g in segs])
+        req, mv = np.array(sp.req, float), np.array(sp.maxvel, float)
+        cols = speed_blends(U[c], U[c + 1], L[c], L[c + 1], np.array([tolerances[i] for i in cand], float),
+                            req[c], req[c + 1], mv[c], mv[c + 1], sp.v_axis, sp.a_axis)
+        sized = dict(zip(cand, zip(*(x.tolist() for x in cols))))
     # with speed sizing, line↔arc corners are blended too (tp.c tpCreateLineArcBlend /
     # tpCreateArcLineBlend), in program order with the line-line ones
     mixed = [] if speed is None else [i for i, tol in enumerate(tolerances)
@@ -291,13 +298,7 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
             R, d, dev, delta = line_blend(a.direction, b.direction, room, tol)
             v_plan = None
         else:
-            # corners in program order, as LinuxCNC queues them: the previous line may
-            # already be shortened at its start by the blend before
-            L1 = min(a.length - trim_start[i], 0.5 * a.length)
-            sp = speed
-            R, d, dev, delta, v_plan = speed_blend(a.direction, b.direction, L1, 0.5 * b.length, a.length,
-                                                   b.length, tol, sp.req[i], sp.req[i + 1], sp.maxvel[i],
-                                                   sp.maxvel[i + 1], sp.v_axis, sp.a_axis)
+            R, d, dev, delta, v_plan = sized[i]
             # blendComputeParameters aborts an arc below TP_POS_EPSILON / TP_MIN_ARC_LENGTH
             if not (R >= 1e-12 and R * delta >= 1e-6):
                 continue
