@@ -56,6 +56,13 @@ def speed_blends(U1, U2, n1, n2, tol, v1, v2, mv1, mv2, v_axis: float, a_axis: f
     LinuxCNC's min(what is left of the previous line, half its length) is always the half,
     since the blend before took at most the other half.
     """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # tangent (θ = π/2) and reversed (θ = 0) corners give inf/nan here: blend_corners
+        # skips them before reading their row
+        return _speed_blends(U1, U2, n1, n2, tol, v1, v2, mv1, mv2, v_axis, a_axis)
+
+
+def _speed_blends(U1, U2, n1, n2, tol, v1, v2, mv1, mv2, v_axis, a_axis):
     dot = np.einsum("ij,ij->i", U1, U2)
     theta = 0.5 * np.arccos(np.clip(-dot, -1.0, 1.0))
     phi = np.pi - 2.0 * theta
@@ -270,19 +277,17 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
                 continue
             R, dL, trim, centre, bn, v_plan, dev = res
             if line_first:
-                trim_end[i] = dL
-                ta[0] = trim
-                t1 = line.end - dL * line.direction
-                t2 = _arc_point(arc, trim)
+                t1, t2 = line.end - dL * line.direction, _arc_point(arc, trim)
             else:
-                trim_start[i + 1] = dL
-                ta[1] = trim
-                t1 = _arc_point(arc, arc.angle - trim)
-                t2 = line.start + dL * line.direction
+                t1, t2 = _arc_point(arc, arc.angle - trim), line.start + dL * line.direction
             r1, r2 = t1 - centre, t2 - centre
             ang = math.atan2(float(np.dot(cross3(r1, r2), bn)), float(np.dot(r1, r2)))
             if not ang > 0:
                 continue
+            if line_first:
+                trim_end[i], ta[0] = dL, trim
+            else:
+                trim_start[i + 1], ta[1] = dL, trim
             g = Arc.exact(t1, centre, bn, ang, segs[i + 1].line)
             g.v_cap = v_plan                  # tpInitBlendArcFromPrev: maxvel = v_plan
             mixed_built[i] = g
