@@ -245,14 +245,31 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
         c = np.array(cand)
         turns = np.arccos(np.clip(np.einsum("ij,ij->i", U[c], U[c + 1]), -1.0, 1.0)).tolist()
     turn_of = dict(zip(cand, turns))
-    sized = {}
     if speed is not None and cand:
+        # every line-line corner at once: they are independent (each takes at most half of
+        # each line), and the line↔arc corners below never take more than half a line either
         sp, c = speed, np.array(cand)
+        tolc = np.array([tolerances[i] for i in cand], float)
+        if not (tolc > 0).all():
+            i = cand[int(np.argmin(tolc > 0))]
+            raise PathError(f"blend: corner {i} tolerance {tolerances[i]} must be > 0 (or None for an exact stop)")
         L = np.array([g.length for g in segs])
         req, mv = np.array(sp.req, float), np.array(sp.maxvel, float)
-        cols = speed_blends(U[c], U[c + 1], L[c], L[c + 1], np.array([tolerances[i] for i in cand], float),
-                            req[c], req[c + 1], mv[c], mv[c + 1], sp.v_axis, sp.a_axis)
-        sized = dict(zip(cand, zip(*(x.tolist() for x in cols))))
+        R, d, dev, phi, vp = speed_blends(U[c], U[c + 1], L[c], L[c + 1], tolc,
+                                          req[c], req[c + 1], mv[c], mv[c + 1], sp.v_axis, sp.a_axis)
+        t = np.array(turns)
+        # blendComputeParameters aborts an arc below TP_POS_EPSILON / TP_MIN_ARC_LENGTH
+        with np.errstate(invalid="ignore"):
+            ok = ((t > CORNER_ANGLE) & (t < REVERSAL_ANGLE) & (R >= 1e-12) & (R * phi >= 1e-6)
+                  & (R > 0) & (d > 0))
+        idx = c[ok].tolist()
+        ts, te = np.array(trim_start), np.array(trim_end)
+        te[c[ok]] = d[ok]
+        ts[c[ok] + 1] = d[ok]
+        trim_start, trim_end = ts.tolist(), te.tolist()
+        arcs.update(zip(idx, zip(R[ok].tolist(), d[ok].tolist(), phi[ok].tolist(), vp[ok].tolist())))
+        done += list(zip(idx, dev[ok].tolist()))
+        cand = []                         # done: only the line↔arc corners are left
     # with speed sizing, line↔arc corners are blended too (tp.c tpCreateLineArcBlend /
     # tpCreateArcLineBlend), in program order with the line-line ones
     mixed = [] if speed is None else [i for i, tol in enumerate(tolerances)
@@ -303,10 +320,7 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
             R, d, dev, delta = line_blend(a.direction, b.direction, room, tol)
             v_plan = None
         else:
-            R, d, dev, delta, v_plan = sized[i]
-            # blendComputeParameters aborts an arc below TP_POS_EPSILON / TP_MIN_ARC_LENGTH
-            if not (R >= 1e-12 and R * delta >= 1e-6):
-                continue
+            raise AssertionError("speed-sized line-line corners are sized column-wise above")
         if not (R > 0 and d > 0):
             continue
         trim_end[i] = d
