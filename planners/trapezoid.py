@@ -5,13 +5,17 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
 * Geometry as LinuxCNC gets it: lines and arcs. A NURBS is first cut into G1 lines within
   the chord tolerance (as a CAM post does; :func:`planners.paths.blend.cut_into_lines`) and its
   corners are then blended under ``G64 P<tolerance>`` by tangent arcs
-  (:func:`planners.paths.blend.blend_corners`; blendmath.c). A segment path (G-code) is used as
-  read (its corners were already blended per G61/G64 by :mod:`planners.paths.gcode`).
+  (:func:`planners.paths.blend.blend_corners`; blendmath.c). A G-code path is re-blended
+  from its program as LinuxCNC blends it: G64 arcs sized to the speed (the moves' feeds, the
+  axis limits: ``blendComputeParameters``), line↔arc corners too (``tpCreateLineArcBlend``);
+  the arc runs at most at its v_plan. Other segment paths are used as given.
 * Segment limits (tc.c ``tcGetTangentialMaxAccel``, ``tcUpdateArcLimits``; blendmath.c
   ``pmCircleActualMaxVel``): LinuxCNC limits only the Cartesian axes and the feed. A line's
   acceleration/velocity is the largest keeping every axis within its limit along the line's
-  direction; an arc's tangential acceleration gets ``BLEND_ACC_RATIO_TANGENTIAL`` = 0.5 of
-  the plane's bound and its speed is capped at √(0.866·a·ρ) (``BLEND_ACC_RATIO_NORMAL``).
+  direction; a G2/G3 arc's tangential acceleration gets √(1 − (v²/ρ / a)²) of the plane's
+  bound a, v its machine speed (``tcUpdateCircleAccRatio``), a blend arc's
+  ``BLEND_ACC_RATIO_TANGENTIAL`` = 0.5; the speed is capped at √(0.866·a·ρ)
+  (``BLEND_ACC_RATIO_NORMAL``).
 * Look-ahead (tp.c ``tpRunOptimization`` / ``tpComputeOptimalVelocity``): backward pass
   v_start = √(v_final² + 2·a·L), so every segment can stop where the path demands; a
   tangent-discontinuous junction (exact stop, or a corner with no blend) ends at rest.
@@ -24,6 +28,8 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
   speed, v = −a·dt/2 + √(v_f² + a(2·dx − v·dt) + (a·dt/2)²), capped at the segment's
   velocity, the acceleration clamped to ±a, the distance advanced by the trapezoidal
   rule; a cycle that passes the segment end carries the rest into the next segment.
+* Queue syncs (a G-code path): motion rests after the move for a dwell's P and for the
+  mean wait of LinuxCNC's io task at coolant M codes (:func:`queue_waits`).
 
 The profile lives on the geometry it planned on (``profile.path``: the G1 lines and blend
 arcs); ``profile.info["geometry_deviation_mm"]`` bounds its distance from the original path
@@ -47,8 +53,20 @@ ACC_RATIO_NORMAL = math.sqrt(1 - ACC_RATIO_TANGENTIAL**2)  # ≈ 0.866
 MAX_CYCLES = 20_000_000
 
 
-def prepare_geometry(path: Path, chord_tol: float, blend_tol: float | None):
-    """(segment path planned on, info) — the path as LinuxCNC would receive it."""
+def prepare_geometry(path: Path, chord_tol: float, blend_tol: float | None, limits=None,
+                     programmed_feed: bool = True):
+    """(segment path planned on, info) — the path as LinuxCNC would receive it.
+
+    A G-code path with ``limits`` is re-blended from its program with LinuxCNC's speed-sized
+    blend arcs (planners.paths.gcode.program_path; the feeds the path runs at)."""
+    if isinstance(path, SegmentPath) and path.program is not None and limits is not None:
+        from planners.paths.gcode import program_path
+        programmed = programmed_feed and path.feed_mode != "max"
+        sized = program_path(path.program, (limits.cartesian.v, limits.cartesian.a, limits.feed_max, programmed))
+        sized.feed_mode = path.feed_mode
+        return sized, {"geometry_deviation_mm": 0.0, "chord_deviation_mm": 0.0,
+                       "blend_deviation_mm": 0.0, "segments": len(sized.segments),
+                       "blends": "speed-sized (LinuxCNC blendComputeParameters)"}
     if isinstance(path, SegmentPath):
         return path, {"geometry_deviation_mm": 0.0, "chord_deviation_mm": 0.0,
                       "blend_deviation_mm": 0.0, "segments": len(path.segments)}
@@ -85,10 +103,33 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
         scale = np.sqrt(u ** 2 + v ** 2 + n ** 2).max(axis=1)
         a_plane = a_axis / scale
         rho = r + (rise / np.array([g.angle for g in A])) ** 2 / r     # helix radius of curvature
-        vmax[arc] = np.minimum.reduce([np.full(len(A), feed_max), v_axis / scale,
-                                       np.sqrt(ACC_RATIO_NORMAL * a_plane * rho)])
-        amax[arc] = ACC_RATIO_TANGENTIAL * a_plane
+        # a speed-sized blend arc also has LinuxCNC's v_plan as its maxvel (tpCreateLineLineBlend)
+        cap = np.array([getattr(g, "v_cap", None) or math.inf for g in A])
+        blend = np.isfinite(cap)
+        v_machine = np.minimum(feed_max, v_axis / scale)
+        vmax[arc] = np.minimum.reduce([v_machine, np.sqrt(ACC_RATIO_NORMAL * a_plane * rho), cap])
+        # a G2/G3 arc (TC_CIRCULAR) gets the tangential share its machine speed leaves
+        # (tc.c tcUpdateCircleAccRatio, blendmath.c pmCircleActualMaxVel): √(1 − (v²/ρ / a)²),
+        # 0.5 when v²/ρ exceeds a_n; a blend arc (TC_SPHERICAL) keeps 0.5
+        a_n_v = v_machine ** 2 / rho
+        ratio = np.where(a_n_v > ACC_RATIO_NORMAL * a_plane, ACC_RATIO_TANGENTIAL,
+                         np.sqrt(np.maximum(1.0 - (a_n_v / a_plane) ** 2, 0.0)))
+        # ... once finalized (tcFinalizeLength), i.e. when the next move is queued: the last
+        # move before a queue sync or the program end never is, and keeps 0.5
+        last = np.array(_ends_queue(path, np.nonzero(arc)[0].tolist()), bool)
+        amax[arc] = np.where(blend | last, ACC_RATIO_TANGENTIAL, ratio) * a_plane
     return vmax, amax
+
+
+def _ends_queue(path: SegmentPath, ks) -> list[bool]:
+    """For each segment k in ``ks``: is it the last of a G-code move after which the motion
+    queue drains (an M-code sync, a dwell, the program end), nothing queued behind it?"""
+    prog, segs = path.program, path.segments
+    if prog is None:
+        return [k == len(segs) - 1 for k in ks]
+    stop = {m.line: m.stop for m in prog.moves}
+    return [not (k + 1 < len(segs) and segs[k + 1].line == segs[k].line)
+            and stop.get(segs[k].line) in ("sync", "end") for k in ks]
 
 
 def program_stops(path: SegmentPath):
@@ -111,6 +152,58 @@ def program_stops(path: SegmentPath):
             stops.append(i)
         half[i] = m.parabolic_end
     return stops, half
+
+
+IO_CYCLE_S = 0.100          # [EMCIO] CYCLE_TIME of the LinuxCNC sim config (planners/linuxcnc/runner.py)
+# coolant M codes are commands to LinuxCNC's io task: M7 mist on, M8 flood on, M9 both off
+IO_COMMANDS = {7: 1, 8: 1, 9: 2}
+
+
+def queue_waits(path: SegmentPath) -> dict:
+    """{segment index: seconds at rest after it} for a G-code path's queue syncs.
+
+    A dwell waits its P. A coolant M code is a command to the io task, which looks at its
+    command buffer once per io cycle (ioControl.cc main loop, esleep(emc_io_cycle_time)) and
+    then sleeps a full cycle: the first command waits on average half a cycle (a random
+    phase: LinuxCNC's own spread run to run), each further one a whole cycle. The mean is
+    used (same inputs, same outputs). Other M codes (spindle, M62–M65 …) go to motion: no wait."""
+    prog = path.program
+    if prog is None:
+        return {}
+    last_seg = {}
+    for k, g in enumerate(path.segments):
+        last_seg[g.line] = k
+    per_move: dict[int, list] = {}
+    for e in prog.events:
+        if 0 < e.index <= len(prog.moves):
+            per_move.setdefault(e.index - 1, []).append(e)
+    waits = {}
+    for mi, evs in per_move.items():
+        n_io = sum(IO_COMMANDS.get(e.value, 0) for e in evs if e.kind == "m")
+        dwell = sum(float(e.value) for e in evs if e.kind == "dwell")
+        w = dwell + (0.5 * IO_CYCLE_S + (n_io - 1) * IO_CYCLE_S if n_io else 0.0)
+        k = last_seg.get(prog.moves[mi].line)
+        if w > 0 and k is not None and k < len(path.segments) - 1:
+            waits[k] = waits.get(k, 0.0) + w
+    return waits
+
+
+def insert_waits(path: SegmentPath, s: np.ndarray, sd: np.ndarray, waits: dict, T: float):
+    """s, sd with round(wait/T) samples at rest at the end of each segment in ``waits``
+    (the profile reaches the stop, stays, then runs on as simulated)."""
+    if not waits:
+        return s, sd
+    ends = {k: float(path.seg_start[k]) + path.segments[k].length for k in waits}
+    parts_s, parts_v, j0 = [], [], 0
+    for k in sorted(waits):
+        j = int(np.searchsorted(s, ends[k] - 1e-9))
+        n = int(round(waits[k] / T))
+        parts_s += [s[j0:j], np.full(n, ends[k])]
+        parts_v += [sd[j0:j], np.zeros(n)]
+        j0 = j
+    parts_s.append(s[j0:])
+    parts_v.append(sd[j0:])
+    return np.concatenate(parts_s), np.concatenate(parts_v)
 
 
 def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray, stops=()) -> np.ndarray:
@@ -235,7 +328,7 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     if blend < 0:
         raise PlanningError(f"trapezoid: blend tolerance {blend} mm must be ≥ 0")
     check_path_in_workspace(path, machine, check_workspace_step_mm)
-    planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
+    planned, info = prepare_geometry(path, chord, blend if blend > 0 else None, limits, programmed_feed)
     vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)
     feeds = segment_feeds(planned, limits.feed_max) if programmed_feed else None
     if feeds is not None:
@@ -244,6 +337,8 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     amax = np.where(half, 0.5 * amax, amax)
     vf = final_velocities(planned, vmax, amax, stops)
     s, sd, excess = simulate(planned, vmax, amax, vf, T)
+    waits = queue_waits(planned)
+    s, sd = insert_waits(planned, s, sd, waits, T)
     # s̈ as the mean acceleration of each period (the split cycles make it a mix of two
     # segments' accelerations); s⃛ its difference. Rest at the end: both 0 there.
     sdd = np.zeros_like(sd)
@@ -253,6 +348,7 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
     sddd[1:] = np.diff(sdd) / T
     info.update({"corners": int(len(planned.corners())), "lookahead": "whole path",
                  "programmed_feed": feeds is not None,
+                 "queue_waits_s": {int(k): float(w) for k, w in waits.items()},
                  "boundary_speed_excess_mm_s": float(excess),
                  "acc_ratio_tangential": ACC_RATIO_TANGENTIAL})
     return Profile("trapezoid", T, s, sd, sdd, sddd, planned, info=info)

@@ -97,8 +97,10 @@ def test_trapezoid_half_acceleration_and_queue_sync_closed_form(tmp_path, kossel
     assert abs(one.execution_time_s - (20.0 / v + v / a2)) <= one.T
     two = gcode_path(tmp_path, "two.ngc", LINE_G64.replace("G1 X20 F600", "G1 X10 F600\nM8\nG1 X20"))
     pr = plan("trapezoid", two, kossel)
-    assert abs(pr.execution_time_s - 2 * (10.0 / v + v / a2)) <= 2 * pr.T
+    # plus the mean wait for LinuxCNC's io task (M8: one command, half an io cycle of 0.1 s)
+    assert abs(pr.execution_time_s - 2 * (10.0 / v + v / a2) - 0.05) <= 2 * pr.T
     assert pr.sd[np.argmin(np.abs(pr.s - 10.0))] < 0.2       # at rest at the M8
+    assert np.count_nonzero(pr.sd == 0.0) >= 50              # 50 periods of rest there
 
 
 @needs_linuxcnc
@@ -106,3 +108,78 @@ def test_trapezoid_matches_linuxcnc_on_a_single_g64_line(line_runs, kossel):
     path, (lc, _) = line_runs
     tz = plan("trapezoid", path, kossel)
     assert abs(tz.execution_time_s - lc.execution_time_s) <= tz.T
+
+
+CORNERS_G64 = """G21 G90 G17 G64
+G0 X-10 Y-10 Z-250
+G1 X10 F1200
+Y10
+X-10 Y-5
+M2
+"""
+
+
+@needs_linuxcnc
+def test_trapezoid_matches_linuxcnc_on_speed_sized_g64_corners(tmp_path, kossel):
+    # G64 without P: LinuxCNC sizes each blend arc to the corner speed (blendmath.c
+    # blendComputeParameters), far smaller than the largest arc that fits. A 90° and a 127° turn.
+    from planners.verify import command_metrics
+    path = gcode_path(tmp_path, "corners.ngc", CORNERS_G64)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.01 * lc.execution_time_s
+    jv = [command_metrics(kossel, p.path.point(p.s), p.T, p.s)["joint_peak_ratio"]["velocity"] for p in (lc, tz)]
+    assert abs(jv[1] - jv[0]) <= 0.02 * jv[0]
+    # the arcs trapezoid planned on: the first one, long lines at 20 mm/s, 4v²/(π·a)
+    arcs = [g for g in tz.path.segments if g.kind == "arc"]
+    assert len(arcs) == 2
+    assert arcs[0].radius == pytest.approx(4 * 20.0 ** 2 / (math.pi * kossel.limits.cartesian.a), rel=1e-12)
+
+
+ARCS_G64P = """G21 G90 G17 G64 P0.01
+G0 X5 Y0 Z-250
+G3 X-5 Y0 I-5 J0 F1200
+G1 X-6
+G3 X6 Y0 I6 J0
+M2
+"""
+
+
+@needs_linuxcnc
+def test_trapezoid_matches_linuxcnc_on_line_arc_blends(tmp_path, kossel):
+    # 90° arc → line and line → arc corners under G64 P0.01: LinuxCNC blends them
+    # (tp.c tpCreateArcLineBlend / tpCreateLineArcBlend), and a G2/G3 arc accelerates with
+    # the tangential share its speed leaves (tc.c tcUpdateCircleAccRatio)
+    from planners.verify import command_metrics
+    path = gcode_path(tmp_path, "arcs.ngc", ARCS_G64P)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.01 * lc.execution_time_s
+    jv = [command_metrics(kossel, p.path.point(p.s), p.T, p.s)["joint_peak_ratio"]["velocity"] for p in (lc, tz)]
+    assert abs(jv[1] - jv[0]) <= 0.02 * jv[0]
+    assert len(tz.path.corners()) == 0
+
+
+@needs_linuxcnc
+def test_trapezoid_waits_for_the_io_task_at_coolant_m_codes(tmp_path, kossel):
+    # M8 / M9 between feed moves: LinuxCNC stops, then waits for its io task (one command for
+    # M8, two for M9: mist and flood off); trapezoid waits the mean, 0.05 s and 0.15 s.
+    # LinuxCNC's own wait is a random phase of the 0.1 s io cycle: the tolerance covers it
+    text = "G21 G90 G17 G64\nG0 X-10 Y0 Z-250\nG1 X0 F1200\nM8\nG1 X10\nM9\nG1 Y10\nM2\n"
+    path = gcode_path(tmp_path, "cool.ngc", text)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert tz.info["queue_waits_s"] == {0: pytest.approx(0.05), 1: pytest.approx(0.15)}
+    rest = lambda p: np.count_nonzero(p.sd[1:-1] == 0.0) * p.T          # noqa: E731
+    assert 0.0 < rest(lc) < 0.3 + 2 * lc.T                            # M8 ≤ 0.1 s, M9 ≤ 0.2 s
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.1 + 2 * tz.T
+
+
+@needs_linuxcnc
+def test_trapezoid_rests_a_dwell_as_linuxcnc(tmp_path, kossel):
+    # G4 P0.5 between feed moves: both stop and rest 0.5 s (LinuxCNC: 0.503 s measured, a
+    # few task cycles more)
+    text = "G21 G90 G17 G64\nG0 X-10 Y0 Z-250\nG1 X0 F1200\nG4 P0.5\nG1 X10\nM2\n"
+    path = gcode_path(tmp_path, "dwell.ngc", text)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    rest = [np.count_nonzero(p.sd[1:-1] == 0.0) * p.T for p in (lc, tz)]
+    assert rest[1] == pytest.approx(0.5, abs=tz.T / 2)
+    assert 0.5 <= rest[0] <= 0.51
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.01 * lc.execution_time_s

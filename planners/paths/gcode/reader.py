@@ -10,7 +10,9 @@ zero-length moves are dropped as LinuxCNC's canon drops them. Errors are
 Corners: the path-control mode in force when a move is read governs the corner at its end
 (LinuxCNC's term_cond): G61/G61.1 → exact stop; G64 P p → blended within p mm;
 G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tolerance other
-than the room available (half of each adjoining segment). Blending is done by
+than the room available (half of each adjoining segment); ``program_path(prog, speed_limits)``
+blends as LinuxCNC's tp does instead (arcs sized to the speed, line↔arc corners blended: what
+the ``trapezoid`` planner plans on). Blending is done by
 :mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
 """
@@ -23,7 +25,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from planners.paths.base import PathError, gc_paused
-from planners.paths.blend import blend_corners
+from planners.paths.blend import BlendSpeed, blend_corners
 from planners.paths.segments import Arc, Line, SegmentPath
 
 INCH_MM = 25.4
@@ -264,11 +266,28 @@ def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
     return prog
 
 
-def program_path(prog: GCodeProgram) -> SegmentPath:
-    """The blended path of a program (G61 corners kept sharp, G64 corners rounded)."""
+def program_path(prog: GCodeProgram, speed_limits=None) -> SegmentPath:
+    """The blended path of a program (G61 corners kept sharp, G64 corners rounded).
+
+    ``speed_limits`` = (axis v, axis a, F_max, programmed F?) sizes each G64 blend arc to the
+    speed as LinuxCNC's tp does (planners.paths.blend.BlendSpeed); without it (the standard
+    paths) a corner gets the largest arc its tolerance and half of each line allow."""
     with gc_paused():
-        segs, _ = blend_corners(prog.segments(), prog.blend_tolerances())
+        speed = None if speed_limits is None else blend_speed(prog, *speed_limits)
+        segs, _ = blend_corners(prog.segments(), prog.blend_tolerances(), speed)
         return SegmentPath(segs, prog.source, program=prog)
+
+
+def blend_speed(prog: GCodeProgram, v_axis: float, a_axis: float, feed_max: float,
+                programmed: bool = True) -> BlendSpeed:
+    """Each move's requested speed (its F, or F_max for a rapid or without programmed feed) and
+    its own velocity limit (the fastest axis at v_axis along a line, F_max at most: tc->maxvel)."""
+    req = [feed_max if (m.rapid or not programmed or m.feed_mm_s is None) else min(feed_max, m.feed_mm_s)
+           for m in prog.moves]
+    # all moves' directions at once (a CAM program has 10⁵ of them); an arc: 1 (unused)
+    U = np.array([m.segment.direction if m.segment.kind == "line" else (1.0, 0.0, 0.0) for m in prog.moves])
+    maxvel = np.minimum(feed_max, v_axis / np.abs(U).max(axis=1)).tolist()
+    return BlendSpeed(req, maxvel, v_axis, a_axis)
 
 
 def load_gcode_path(file, start=None, **options) -> SegmentPath:
