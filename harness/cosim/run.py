@@ -90,9 +90,9 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         raise RunError(str(e)) from None
     from planners.feed import use_max_feed
     use_max_feed(path, bool(max_feed))
-    unknown = [p for p in planner_names if p not in planners.PLANNERS]
+    unknown = [p for p in planner_names if not planners.registry.known(p)]
     if unknown:
-        raise RunError(f"unknown planner(s) {', '.join(unknown)}; valid: {', '.join(planners.PLANNERS)}")
+        raise RunError(planners.registry.unknown_message(unknown))
     try:
         seed = check_seed(seed)
         for name, opts in (planner_options or {}).items():
