@@ -39,7 +39,7 @@ PATH_SUFFIXES = (".json", ".ngc")
 CODE_DIRS = ("kins", "planners", "harness")
 
 
-TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci")
+TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus")
 RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed")
 
 
