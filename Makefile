@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: all venv fmus run test perf clean linuxcnc
+.PHONY: all venv fmus run test perf clean linuxcnc browser
 
 all: fmus
 
@@ -42,6 +42,19 @@ linuxcnc:
 	fi
 	@if [ "$$(id -u)" -eq 0 ] && ! id lcnc >/dev/null 2>&1; then \
 	  useradd -m lcnc && echo "linuxcnc: created the user lcnc (LinuxCNC runs as it)"; fi
+
+# Headless Chromium (Debian's): tests/test_html_report.py opens the HTML report in it and checks a
+# screenshot; without it that test skips.
+browser:
+	@if command -v chromium >/dev/null 2>&1; then \
+	  echo "browser: chromium is installed ($$(command -v chromium))"; \
+	elif [ "$$(id -u)" -ne 0 ]; then \
+	  echo "browser: not root: skipping the install (as root: make browser, or apt-get install chromium)"; \
+	elif ! command -v apt-get >/dev/null 2>&1; then \
+	  echo "browser: no apt-get: install chromium by hand to run the report's browser test"; \
+	else \
+	  apt-get update -q && apt-get install -y --no-install-recommends chromium; \
+	fi
 
 perf: fmus
 	$(BIN)/python benchmarks/perf/run_all.py

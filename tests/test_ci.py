@@ -31,7 +31,8 @@ def suite(tmp: Path, options: str) -> Path:
 
 def run_ci(tmp: Path, suite_file: Path, *extra: str) -> int:
     return cli(["ci", "--suite", str(suite_file), "--baseline", str(tmp / "baseline.json"),
-                "--out", str(tmp / "ci"), "--task", LINE_TASK, "--workers", "1", *extra])
+                "--out", str(tmp / "ci"), "--task", LINE_TASK, "--workers", "1",
+                "--store", str(tmp / "store"), *extra])
 
 
 def test_ci_passes_unchanged_and_fails_on_slower_or_worse_planner(tmp_path, capsys):
@@ -64,14 +65,17 @@ def test_ci_passes_unchanged_and_fails_on_slower_or_worse_planner(tmp_path, caps
     assert "`planning_time_ratio`" in out and "slower" in out
     assert "`execution_time_s`" not in out                                 # only what changed
 
-    with History(tmp_path / "ci/history.sqlite") as h:
+    with History(tmp_path / "store") as h:
         runs = h.runs()
         assert [r["passed"] for r in runs] == [1, 1, 0, 0]
         assert [r["mode"] for r in runs] == ["update-baseline", "check", "check", "check"]
         exec_series = h.series("execution_time_s")[ENTRY]
         D = [15 / 8 * 100 / f for f in (500, 500, 495, 500)]             # quintic duration, ceil'd to T
         assert [v for _, v in exec_series] == pytest.approx(D, abs=250e-6)
-    assert cli(["history", "--history", str(tmp_path / "ci/history.sqlite")]) == 0
+        # the failing runs name their regressions in the store
+        marked = h.series_marked("execution_time_s")[ENTRY]
+        assert [bad for _, _, bad in marked] == [False, False, True, False]
+    assert cli(["history", "--store", str(tmp_path / "store"), "--out", str(tmp_path / "ci/trend.png")]) == 0
     assert (tmp_path / "ci/trend.png").stat().st_size > 1000
 
 

@@ -147,8 +147,9 @@ def _crashes(path, machine, limits=None, **kw):
 
 
 def test_a_failing_planner_is_a_row_and_the_others_go_on(monkeypatch):
-    monkeypatch.setitem(planners._REGISTRY, "trapezoid", (__name__, "_fails"))
-    monkeypatch.setitem(planners._REGISTRY, "scurve", (__name__, "_crashes"))
+    from planners import registry
+    monkeypatch.setitem(registry.BUILTIN, "trapezoid", (__name__, "_fails"))
+    monkeypatch.setitem(registry.BUILTIN, "scurve", (__name__, "_crashes"))
     e = next(e for e in load_manifest() if e["name"] == "contour_kossel")
     rows = run_corpus([(e, ["trapezoid", "scurve", "scurve_joint"])])
     assert [r.status for r in rows] == ["failed", "error", "ok"]

@@ -33,7 +33,10 @@ def command_argv(command: str, tmp: Path, out: Path) -> list[str]:
     sweep = tmp / "sweep"
     sweep.mkdir(exist_ok=True)
     (sweep / "results.sqlite").touch()
-    (tmp / "history.sqlite").touch()
+    from harness.store import ResultStore, make_row
+    with ResultStore(tmp / "store") as st:            # one ci run for `history` to plot
+        st.append([make_row(entry="keops/l/scurve/seed0/none/base", machine="keops", path="l", planner="scurve",
+                            seed=0, metrics={"execution_time_s": 1.0})], kind="ci", run_info={"passed": True})
     return {
         "run": run_argv(out),
         "plan": ["plan", "--machine", "keops", "--path", SHORT_LINE, "--out", str(out)],
@@ -43,7 +46,7 @@ def command_argv(command: str, tmp: Path, out: Path) -> list[str]:
         "ci": ["ci", "--suite", str(suite), "--update-baseline", "--baseline", str(tmp / "b.json"),
                "--workers", "0", "--out", str(out)],
         "kins-demo": ["kins-demo", "--machines", "keops", "--out", str(out)],
-        "history": ["history", "--history", str(tmp / "history.sqlite"), "--out", str(out / "trend.png")],
+        "history": ["history", "--store", str(tmp / "store"), "--out", str(out / "trend.png")],
     }[command]
 
 

@@ -185,7 +185,7 @@ def test_report_tables_ratio_failures_and_plots(tmp_path, capsys):
     assert cells[2] == "0.375" and cells[3] == "1.000" and cells[4] == "yes"     # ÷ itself = 1
     assert "FAILED: TaskError" in md and "bogus" in md
     assert (tmp_path / "s/report/group00.png").stat().st_size > 1000
-    assert "<table>" in (tmp_path / "s/report/report.html").read_text()
+    assert "<table class='comparison'>" in (tmp_path / "s/report/report.html").read_text()
     assert cli(["report", str(tmp_path / "nothing")]) == 2
     assert "not a sweep folder" in capsys.readouterr().err
 

@@ -92,7 +92,7 @@ def test_exact_stop_corner_and_gcode_program(keops):
 
 def test_registry_and_bad_input(keops):
     assert get_planner("trapezoid").__module__ == "planners.trapezoid"
-    with pytest.raises(PlanningError, match="valid planners: trapezoid, scurve"):
+    with pytest.raises(PlanningError, match="unknown planner.*nope; valid: trapezoid, scurve"):
         get_planner("nope")
     bad = replace(keops.limits, cartesian=replace(keops.limits.cartesian, a=0.0))
     with pytest.raises(PlanningError, match="cartesian limit a = 0.0 must be"):

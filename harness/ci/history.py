@@ -1,40 +1,14 @@
-"""The CI history store: every `pkmbench ci` run appends here (SQLite, like the sweep table).
+"""The nightly CI history: a query over the results store (harness.store), not a file of its own.
 
-Tables: ``runs`` (one row per ci run) and ``metrics`` (one row per run × entry × metric, the
-value and the baseline it was compared with). `pkmbench history` reads it.
+Every `pkmbench ci` run appends its rows to the store with ``kind = 'ci'``; a ci run's own
+facts (mode, pass, reference workload, wall time) are in ``run_info`` and the metrics out of
+tolerance in each row's ``regressions``. `pkmbench history` and the HTML report read it here.
 """
 from __future__ import annotations
 
 import json
-import sqlite3
 import subprocess
-from datetime import datetime, timezone
 from pathlib import Path
-
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS runs (
-    id            INTEGER PRIMARY KEY AUTOINCREMENT,
-    utc           TEXT NOT NULL,
-    git_commit    TEXT,
-    code_version  TEXT,
-    suite         TEXT,
-    mode          TEXT,       -- 'check' | 'update-baseline'
-    passed        INTEGER,    -- 1 / 0
-    regressions   INTEGER,
-    reference_s   REAL,
-    wall_s        REAL,
-    host          TEXT        -- JSON
-);
-CREATE TABLE IF NOT EXISTS metrics (
-    run_id    INTEGER NOT NULL REFERENCES runs(id),
-    entry     TEXT NOT NULL,
-    metric    TEXT NOT NULL,
-    value     REAL,           -- booleans as 0/1
-    baseline  REAL,
-    ok        INTEGER
-);
-CREATE INDEX IF NOT EXISTS metrics_by_name ON metrics(metric, entry);
-"""
 
 
 def git_commit(repo: Path) -> str | None:
@@ -46,21 +20,16 @@ def git_commit(repo: Path) -> str | None:
         return None
 
 
-def _num(v):
-    if isinstance(v, bool):
-        return float(v)
-    return float(v) if isinstance(v, (int, float)) else None
-
-
 class History:
-    def __init__(self, file: str | Path):
-        self.file = Path(file)
-        self.file.parent.mkdir(parents=True, exist_ok=True)
-        self.db = sqlite3.connect(self.file)
-        self.db.executescript(SCHEMA)
+    """The ci runs of a results store, numbered 1, 2, … in time order."""
+
+    def __init__(self, store=None):
+        from harness.store import ResultStore
+        self.store = ResultStore(store)
+        self._runs = None
 
     def close(self):
-        self.db.close()
+        self.store.close()
 
     def __enter__(self):
         return self
@@ -68,39 +37,45 @@ class History:
     def __exit__(self, *exc):
         self.close()
 
-    def append(self, *, entries: dict, checks: list, baseline_entries: dict, mode: str,
-               passed: bool, reference_s: float, wall_s: float, suite: str, code_version: str,
-               host: dict, repo: Path) -> int:
-        ok_of = {(c.entry, c.metric): c.ok for c in checks}
-        with self.db:
-            cur = self.db.execute(
-                "INSERT INTO runs (utc, git_commit, code_version, suite, mode, passed, regressions,"
-                " reference_s, wall_s, host) VALUES (?,?,?,?,?,?,?,?,?,?)",
-                (datetime.now(timezone.utc).isoformat(timespec="seconds"), git_commit(repo),
-                 code_version, suite, mode, int(passed), sum(not c.ok for c in checks),
-                 reference_s, wall_s, json.dumps(host, sort_keys=True)))
-            run_id = cur.lastrowid
-            rows = []
-            for entry, flat in sorted(entries.items()):
-                base = baseline_entries.get(entry, {})
-                for metric, value in sorted(flat.items()):
-                    rows.append((run_id, entry, metric, _num(value), _num(base.get(metric)),
-                                 int(ok_of.get((entry, metric), True))))
-            self.db.executemany("INSERT INTO metrics VALUES (?,?,?,?,?,?)", rows)
-        return run_id
-
     def runs(self) -> list[dict]:
-        cur = self.db.execute("SELECT * FROM runs ORDER BY id")
-        cols = [d[0] for d in cur.description]
-        return [dict(zip(cols, r)) for r in cur]
+        """[{id, run_id, utc, git_commit, code_version, suite, mode, passed, regressions,
+        reference_s, wall_s}] of every ci run, oldest first."""
+        if self._runs is None:
+            rows = self.store.dicts("SELECT run_id, time, git_commit, code_version, suite, run_info, "
+                                    "regressions FROM runs WHERE kind = 'ci' ORDER BY time, run_id")
+            out = []
+            for i, r in enumerate(rows, start=1):
+                info = json.loads(r["run_info"] or "{}")
+                out.append({"id": i, "run_id": r["run_id"], "utc": r["time"].isoformat(timespec="seconds") + "+00:00",
+                            "git_commit": r["git_commit"], "code_version": r["code_version"], "suite": r["suite"],
+                            "mode": info.get("mode"), "passed": int(bool(info.get("passed"))),
+                            "regressions": int(r["regressions"] or 0), "reference_s": info.get("reference_s"),
+                            "wall_s": info.get("wall_s")})
+            self._runs = out
+        return self._runs
 
     def series(self, metric: str) -> dict[str, list[tuple[int, float]]]:
-        """{entry: [(run id, value), …]} of one metric."""
+        """{entry: [(run #, value), …]} of one metric (booleans as 0/1)."""
+        return {e: [(n, v) for n, v, _ in pts] for e, pts in self.series_marked(metric).items()}
+
+    def series_marked(self, metric: str) -> dict[str, list[tuple[int, float, bool]]]:
+        """{entry: [(run #, value, out of tolerance in that run), …]} of one metric."""
+        number = {r["run_id"]: r["id"] for r in self.runs()}
+        rows = self.store.query(
+            "SELECT run_id, entry, json_extract(metrics, ?) AS v, list_contains(regressions, ?) "
+            "FROM results WHERE kind = 'ci' AND status = 'ok' ORDER BY time, run_id, entry",
+            [f'$."{metric}"', metric])[1]
         out: dict[str, list] = {}
-        for run_id, entry, value in self.db.execute(
-                "SELECT run_id, entry, value FROM metrics WHERE metric = ? ORDER BY run_id", (metric,)):
-            out.setdefault(entry, []).append((run_id, value))
+        for run_id, entry, v, bad in rows:
+            if v is None:
+                continue
+            x = json.loads(str(v))
+            if x is None:
+                continue
+            out.setdefault(entry, []).append((number[run_id], float(x), bool(bad)))
         return out
 
     def metric_names(self) -> list[str]:
-        return [m for (m,) in self.db.execute("SELECT DISTINCT metric FROM metrics ORDER BY metric")]
+        rows = self.store.query("SELECT DISTINCT unnest(json_keys(metrics)) AS m FROM results "
+                                "WHERE kind = 'ci' ORDER BY m")[1]
+        return [m for (m,) in rows]

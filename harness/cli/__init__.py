@@ -23,7 +23,8 @@ COMMANDS = {
     "report": ("harness.cli.report", "Markdown/HTML comparison of a sweep"),
     "figures": ("harness.cli.figures", "reproduce the published figures"),
     "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline"),
-    "history": ("harness.cli.history", "plot the CI history trend"),
+    "history": ("harness.cli.history", "plot the CI history trend (the ci runs of the results store)"),
+    "query": ("harness.cli.query", "SQL over the results store (sweeps, corpus, ci)"),
     "corpus": ("harness.cli.corpus", "every planner on every corpus path: table and performance profile"),
     "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine"),
 }

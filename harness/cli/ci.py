@@ -3,8 +3,9 @@
     pkmbench ci --suite benchmarks/suites/nightly.toml --baseline results/baseline.json
     pkmbench ci ... --update-baseline        # accept the current numbers as the new baseline
 
-Writes OUT/junit.xml and OUT/summary.md (OUT = results/ci by default), appends the run to the
-history store (results/ci/history.sqlite; `pkmbench history` plots it). Exit 0 on pass, 1 on a
+Writes OUT/junit.xml and OUT/summary.md (OUT = results/ci by default), appends the run's rows
+(kind 'ci', with the metrics out of tolerance in ``regressions``) to the results store
+(harness.store; `pkmbench history` and `pkmbench query` read it). Exit 0 on pass, 1 on a
 regression (each named with its run, metric, values and tolerance), 2 on a user error.
 """
 from __future__ import annotations
@@ -33,7 +34,8 @@ def add_arguments(p) -> None:
     p.add_argument("--out", default=str(CI_DIR), help="folder for junit.xml, summary.md and the run (default: %(default)s)")
     p.add_argument("--junit", help="JUnit XML file (default OUT/junit.xml)")
     p.add_argument("--markdown", help="Markdown summary file (default OUT/summary.md)")
-    p.add_argument("--history", help="history store (default OUT/history.sqlite)")
+    p.add_argument("--store", default=None,
+                   help="results store folder the run is appended to (default: $PKMBENCH_STORE or results/store)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="local worker processes (0 = serial, no Dask)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing dask cluster")
@@ -55,9 +57,9 @@ def _load_baseline(file: Path) -> dict:
 
 def main(args) -> int:
     from harness.sweep import (DEFAULT_TASK, SuiteError, SweepError, SweepStore, code_version,
-                               expand, load_suite, resolve_task_fn, run_sweep)
+                               expand, load_suite, resolve_task_fn, run_sweep, task_label)
     from harness.ci import baseline as ci
-    from harness.ci.history import History
+    from harness.store import ResultStore, StoreError, make_row
 
     if args.suite is None:           # recorded as the checkout-relative name, read from the checkout
         args.suite = repo_relative(SUITE_DIR / "nightly.toml")
@@ -84,7 +86,10 @@ def main(args) -> int:
     out = output_dir(args.out)
     junit = output_file(args.junit or out / "junit.xml", "JUnit file")
     mdfile = output_file(args.markdown or out / "summary.md", "summary file")
-    history_file = output_file(args.history or out / "history.sqlite", "history store")
+    try:
+        ResultStore(args.store).close()          # a store that cannot be read fails now, not after the suite
+    except StoreError as e:
+        raise CliError(str(e)) from None
     if args.update_baseline:
         output_file(baseline_file, "baseline file")
 
@@ -133,13 +138,30 @@ def main(args) -> int:
                              suite_file=args.suite, wall_s=wall_s, tolerances=tolerances)
     for f, text in ((junit, ci.junit_xml(checks, wall_s)), (mdfile, md)):
         f.write_text(text)
-    with History(history_file) as h:
-        run_id = h.append(entries=entries, checks=checks, baseline_entries=base_entries,
-                          mode="update-baseline" if args.update_baseline else "check",
-                          passed=passed, reference_s=reference_s, wall_s=wall_s, suite=args.suite,
-                          code_version=version, host=ci.host_info(), repo=REPO)
+    regressions: dict[str, list[str]] = {}
+    for c in checks:
+        if not c.ok:
+            regressions.setdefault(c.entry, []).append(c.metric)
+    rows = []
+    with SweepStore(run_dir / "results.sqlite") as store:
+        for r in store.to_rows():
+            label = task_label(r["task"])
+            rows.append(make_row(entry=label, machine=r["machine"], path=r["path"], planner=r["planner"],
+                                 seed=r["seed"], preset=r["preset"], variation=r["variation"],
+                                 status=r["status"], error=r["error"], metrics=entries.get(label),
+                                 regressions=regressions.get(label, ()),
+                                 run_dir=str(run_dir / r["run_dir"]) if r["run_dir"] else None))
+    info = {"mode": "update-baseline" if args.update_baseline else "check", "passed": passed,
+            "reference_s": reference_s, "wall_s": wall_s, "baseline": str(baseline_file),
+            "checks": len(checks), "task_fn": task_fn}
+    try:
+        with ResultStore(args.store) as st:
+            run_id = st.append(rows, kind="ci", suite=args.suite, code_version=version, run_info=info)
+            store_dir = st.folder
+    except StoreError as e:
+        raise CliError(f"{e} (junit {junit} and summary {mdfile} are written)") from None
     if not args.update_baseline:
         # the head and the regressions table of the summary: the metric is named on stdout
         print(md.split("## Tolerances")[0].rstrip())
-    print(f"ci: JUnit {junit}, summary {mdfile}, history run #{run_id}")
+    print(f"ci: JUnit {junit}, summary {mdfile}, results store {store_dir} run {run_id}")
     return 0 if passed else 1

@@ -38,10 +38,10 @@ def main(args) -> int:
                 raise CliError("--suite takes its paths from the suite: no --paths / --quick with it")
             selection = entries_from_suite(args.suite)
             if args.planners:
-                want = _planners(args.planners, planners.PLANNERS)
+                want = _planners(args.planners)
                 selection = [(e, [p for p in ps if p in want]) for e, ps in selection]
         else:
-            names = _planners(args.planners, planners.PLANNERS) if args.planners else \
+            names = _planners(args.planners) if args.planners else \
                 (list(FAST_PLANNERS) if args.quick else [p for p in planners.PLANNERS if p != "linuxcnc"])
             selection = [(e, names) for e in select(load_manifest(), args.paths, args.quick)]
     except CorpusError as e:
@@ -71,9 +71,12 @@ def main(args) -> int:
     return 1 if errors else 0
 
 
-def _planners(spec: str, valid) -> list[str]:
+def _planners(spec: str) -> list[str]:
+    """Built-ins, installed plug-ins and module:function specs (planners.registry)."""
+    from planners import registry
     names = [n.strip() for n in spec.split(",") if n.strip()]
-    bad = [n for n in names if n not in valid]
+    bad = [n for n in names if not registry.known(n)]
     if bad or not names:
-        raise CliError(f"--planners {spec}: unknown planner(s) {', '.join(bad) or '(none given)'}; valid: {', '.join(valid)}")
+        raise CliError(f"--planners {spec}: unknown planner(s) {', '.join(bad) or '(none given)'}; "
+                       f"valid: {', '.join(registry.names())}")
     return names

@@ -1,13 +1,11 @@
-"""`pkmbench history`: the trend of the CI history store, as a table and plots.
+"""`pkmbench history`: the trend of the nightly ci runs in the results store, as a table and plots.
 
-    pkmbench history                                  # results/ci/history.sqlite
+    pkmbench history                                  # the ci rows of results/store (or --store)
     pkmbench history --metric execution_time_s --metric 'joint_peak_ratio.*' --out results/ci/trend.png
 """
 from __future__ import annotations
 
 import fnmatch
-from pathlib import Path
-
 from harness.cli import CliError
 from harness.outdir import output_file
 from kins.resources import CI_DIR
@@ -16,22 +14,26 @@ DEFAULT_METRICS = ["execution_time_s", "planning_time_ratio", "joint_peak_ratio.
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--history", default=str(CI_DIR / "history.sqlite"), help="history store of pkmbench ci")
+    p.add_argument("--store", default=None, help="results store folder (default: $PKMBENCH_STORE or results/store)")
     p.add_argument("--metric", action="append", metavar="PATTERN",
                    help=f"metric name or glob, repeatable (default: {', '.join(DEFAULT_METRICS)})")
     p.add_argument("--entry", default="*", metavar="PATTERN", help="runs to plot (glob on machine/path/planner/…)")
-    p.add_argument("--out", help="PNG file for the plot (default: next to the history store, trend.png)")
+    p.add_argument("--out", help=f"PNG file for the plot (default: {CI_DIR / 'trend.png'})")
     p.add_argument("--last", type=int, default=20, help="CI runs listed in the table")
 
 
 def main(args) -> int:
     from harness.ci.history import History
-    hfile = Path(args.history)
-    if not hfile.exists():
-        raise CliError(f"{hfile}: no history yet; `pkmbench ci` appends to it")
-    out = output_file(args.out or hfile.with_name("trend.png"), "plot file")
-    with History(hfile) as h:
+    from harness.store import StoreError
+    try:
+        h = History(args.store)
+    except StoreError as e:
+        raise CliError(str(e)) from None
+    with h:
         runs = h.runs()
+        if not runs:
+            raise CliError(f"{h.store.folder}: no ci runs in the results store yet; `pkmbench ci` appends them")
+        out = output_file(args.out or CI_DIR / "trend.png", "plot file")
         names = h.metric_names()
         patterns = args.metric or DEFAULT_METRICS
         metrics = [m for m in names if any(fnmatch.fnmatchcase(m, p) for p in patterns)]

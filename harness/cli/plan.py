@@ -6,9 +6,12 @@ from harness.outdir import output_dir
 
 
 def add_arguments(p):
-    p.add_argument("--machine", required=True, help="machine id or .toml file")
-    p.add_argument("--path", required=True, help="toolpath id or .json/.ngc file")
-    p.add_argument("--planners", default="scurve", help="comma-separated planners (default: %(default)s)")
+    p.add_argument("--list", action="store_true",
+                   help="list every planner (built-in, installed plug-in) with its source and guarantees, then exit")
+    p.add_argument("--machine", help="machine id or .toml file")
+    p.add_argument("--path", help="toolpath id or .json/.ngc file")
+    p.add_argument("--planners", default="scurve",
+                   help="comma-separated planners: names of --list or module:function (default: %(default)s)")
     p.add_argument("--start", default=None, metavar="X,Y,Z",
                    help="G-code: the machine position before the program (mm); every move, the first "
                         "included, is then planned from it, as LinuxCNC runs it (default: a first "
@@ -17,8 +20,23 @@ def add_arguments(p):
     p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
 
 
+def list_planners() -> int:
+    from planners import registry
+    for name in registry.names():
+        d = registry.describe(name)
+        g = d["guarantees"]
+        keeps = "; ".join(f"{k}: {', '.join(v)}" for k, v in g.items()) if g else "—"
+        line = f"{name:16s} {d['source']}" + (f" {d['version']}" if d["version"] and d["version"] not in d["source"] else "")
+        print(f"{line}\n{'':16s} keeps: {keeps}" + (f"\n{'':16s} BROKEN: {d['error']}" if "error" in d else ""))
+    return 0
+
+
 def main(args) -> int:
     import planners
+    if args.list:
+        return list_planners()
+    if not (args.machine and args.path):
+        raise CliError("give --machine and --path (or --list)")
     from planners.verify import command_metrics
     from kins import load_machine
     from harness.cosim.record import write_json
@@ -41,9 +59,9 @@ def main(args) -> int:
     from planners.feed import use_max_feed
     use_max_feed(path, args.max_feed)
     names = [n.strip() for n in args.planners.split(",") if n.strip()]
-    bad = [n for n in names if n not in planners.PLANNERS]
+    bad = [n for n in names if not planners.registry.known(n)]
     if bad:
-        raise CliError(f"unknown planner(s) {', '.join(bad)}; valid: {', '.join(planners.PLANNERS)}")
+        raise CliError(planners.registry.unknown_message(bad))
     out = output_dir(args.out) if args.out else None
     failed = 0
     print(f"feed: {feed_summary(path)}")

@@ -1,7 +1,9 @@
-"""`pkmbench report SWEEP_DIR`: Markdown and HTML comparison of a sweep, with plots
-(harness/report/sweep_report.py).
+"""`pkmbench report SWEEP_DIR`: a comparison of a sweep a person opens: report.html, one
+self-contained interactive file (tables, performance profile, feed and joint ratios along the
+path, the nightly trend of the results store; harness/report/html_report.py), and report.md
+with PNGs (harness/report/sweep_report.py).
 
-    pkmbench report results/sweeps/nightly            # → SWEEP_DIR/report/report.md, report.html, *.png
+    pkmbench report results/sweeps/nightly            # → SWEEP_DIR/report/report.html, report.md, *.png
 """
 from __future__ import annotations
 
@@ -16,17 +18,20 @@ def add_arguments(p) -> None:
     p.add_argument("--out", help="report folder (default SWEEP/report)")
     p.add_argument("--reference", default="optimal",
                    help="planner whose execution time is the denominator of the ratio column")
+    p.add_argument("--store", default=None,
+                   help="results store whose ci runs make the nightly trend (default: $PKMBENCH_STORE or results/store)")
 
 
 def main(args) -> int:
     from harness.report.sweep_report import ReportError, write_report
+    from harness.store import StoreError
     sweep = Path(args.sweep)
     if not (sweep / "results.sqlite").exists():      # before the report folder is made in it
         raise CliError(f"{sweep}: not a sweep folder (no results.sqlite); run `pkmbench sweep` first")
     out = output_dir(args.out or sweep / "report", "report folder")
     try:
-        tables, runs = write_report(sweep, out, args.reference)
-    except ReportError as e:
+        tables, runs = write_report(sweep, out, args.reference, args.store)
+    except (ReportError, StoreError) as e:
         raise CliError(str(e)) from None
-    print(f"report: {tables} tables, {runs} runs → {out}/report.md, {out}/report.html")
+    print(f"report: {tables} tables, {runs} runs → {out}/report.html (open it in a browser), {out}/report.md")
     return 0

@@ -24,6 +24,9 @@ def add_arguments(p):
     p.add_argument("--engine", choices=("native", "python"), default="native", help="co-simulation master")
     p.add_argument("--jacobi", action="store_true", help="Jacobi instead of Gauss–Seidel")
     p.add_argument("--no-recordings", action="store_true", help="skip run.mcap and run.rrd")
+    p.add_argument("--fmu", action="append", metavar="BLOCK=FILE.fmu",
+                   help="a user FMU in place of ours: BLOCK one of Interpolator, Kinematics, EtherCAT, Drive "
+                        "(repeatable; a suite's [fmus] table does the same; interface: harness/cosim/blocks.py)")
     p.add_argument("--max-feed", action="store_true",
                    help="run G-code at F_max, ignoring its F words (planner-only comparisons; "
                         "summary.json's 'feed' says so); a suite's [[run]] takes max_feed = true")
@@ -91,6 +94,17 @@ def main(args) -> int:
         check_seed(args.seed, "--seed")
     except SeedError as e:
         raise CliError(str(e)) from None
+    from harness.cosim.blocks import parse_fmu_args
+    from harness.cosim.system import SystemError_
+    from harness.sweep.suite import SuiteError
+    try:
+        fmus = parse_fmu_args(args.fmu)
+        if args.suite:      # the suite's [fmus], relative to the suite file; --fmu wins
+            from harness.sweep.suite import load_suite
+            suite_fmus = {b: Path(args.suite).parent / f for b, f in load_suite(args.suite).get("fmus", {}).items()}
+            fmus = parse_fmu_args([f"{b}={f}" for b, f in suite_fmus.items()]) | fmus
+    except (SystemError_, SuiteError) as e:
+        raise CliError(str(e)) from None
     cases, out = cases_of(args)
     output_dir(out)
     failed = 0
@@ -100,7 +114,8 @@ def main(args) -> int:
         try:
             summary = run_case(machine, path, planners, odir, seed=args.seed, jitter=args.jitter, ideal=args.ideal,
                                engine=args.engine, jacobi=args.jacobi, planner_options=opts,
-                               recordings=not args.no_recordings, progress=_progress, max_feed=max_feed)
+                               recordings=not args.no_recordings, progress=_progress, max_feed=max_feed,
+                               fmus=fmus or None)
         except RunError as e:
             raise CliError(str(e)) from None
         sys.stderr.write("\r" + " " * 60 + "\r")

@@ -27,6 +27,9 @@ def add_arguments(p) -> None:
                    help="task function (default: harness.sweep.tasks:default_task, the full co-simulation)")
     p.add_argument("--force", action="store_true", help="re-run tasks that are already done")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--store", default=None,
+                   help="results store folder the finished tasks are appended to (default: $PKMBENCH_STORE "
+                        "or results/store; 'none' = do not append)")
 
 
 def main(args) -> int:
@@ -45,6 +48,13 @@ def main(args) -> int:
                         progress=not args.no_progress)
     except SweepError as e:
         raise CliError(str(e)) from None
+    if args.store != "none" and res.keys:
+        from harness.store import StoreError, append_sweep
+        try:
+            append_sweep(out / "results.sqlite", res.keys, kind="sweep", suite=str(args.suite),
+                         store=args.store, code_version=res.code_version)
+        except StoreError as e:
+            raise CliError(f"{e} (the sweep's results are in {out}/results.sqlite)") from None
     print(f"sweep {args.suite}: {res.total} tasks — {res.ok} run, {res.skipped} already done, "
           f"{res.failed} failed — {res.wall_s:.1f} s → {out}/results.sqlite")
     for label, err in res.failures:

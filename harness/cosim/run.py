@@ -55,13 +55,13 @@ def feed_summary(path) -> str:
 
 
 def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None = None, ideal: bool = False,
-               engine: str = "native", jacobi: bool = False):
+               engine: str = "native", jacobi: bool = False, fmus: dict | None = None):
     """Write the profile's files and system, run it, return the master's Result."""
     path_file, profile_file = out / "path.json", out / "profile.csv"
     profile.path.to_file(path_file)
     profile.save_csv(profile_file)
     system = chain(machine, path_file, profile_file, profile.execution_time_s + TAIL_S,
-                   seed=seed, jitter=jitter, ideal=ideal, histogram_out=str(out / "lateness.csv"))
+                   seed=seed, jitter=jitter, ideal=ideal, histogram_out=str(out / "lateness.csv"), fmus=fmus)
     # round the duration to whole periods so every step is exactly T
     n = int(math.ceil(system.stop_time / system.step_size - 1e-9))
     system.stop_time = n * system.step_size
@@ -72,9 +72,10 @@ def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None
 def run_case(machine_name: str, path_name: str, planner_names: list[str], out_dir, *, seed: int = 0,
              jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
              planner_options: dict | None = None, recordings: bool = True, progress=None,
-             max_feed: bool = False) -> dict:
+             max_feed: bool = False, fmus: dict | None = None) -> dict:
     """``max_feed``: run a G-code program at F_max instead of its programmed F (planner-only
-    comparisons); summary.json's ``feed`` says which."""
+    comparisons); summary.json's ``feed`` says which. ``fmus``: {block: user .fmu} in place of
+    ours (harness.cosim.blocks), checked before anything runs; summary.json's ``fmus`` names them."""
     from kins import load_machine
     from kins.machine import MachineFileError
     import planners
@@ -90,9 +91,9 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         raise RunError(str(e)) from None
     from planners.feed import use_max_feed
     use_max_feed(path, bool(max_feed))
-    unknown = [p for p in planner_names if p not in planners.PLANNERS]
+    unknown = [p for p in planner_names if not planners.registry.known(p)]
     if unknown:
-        raise RunError(f"unknown planner(s) {', '.join(unknown)}; valid: {', '.join(planners.PLANNERS)}")
+        raise RunError(planners.registry.unknown_message(unknown))
     try:
         seed = check_seed(seed)
         for name, opts in (planner_options or {}).items():
@@ -102,6 +103,10 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         raise RunError(str(e)) from None
     try:
         check_chain_fmus()
+        if fmus:
+            from harness.cosim.blocks import check_blocks, check_user_fmu
+            check_blocks(fmus)
+            fmus = {b: check_user_fmu(b, f) for b, f in fmus.items()}
     except SystemError_ as e:   # before anything is planned or removed: every planner would fail alike
         raise RunError(str(e)) from None
     out_dir = Path(out_dir)
@@ -109,13 +114,13 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         with run_lock(output_dir(out_dir)):
             return _run(machine, path, path_name, planner_names, out_dir, seed=seed, jitter=jitter, ideal=ideal,
                         engine=engine, jacobi=jacobi, planner_options=planner_options, recordings=recordings,
-                        progress=progress)
+                        progress=progress, fmus=fmus)
     except OutDirError as e:
         raise RunError(str(e)) from None
 
 
 def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter, ideal, engine, jacobi,
-         planner_options, recordings, progress) -> dict:
+         planner_options, recordings, progress, fmus=None) -> dict:
     """run_case's work, with the folder locked: nothing of an earlier run may look like this one's."""
     import planners
 
@@ -127,6 +132,8 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
     summary = {"machine": machine.name, "path": path_name, "servo_period_s": machine.servo_period_s,
                "seed": seed, "jitter": jitter or "machine default", "ideal_chain": ideal,
                "feed": feed_summary(path), "planners": {}}
+    if fmus:   # only then: the summaries of runs with our chain keep their bytes
+        summary["fmus"] = {b: str(f) for b, f in sorted(fmus.items())}
     timing = {}
     for k, name in enumerate(planner_names):
         if progress:
@@ -141,7 +148,8 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
             continue
         t1 = time.perf_counter()
         try:
-            res = cosimulate(machine, profile, pdir, seed=seed, jitter=jitter, ideal=ideal, engine=engine, jacobi=jacobi)
+            res = cosimulate(machine, profile, pdir, seed=seed, jitter=jitter, ideal=ideal, engine=engine,
+                             jacobi=jacobi, fmus=fmus)
         except (CoSimError, SystemError_) as e:
             summary["planners"][name] = {"error": f"co-simulation failed: {e}",
                                          "execution_time_s": profile.execution_time_s}

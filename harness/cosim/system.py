@@ -140,8 +140,13 @@ def kinematics_start(machine) -> dict:
 
 
 def chain(machine, path_file: Path, profile_file: Path, duration_s: float, *, seed: int = 0,
-          jitter: str | None = None, ideal: bool = False, histogram_out: str = "") -> System:
+          jitter: str | None = None, ideal: bool = False, histogram_out: str = "",
+          fmus: dict | None = None) -> System:
     """The DESIGN.md chain for one feed profile on ``machine``.
+
+    ``fmus``: {block: user .fmu} replacing our Interpolator / Kinematics / EtherCAT / Drive
+    (harness.cosim.blocks: checked against the block's interface; it gets the start values it
+    has variables for).
 
     ``ideal``: zero-jitter bus, no transport delay and ideal drives (position = target), so the
     chain must reproduce the commanded joint trajectory exactly (a test).
@@ -173,6 +178,14 @@ def chain(machine, path_file: Path, profile_file: Path, duration_s: float, *, se
                   Connection("ethercat", f"q{k}_target", f"drive{k}", "target"),
                   Connection("ethercat", f"sync_ok{k}", f"drive{k}", "sync_ok"),
                   Connection(f"drive{k}", "position", "kinematics", f"q{k}_act")]
+    if fmus:
+        from harness.cosim.blocks import check_blocks, check_user_fmu, user_start
+        check_blocks(fmus)
+        for comp in comps:
+            block = comp.fmu.stem
+            if block in fmus:
+                comp.fmu = check_user_fmu(block, fmus[block])
+                comp.start = user_start(comp.fmu, comp.start)
     return System(comps, conns, T, duration_s)
 
 

@@ -82,9 +82,11 @@ class ReportError(ValueError):
     """The folder holds no sweep results; the message names it."""
 
 
-def write_report(sweep: Path, out: Path, reference: str = "optimal") -> tuple[int, int]:
-    """report.md, report.html and a groupNN.png per table of the sweep in ``sweep`` into ``out``;
-    returns (tables, runs). ReportError if ``sweep`` holds no results."""
+def write_report(sweep: Path, out: Path, reference: str = "optimal", results_store=None) -> tuple[int, int]:
+    """report.md with a groupNN.png per table, and report.html (one self-contained interactive
+    file: harness/report/html_report.py, the nightly trend from the results store ``results_store``,
+    default the default store) of the sweep in ``sweep`` into ``out``; returns (tables, runs).
+    ReportError if ``sweep`` holds no results."""
     from harness.sweep import SweepStore
     sweep, out = Path(sweep), Path(out)
     db = sweep / "results.sqlite"
@@ -105,22 +107,26 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal") -> tuple[in
           f"{len(latest)} runs, {n_ok} ok, {len(latest) - n_ok} failed. Joint ratios are peak "
           f"|derivative| / limit on the commanded joints (feasible ⇔ all ≤ 1 + 1e-6); "
           f"÷ optimal is the execution time over `{reference}`'s on the same case.", ""]
-    body = [f"<h1>pkmbench sweep report — {html.escape(str(sweep))}</h1>", f"<p>{html.escape(md[2])}</p>"]
     for i, g in enumerate(groups):
         png = f"group{i:02d}.png"
         _plot(g, out / png)
         md += [f"## {g['title']}", "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
         md += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in g["rows"]]
         md += ["", f"![{g['title']}]({png})", ""]
-        body += [f"<h2>{html.escape(g['title'])}</h2>", "<table>",
-                 "<tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in COLUMNS) + "</tr>"]
-        body += ["<tr>" + "".join(f"<td>{html.escape(c.replace('**', ''))}</td>" for c in row) + "</tr>"
-                 for row in g["rows"]]
-        body += ["</table>", f'<img src="{png}" alt="{html.escape(g["title"])}">']
     (out / "report.md").write_text("\n".join(md) + "\n")
-    style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
-             "td,th{border:1px solid #ccc;padding:2px 6px;font-size:13px;text-align:right}")
-    (out / "report.html").write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>pkmbench report"
-                                     f"</title><style>{style}</style></head><body>\n" + "\n".join(body) +
-                                     "\n</body></html>\n")
+    from harness.ci.history import History
+    from harness.report.html_report import write_html
+    from kins import load_machine
+    from kins.resources import REPO
+
+    def machine_of(r):
+        """The run's own (varied) machine file, which the task wrote to inputs/, else the suite's."""
+        mine = sorted(Path(r["run_dir"], "inputs").glob("*.toml"))
+        f = mine[0] if mine else Path(r["task"]["machine_file"])
+        return load_machine(str(f if f.is_absolute() or mine else REPO / f))
+
+    rows = [r | {"run_dir": str(sweep / r["run_dir"]) if r["run_dir"] else None} for r in latest.values()]
+    with History(results_store) as h:
+        write_html(rows, out / "report.html", title=f"pkmbench report — {sweep.name}", reference=reference,
+                   machine_of=machine_of, history=h)
     return len(groups), len(latest)

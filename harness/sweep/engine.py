@@ -55,6 +55,8 @@ class SweepResult:
     failed: int = 0
     wall_s: float = 0.0
     failures: list[tuple[str, str]] = field(default_factory=list)   # (task label, error)
+    keys: list[str] = field(default_factory=list)       # the tasks run this time (results store rows)
+    code_version: str = ""
 
 
 def tasks_from_suite_file(file: str | Path) -> list[dict]:
@@ -209,7 +211,7 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
     t0 = time.perf_counter()
     resolve_task_fn(task_fn)                         # fail early, here, with a clear message
     version = code_version(extra=_task_fn_files(task_fn))
-    res = SweepResult(out_dir, total=len(tasks))
+    res = SweepResult(out_dir, total=len(tasks), code_version=version)
     with SweepStore(out_dir / "results.sqlite") as store:
         done = set() if force else store.done_keys()
         keyed = [(task_key(t, version, task_fn), t) for t in tasks]
@@ -228,6 +230,7 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
                 (target / rel).write_bytes(data)
             store.put(key, {k: v for k, v in task.items() if k != "files"}, version, result,
                       rd if result.get("files") else None)
+            res.keys.append(key)
             if store.status(key) == "ok":
                 res.ok += 1
             else:

@@ -39,7 +39,7 @@ PATH_SUFFIXES = (".json", ".ngc")
 CODE_DIRS = ("kins", "planners", "harness")
 
 
-TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci")
+TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus")
 RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed")
 
 
@@ -223,6 +223,10 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     """sha256 of everything that determines a task's result."""
     ident = {k: task[k] for k in ("planner", "planner_options", "seed", "preset", "variation", "files")}
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
+    from planners.registry import plugin_version
+    plugin = plugin_version(task["planner"])
+    if plugin:   # a plug-in's code is not in code_version: its installed version stands for it
+        ident["plugin"] = plugin
     return hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
 
 

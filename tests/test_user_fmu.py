@@ -1,0 +1,97 @@
+"""User FMUs in the chain (issue 22): a Drive written in Python and packaged with pythonfmu (not
+our C FMU framework) replaces ours; on the ideal chain each drive's position equals the exact
+first-order-lag recursion computed here in numpy from the targets the bus delivered. A wrong
+FMU is refused in one line naming the FMU, the variable and what was expected."""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.cli import main as cli
+
+HERE = Path(__file__).resolve().parent
+LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
+        "control_points": [[-50, 0, -400], [50, 0, -400]], "weights": [1, 1]}
+TAU = 0.002        # lag_drive.py's default time constant
+
+
+def build(src: Path, out: Path) -> Path:
+    exe = Path(sys.executable).with_name("pythonfmu")
+    r = subprocess.run([str(exe), "build", "-f", str(src), "-d", str(out)], capture_output=True, text=True,
+                       cwd=out, timeout=300)
+    assert r.returncode == 0, r.stderr
+    (fmu,) = out.glob("*.fmu")
+    return fmu
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory) -> dict:
+    tmp = tmp_path_factory.mktemp("userfmu")
+    (tmp / "good").mkdir()
+    (tmp / "bad").mkdir()
+    good = build(HERE / "fmus" / "lag_drive.py", tmp / "good")
+    # the same Drive with its position an input: a wrong causality
+    bad_src = tmp / "bad" / "bad_drive.py"
+    bad_src.write_text((HERE / "fmus" / "lag_drive.py").read_text().replace("class LagDrive", "class BadDrive")
+                       .replace('for name in ("position", "velocity"', 'self.register_variable(Real("position", '
+                                'causality=Fmi2Causality.input))\n        for name in ("velocity"'))
+    bad = build(bad_src, tmp / "bad")
+    (tmp / "line.json").write_text(json.dumps(LINE))
+    return {"good": good, "bad": bad, "line": tmp / "line.json", "tmp": tmp}
+
+
+def test_pythonfmu_drive_replaces_ours_and_matches_the_lag_recursion(fmus, tmp_path):
+    import planners
+    from harness.cosim.run import cosimulate
+    from kins import load_machine
+    from planners.paths import load_path
+    m = load_machine("keops")
+    prof = planners.plan("scurve", load_path(fmus["line"]), m)
+    res = cosimulate(m, prof, tmp_path, ideal=True, fmus={"Drive": fmus["good"]})
+    a = math.exp(-m.servo_period_s / TAU)
+    worst = 0.0
+    for k in (1, 2, 3):
+        tgt, p = res[f"ethercat.q{k}_target"], res[f"drive{k}.position"]
+        assert np.array_equal(tgt, res[f"kinematics.q{k}_cmd"])          # ideal bus: target = command
+        # Gauss–Seidel: during step i the drive holds the target the bus output in that step
+        r = np.empty_like(p)
+        r[0] = tgt[0]
+        for i in range(len(p) - 1):
+            r[i + 1] = tgt[i + 1] + (r[i] - tgt[i + 1]) * a
+        assert np.max(np.abs(r - p)) <= 1e-12
+        worst = max(worst, np.max(np.abs(tgt - p)) * 1e3)
+    assert "resources/LagDrive.fmu" in (tmp_path / "SystemStructure.ssd").read_text()
+
+    # the same through `pkmbench run` with a suite's [fmus]: the summary's following error
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'[[run]]\nmachine = "keops"\npath = "{fmus["line"]}"\nplanners = ["scurve"]\n'
+                     f'[fmus]\nDrive = "{fmus["good"]}"\n')
+    assert cli(["run", str(suite), "--ideal", "--no-recordings", "--out", str(tmp_path / "run")]) == 0
+    s = json.loads((tmp_path / "run/summary.json").read_text())
+    assert s["fmus"] == {"Drive": str(fmus["good"])}
+    assert s["planners"]["scurve"]["max_following_error_um"] == pytest.approx(worst, rel=1e-12)
+    assert worst > 100          # a 2 ms lag at these speeds: far from our ideal drive's zero
+
+
+@pytest.mark.parametrize("block, which, message", [
+    ("Drive", "ours:Interpolator", "Drive FMU Interpolator.fmu: no variable 'target' (the Drive interface needs input Real)"),
+    ("Drive", "bad", "Drive FMU BadDrive.fmu: variable 'position' is input Real, expected output Real"),
+    ("Kinematics", "good", "Kinematics FMU LagDrive.fmu: no variable 'x_cmd' (the Kinematics interface needs input Real)"),
+    ("Bus", "good", "unknown block 'Bus' for a user FMU; valid: Interpolator, Kinematics, EtherCAT, Drive"),
+])
+def test_wrong_fmu_is_refused_naming_the_variable(fmus, tmp_path, capsys, block, which, message):
+    from kins.resources import FMU_DIR
+    f = FMU_DIR / "Interpolator.fmu" if which == "ours:Interpolator" else fmus[which]
+    argv = ["run", "--machine", "keops", "--path", str(fmus["line"]), "--planners", "scurve", "--ideal",
+            "--no-recordings", "--out", str(tmp_path / "run"), "--fmu", f"{block}={f}"]
+    assert cli(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == f"pkmbench run: error: {message}" and "Traceback" not in "".join(err)
+    assert not (tmp_path / "run/summary.json").exists()
