@@ -96,11 +96,6 @@ def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
     P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
     Q0 = ik_along(machine, s, P)
     Q = {0: Q0}
-    # the local cubic leaves the path's circle after a fraction of its radius ρ = 1/|P″| (a G64
-    # blend arc of ρ = 1 µm took the 0.02 mm stencil mm off the path: "edge of reach"), and q‴'s
-    # truncation error is ~(h/ρ)²/4: h ≤ ρ/20 keeps it under 0.1 %
-    kap = np.linalg.norm(P2, axis=1)
-    h = np.minimum(h, 0.05 / np.maximum(kap, 1e-300))[:, None]
     for k in (-2, -1, 1, 2):
         d = k * h
         X = P + P1 * d + P2 * (d * d / 2) + P3 * (d * d * d / 6)
