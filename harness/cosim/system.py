@@ -28,6 +28,9 @@ NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues"}
 
 
+# SSP 1.0 connector types of the FMI 3.0 types the chain uses (FMI 2.0 names are SSP's own)
+SSP_TYPE = {"Float64": "Real", "Int32": "Integer"}
+
 # String parameters that name files: relative to the .ssd's folder when they lie in it
 FILE_PARAMS = ("path_file", "profile_file", "histogram_file", "histogram_out")
 
@@ -77,7 +80,7 @@ def fmu_problem(fmu: Path, model: str | None = None) -> str | None:
     """Why ``fmu`` is not a loadable FMU, or None: a zip whose members pass their CRC, whose
     modelDescription.xml parses and names a co-simulation model (``model``, when given) whose
     binary for this platform is inside."""
-    from fmpy import platform, sharedLibraryExtension
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
     with open(fmu, "rb") as f:   # an unreadable file: OSError, for the caller to word
         try:
@@ -100,7 +103,8 @@ def fmu_problem(fmu: Path, model: str | None = None) -> str | None:
         return "modelDescription.xml has no co-simulation modelIdentifier"
     if model and ident != model:
         return f"modelDescription.xml names model '{ident}', not '{model}'"
-    binary = f"binaries/{platform}/{ident}{sharedLibraryExtension}"
+    fmi3 = (root.get("fmiVersion") or "").startswith("3.")   # FMI 3.0 names platforms as x86_64-linux
+    binary = f"binaries/{platform_tuple if fmi3 else platform}/{ident}{sharedLibraryExtension}"
     if binary not in names:
         return f"no {binary}"
     return None
@@ -248,7 +252,7 @@ def write_ssp(system: System, out_dir: Path) -> Path:
                 raise SystemError_(f"{comp.fmu.name} has no variable '{var}' (component {comp.name})")
             v = variables[var]
             c = ET.SubElement(cons, q("ssd", "Connector"), {"name": var, "kind": v.causality})
-            ET.SubElement(c, q("ssc", v.type))
+            ET.SubElement(c, q("ssc", SSP_TYPE.get(v.type, v.type)))
         if comp.start:
             binding = ET.SubElement(ET.SubElement(el, q("ssd", "ParameterBindings")), q("ssd", "ParameterBinding"))
             pset = ET.SubElement(ET.SubElement(binding, q("ssd", "ParameterValues")), q("ssv", "ParameterSet"),
