@@ -99,8 +99,8 @@ def test_a_run_folder_moved_elsewhere_loads_in_the_harness_and_in_fmpy(tmp_path)
                 "--out", str(tmp_path / "a"), "--no-recordings"]) == 0
     moved = shutil.move(tmp_path / "a", tmp_path / "elsewhere" / "b")
     pdir = Path(moved) / "scurve"
-    assert str(tmp_path / "a") not in (pdir / "SystemStructure.ssd").read_text() + \
-        (pdir / "SystemStructure.ssv").read_text()
+    assert str(tmp_path / "a") not in (pdir / "SystemStructure.ssd").read_text()
+    assert "path.json" in (pdir / "SystemStructure.ssd").read_text()      # the start values are in it
     res = simulate(read_ssp(pdir / "SystemStructure.ssd"), RECORD)
     P = read_command_csv(pdir / "command.csv")[:, 1:4]          # t, x, y, z, q1, q2, q3
     assert len(P) > 500

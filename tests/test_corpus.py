@@ -100,7 +100,7 @@ def test_performance_profile_by_hand():
 
 # -- the command on the quick subset ----------------------------------------------------------
 def test_corpus_quick_command(tmp_path, capsys):
-    rc = cli_main(["corpus", "--quick", "--out", str(tmp_path)])
+    rc = cli_main(["corpus", "--quick", "--out", str(tmp_path), "--store", str(tmp_path / "store")])
     assert rc == 0, capsys.readouterr().out
     with open(tmp_path / "corpus.csv") as f:
         rows = list(csv.DictReader(f))
@@ -119,6 +119,22 @@ def test_corpus_quick_command(tmp_path, capsys):
             assert r["feasible"] == "yes", r
     md = (tmp_path / "corpus.md").read_text()
     assert "| scurve_joint | 3/3 | 3 |" in md
+    # the same rows, appended to the results store as one corpus run
+    from harness.store import ResultStore
+    with ResultStore(tmp_path / "store") as st:
+        stored = st.dicts("SELECT path, planner, kind, status, execution_time_s, feasible, joint_velocity, "
+                          "joint_acceleration, joint_jerk, planning_time_s, "
+                          "metrics->>'$.\"cartesian_peak_ratio.jerk\"' AS cart_j FROM results")
+        assert st.dicts("SELECT kind, rows, failed FROM runs") == [{"kind": "corpus", "rows": 9, "failed": 0}]
+    by = {(r["path"], r["planner"]): r for r in stored}
+    assert set(by) == {(r["path"], r["planner"]) for r in rows}
+    for r in rows:
+        got = by[(r["path"], r["planner"])]
+        assert got["kind"] == "corpus" and got["status"] == "ok" and got["feasible"] == (r["feasible"] == "yes")
+        for col, csv_col in (("execution_time_s", "execution_time_s"), ("joint_velocity", "joint_v"),
+                             ("joint_acceleration", "joint_a"), ("joint_jerk", "joint_j"),
+                             ("planning_time_s", "planning_time_s"), ("cart_j", "cart_j")):
+            assert float(got[col]) == pytest.approx(float(r[csv_col]), rel=1e-9), (col, r)
     for png in ("performance_profile.png", "ratio_to_best.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -131,6 +147,15 @@ def test_scurve_and_trapezoid_keep_their_cartesian_limits_on_the_quick_paths():
     rows = run_corpus([(e[p], ["trapezoid", "scurve"]) for p in QUICK_PATHS])
     bad = [(r.path, r.planner, r.cart_v, r.cart_a, r.cart_j) for r in rows if not r.own_limits_ok]
     assert not bad, bad
+
+
+def test_corpus_store_none_appends_nothing(tmp_path, monkeypatch):
+    monkeypatch.setenv("PKMBENCH_STORE", str(tmp_path / "store"))
+    args = ["corpus", "--paths", "contour_lcnc", "--planners", "trapezoid", "--out", str(tmp_path / "o")]
+    assert cli_main(args + ["--store", "none"]) == 0
+    assert not (tmp_path / "store").exists()
+    assert cli_main(args) == 0                                    # the default store: $PKMBENCH_STORE
+    assert len(list((tmp_path / "store").glob("*.parquet"))) == 1
 
 
 def test_bad_paths_glob_is_a_user_error(tmp_path, capsys):

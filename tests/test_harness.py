@@ -173,13 +173,15 @@ def test_sweep_default_task_is_the_full_cosimulation(tmp_path):
 def test_fmpy_ssp_reproduces_the_jacobi_run(keops, short_profile, tmp_path, monkeypatch):
     """FMPy's own SSP master, on the SSP the harness writes, gives the harness's Jacobi run.
 
+    fmpy's read_ssd parses each component's parameter binding; its simulate_ssp applies one
+    parameter set with names qualified by the component, built here from what read_ssd parsed.
     Two gaps in fmpy.ssp are bridged here, not in the harness: it cannot set String parameters
     (the Interpolator's files, named relative to the SSP's folder) or Boolean values read from
-    an .ssv, and it starts every connector at 0.0 — so the runs agree once the four-stage pipeline has filled (an ideal
+    an SSP, and it starts every connector at 0.0 — so the runs agree once the four-stage pipeline has filled (an ideal
     chain, where a 0 mm start target does not fault a drive). fmpy logs row i after step i.
     """
     import fmpy.ssp.simulation as S
-    from fmpy.ssp.ssd import read_ssv
+    from fmpy.ssp.ssd import Parameter, ParameterSet, read_ssd
 
     short_profile.path.to_file(tmp_path / "p.json")
     short_profile.save_csv(tmp_path / "p.csv")
@@ -188,7 +190,6 @@ def test_fmpy_ssp_reproduces_the_jacobi_run(keops, short_profile, tmp_path, monk
     ssp = tmp_path / "chain.ssp"
     with zipfile.ZipFile(ssp, "w") as z:
         z.write(ssd, "SystemStructure.ssd")
-        z.write(tmp_path / "SystemStructure.ssv", "SystemStructure.ssv")
         for f in (tmp_path / "resources").iterdir():
             z.write(f, f"resources/{f.name}")
     plain = S.set_value
@@ -203,8 +204,14 @@ def test_fmpy_ssp_reproduces_the_jacobi_run(keops, short_profile, tmp_path, monk
             plain(component, name, value)
 
     monkeypatch.setattr(S, "set_value", set_value)
-    theirs = S.simulate_ssp(str(ssp), stop_time=0.05, step_size=keops.servo_period_s,
-                            parameter_set=read_ssv(str(tmp_path / "SystemStructure.ssv"), validate=False))
+    bound = ParameterSet(name="start values")
+    for comp in read_ssd(str(ssp), validate=True).system.elements:
+        for b in comp.parameterBindings:
+            for pset in b.parameterValues:
+                bound.parameters += [Parameter(name=f"{comp.name}.{p.name}", type=p.type, value=p.value)
+                                     for p in pset.parameters]
+    assert len(bound.parameters) == sum(len(c.start) for c in system.components)
+    theirs = S.simulate_ssp(str(ssp), stop_time=0.05, step_size=keops.servo_period_s, parameter_set=bound)
     ours = simulate(read_ssp(ssd), RECORD, jacobi=True)
     fill = 5
     for name in ("interpolator.x", "kinematics.q1_cmd", "ethercat.q2_target", "drive3.position"):

@@ -1,7 +1,8 @@
 """User FMUs in the chain (issue 22): a Drive written in Python and packaged with pythonfmu (not
-our C FMU framework) replaces ours; on the ideal chain each drive's position equals the exact
-first-order-lag recursion computed here in numpy from the targets the bus delivered. A wrong
-FMU is refused in one line naming the FMU, the variable and what was expected."""
+our C FMU framework; FMI 2.0) or pythonfmu3 (FMI 3.0) replaces ours; on the ideal chain each
+drive's position equals the exact first-order-lag recursion computed here in numpy from the
+targets the bus delivered. A wrong FMU is refused in one line naming the FMU, the variable and
+what was expected."""
 from __future__ import annotations
 
 import json
@@ -22,8 +23,8 @@ LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
 TAU = 0.002        # lag_drive.py's default time constant
 
 
-def build(src: Path, out: Path) -> Path:
-    exe = Path(sys.executable).with_name("pythonfmu")
+def build(src: Path, out: Path, tool: str = "pythonfmu") -> Path:
+    exe = Path(sys.executable).with_name(tool)
     r = subprocess.run([str(exe), "build", "-f", str(src), "-d", str(out)], capture_output=True, text=True,
                        cwd=out, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -43,8 +44,27 @@ def fmus(tmp_path_factory) -> dict:
                        .replace('for name in ("position", "velocity"', 'self.register_variable(Real("position", '
                                 'causality=Fmi2Causality.input))\n        for name in ("velocity"'))
     bad = build(bad_src, tmp / "bad")
+    (tmp / "good3").mkdir()
+    (tmp / "bad3").mkdir()
+    good3 = build(HERE / "fmus" / "lag_drive3.py", tmp / "good3", "pythonfmu3")
+    bad3_src = tmp / "bad3" / "bad_drive3.py"      # FMI 3.0, its fault an Int32: a wrong type
+    bad3_src.write_text((HERE / "fmus" / "lag_drive3.py").read_text().replace("class LagDrive3", "class BadDrive3")
+                        .replace('self.register_variable(Boolean("fault"', 'self.register_variable(Int32("fault"')
+                        .replace("import Boolean,", "import Boolean, Int32,").replace("self.fault = False", "self.fault = 0"))
+    bad3 = build(bad3_src, tmp / "bad3", "pythonfmu3")
     (tmp / "line.json").write_text(json.dumps(LINE))
-    return {"good": good, "bad": bad, "line": tmp / "line.json", "tmp": tmp}
+    return {"good": good, "bad": bad, "good3": good3, "bad3": bad3, "line": tmp / "line.json", "tmp": tmp}
+
+
+def lag_recursion(tgt: np.ndarray, T: float) -> np.ndarray:
+    """The positions of an exact first-order lag (τ = TAU) under Gauss–Seidel stepping: during
+    step i the drive holds the target the bus output in that step."""
+    a = math.exp(-T / TAU)
+    r = np.empty_like(tgt)
+    r[0] = tgt[0]
+    for i in range(len(tgt) - 1):
+        r[i + 1] = tgt[i + 1] + (r[i] - tgt[i + 1]) * a
+    return r
 
 
 def test_pythonfmu_drive_replaces_ours_and_matches_the_lag_recursion(fmus, tmp_path):
@@ -55,17 +75,11 @@ def test_pythonfmu_drive_replaces_ours_and_matches_the_lag_recursion(fmus, tmp_p
     m = load_machine("keops")
     prof = planners.plan("scurve", load_path(fmus["line"]), m)
     res = cosimulate(m, prof, tmp_path, ideal=True, fmus={"Drive": fmus["good"]})
-    a = math.exp(-m.servo_period_s / TAU)
     worst = 0.0
     for k in (1, 2, 3):
         tgt, p = res[f"ethercat.q{k}_target"], res[f"drive{k}.position"]
         assert np.array_equal(tgt, res[f"kinematics.q{k}_cmd"])          # ideal bus: target = command
-        # Gauss–Seidel: during step i the drive holds the target the bus output in that step
-        r = np.empty_like(p)
-        r[0] = tgt[0]
-        for i in range(len(p) - 1):
-            r[i + 1] = tgt[i + 1] + (r[i] - tgt[i + 1]) * a
-        assert np.max(np.abs(r - p)) <= 1e-12
+        assert np.max(np.abs(lag_recursion(tgt, m.servo_period_s) - p)) <= 1e-12
         worst = max(worst, np.max(np.abs(tgt - p)) * 1e3)
     assert "resources/LagDrive.fmu" in (tmp_path / "SystemStructure.ssd").read_text()
 
@@ -80,7 +94,44 @@ def test_pythonfmu_drive_replaces_ours_and_matches_the_lag_recursion(fmus, tmp_p
     assert worst > 100          # a 2 ms lag at these speeds: far from our ideal drive's zero
 
 
+def test_fmi3_drive_replaces_ours_in_the_python_master(fmus, tmp_path, capsys):
+    """The FMI 3.0 Drive (pythonfmu3) through the whole chain: the same closed form; the native
+    master, which calls the FMI 2.0 C API, refuses it before anything runs."""
+    import planners
+    from fmpy import read_model_description
+    from harness.cosim.run import cosimulate
+    from kins import load_machine
+    from planners.paths import load_path
+    assert read_model_description(str(fmus["good3"])).fmiVersion == "3.0"
+    m = load_machine("keops")
+    prof = planners.plan("scurve", load_path(fmus["line"]), m)
+    res = cosimulate(m, prof, tmp_path, ideal=True, engine="python", fmus={"Drive": fmus["good3"]})
+    worst = 0.0
+    for k in (1, 2, 3):
+        tgt, p = res[f"ethercat.q{k}_target"], res[f"drive{k}.position"]
+        assert np.array_equal(tgt, res[f"kinematics.q{k}_cmd"])
+        assert np.max(np.abs(lag_recursion(tgt, m.servo_period_s) - p)) <= 1e-12
+        worst = max(worst, np.max(np.abs(tgt - p)) * 1e3)
+    ssd = (tmp_path / "SystemStructure.ssd").read_text()
+    assert "resources/LagDrive3.fmu" in ssd and "Float64" not in ssd        # SSP's own types on the connectors
+
+    argv = ["run", "--machine", "keops", "--path", str(fmus["line"]), "--planners", "scurve", "--ideal",
+            "--no-recordings", "--fmu", f"Drive={fmus['good3']}"]
+    assert cli(argv + ["--engine", "python", "--out", str(tmp_path / "run")]) == 0
+    s = json.loads((tmp_path / "run/summary.json").read_text())
+    assert s["planners"]["scurve"]["max_following_error_um"] == pytest.approx(worst, rel=1e-12)
+    assert worst > 100
+    capsys.readouterr()
+    assert cli(argv + ["--out", str(tmp_path / "native")]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "pkmbench run: error: Drive FMU LagDrive3.fmu is FMI 3.0: the native master calls the FMI 2.0 C API; "
+        "run it with --engine python")
+    assert not (tmp_path / "native/summary.json").exists()
+
+
 @pytest.mark.parametrize("block, which, message", [
+    ("Drive", "bad3", "Drive FMU BadDrive3.fmu: variable 'fault' is output Int32, expected output Boolean"),
+    ("Kinematics", "good3", "Kinematics FMU LagDrive3.fmu: no variable 'x_cmd' (the Kinematics interface needs input Real)"),
     ("Drive", "ours:Interpolator", "Drive FMU Interpolator.fmu: no variable 'target' (the Drive interface needs input Real)"),
     ("Drive", "bad", "Drive FMU BadDrive.fmu: variable 'position' is input Real, expected output Real"),
     ("Kinematics", "good", "Kinematics FMU LagDrive.fmu: no variable 'x_cmd' (the Kinematics interface needs input Real)"),

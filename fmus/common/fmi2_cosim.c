@@ -13,7 +13,7 @@
 static void vlog(ModelInstance *comp, fmi2Status status, const char *category, const char *fmt, va_list ap) {
     char msg[2048], esc[4096];
     size_t k = 0;
-    if (!comp || !comp->functions || !comp->functions->logger) return;
+    if (!comp || comp->quiet || !comp->functions || !comp->functions->logger) return;
     vsnprintf(msg, sizeof msg, fmt, ap);
     /* The formatted text is passed as the format itself (as the Reference-FMUs do), so an
      * importer that does not expand variadic arguments (fmpy) still shows the message; '%'
@@ -77,6 +77,21 @@ void model_resolve_path(ModelInstance *comp, const char *name, char *out, size_t
 static fmi2Status fail(ModelInstance *comp) {
     comp->phase = PKM_ERROR;
     return fmi2Error;
+}
+
+/* FMI 2.0 lets a master read outputs in Initialization Mode, after setting inputs, and a master
+ * that propagates initial values that way (OSP libcosim: every FMU in Initialization Mode, values
+ * passed along the connections, then all leave it) must see outputs that follow their inputs, as
+ * fmi2ExitInitializationMode would compute them. So a read after a change initialises the model
+ * provisionally, without logging (its inputs may not have arrived yet); fmi2ExitInitializationMode
+ * initialises it again and reports any error. */
+static void provisional_init(ModelInstance *comp) {
+    if (comp->phase != PKM_INITIALIZATION || !comp->init_dirty) return;
+    comp->init_dirty = false;
+    comp->quiet = true;
+    model_free(comp);
+    (void)model_initialize(comp);
+    comp->quiet = false;
 }
 
 static void uri_to_path(const char *uri, char *out, size_t n) {
@@ -164,6 +179,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     ModelInstance *comp = (ModelInstance *)c;
     PKM_ALLOWED(comp, "fmi2EnterInitializationMode", P_INST);
     comp->phase = PKM_INITIALIZATION;
+    comp->init_dirty = true;
     return fmi2OK;
 }
 
@@ -172,6 +188,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     PKM_ALLOWED(comp, "fmi2ExitInitializationMode", P_INIT);
     comp->fixed_step = 0.0;
     comp->steps = 0;
+    model_free(comp);   /* what a provisional initialisation allocated */
     if (model_initialize(comp) > fmi2Warning) return fail(comp);
     comp->phase = PKM_STEP_COMPLETE;
     return fmi2OK;
@@ -202,6 +219,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
     fmi2Status fname(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, ctype value[]) { \
         ModelInstance *comp = (ModelInstance *)c;                                                 \
         PKM_ALLOWED(comp, #fname, P_INST | P_INIT | P_STEP | P_TERM | P_ERR);                     \
+        provisional_init(comp);                                                                   \
         for (size_t i = 0; i < nvr; i++) {                                                        \
             mtype v;                                                                              \
             if (mfun(comp, vr[i], &v) != fmi2OK) {                                                \
@@ -228,6 +246,7 @@ GETTER(fmi2GetString, fmi2String, model_get_string, const char *)
                 return s;                                                                               \
             }                                                                                           \
         }                                                                                               \
+        if (comp->phase == PKM_INITIALIZATION) comp->init_dirty = true;                                 \
         return fmi2OK;                                                                                  \
     }
 SETTER(fmi2SetReal, fmi2Real, model_set_real, double)

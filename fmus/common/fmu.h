@@ -41,6 +41,9 @@ typedef struct ModelInstance {
     double fixed_step;        /* internal step set by the model in model_initialize; 0 = the
                                  communication step itself is the model's step */
     long long steps;          /* internal steps taken since initialisation */
+    bool init_dirty;          /* Initialization Mode: an input or parameter changed since the
+                                 outputs were last computed (fmi2_cosim.c, provisional_init) */
+    bool quiet;               /* no log messages (during a provisional initialisation) */
     ModelData data;
 } ModelInstance;
 

@@ -6,7 +6,8 @@ check at T), a table, a performance profile and a per-path T/T_best chart.
     pkmbench corpus --paths 'butterfly_*,rand_*kossel' --planners scurve,scurve_joint --out D
     pkmbench corpus --suite benchmarks/suites/corpus.toml --out D  # the nightly run
 
-Writes OUT/corpus.csv, OUT/corpus.md, OUT/performance_profile.png, OUT/ratio_to_best.png.
+Writes OUT/corpus.csv, OUT/corpus.md, OUT/performance_profile.png, OUT/ratio_to_best.png, and
+appends one row per plan to the results store (kind = 'corpus'; `pkmbench query`).
 Exit 0 when every planner returned a profile or a PlanningError, 1 when a planner raised
 something else (an internal error, listed), 2 on a user error.
 """
@@ -26,6 +27,9 @@ def add_arguments(p) -> None:
                    help="a small subset (3 paths, one per machine; the fast planners unless --planners)")
     p.add_argument("--suite", default=None,
                    help="take machines × paths × planners from a suite file (e.g. benchmarks/suites/corpus.toml)")
+    p.add_argument("--store", default=None,
+                   help="results store folder the rows are appended to (default: $PKMBENCH_STORE "
+                        "or results/store; 'none' = do not append)")
 
 
 def main(args) -> int:
@@ -60,6 +64,8 @@ def main(args) -> int:
 
     rows = run_corpus(selection, progress=progress)
     files = write_outputs(rows, out)
+    if args.store != "none":
+        _append(rows, args, out)
     print(f"{'planner':13s} {'profiles':>9s} {'feasible':>9s} {'cart-feas':>9s} {'own-lim':>7s} {'T/Tbest med':>11s} {'worst':>7s} {'plan med s':>10s} {'worst':>8s}")
     for k, s in summary(rows).items():
         print(f"{k:13s} {s['profiles']:4d}/{s['paths']:<4d} {s['feasible']:9d} {s['cartesian_feasible']:9d} {s['own_limits']:7d} "
@@ -69,6 +75,18 @@ def main(args) -> int:
     for r in errors:
         print(f"  INTERNAL ERROR {r.path} / {r.planner}: {r.error}")
     return 1 if errors else 0
+
+
+def _append(rows, args, out) -> None:
+    from harness.store import ResultStore, StoreError, rows_from_corpus
+    from harness.sweep import code_version
+    info = {"out": str(out), "paths": args.paths, "quick": bool(args.quick)}
+    try:
+        with ResultStore(args.store) as st:
+            st.append(rows_from_corpus(rows), kind="corpus", suite=str(args.suite or ""),
+                      code_version=code_version(), run_info=info)
+    except StoreError as e:
+        raise CliError(f"{e} (the corpus's results are in {out})") from None
 
 
 def _planners(spec: str) -> list[str]:

@@ -1,8 +1,9 @@
 """The block interface: what an FMU must offer to take the place of one block of the chain.
 
-A user FMU (FMI 2.0 co-simulation, from any tool: pythonfmu, OpenModelica, Dymola, …) replaces
-Interpolator, Kinematics, EtherCAT or Drive when it has every variable of that block's
-interface below, by name, with that causality and type. Parameters the harness sets on our
+A user FMU (FMI 2.0 or 3.0 co-simulation, from any tool: pythonfmu, pythonfmu3, OpenModelica,
+Dymola, …) replaces Interpolator, Kinematics, EtherCAT or Drive when it has every variable of
+that block's interface below, by name, with that causality and type (FMI 3.0: Float64 for Real,
+Int32 for Integer). Parameters the harness sets on our
 block (``chain()``'s start values) are set on a user FMU only where it has a variable of that
 name; the interface's ``parameter`` entries are the ones it must have. A mismatch is refused
 before anything runs, in one line naming the FMU, the variable and what was expected.
@@ -11,8 +12,8 @@ before anything runs, in one line naming the FMU, the variable and what was expe
     # or in a suite:   [fmus]
     #                  Drive = "models/mydrive.fmu"
 
-FMI 3.0 FMUs are refused with that reason: both co-simulation masters (native_master.c and the
-Python one) call the FMI 2.0 C API.
+An FMI 3.0 FMU runs in the Python master (``--engine python``); the native one (native_master.c)
+calls the FMI 2.0 C API and says so.
 """
 from __future__ import annotations
 
@@ -37,7 +38,10 @@ INTERFACE = {
 }
 BLOCKS = tuple(INTERFACE)
 # a parameter may also be tunable or a structural parameter (FMI 2.0 causality "parameter" covers both)
-_CAUSALITY_OK = {"parameter": {"parameter", "calculatedParameter"}, "input": {"input"}, "output": {"output"}}
+_CAUSALITY_OK = {"parameter": {"parameter", "calculatedParameter", "structuralParameter"}, "input": {"input"},
+                 "output": {"output"}}
+# interface type → the FMI 2.0 and 3.0 types that carry it
+_TYPE_OK = {"Real": {"Real", "Float64"}, "Integer": {"Integer", "Int32"}, "Boolean": {"Boolean"}, "String": {"String"}}
 
 
 def parse_fmu_args(specs) -> dict[str, Path]:
@@ -69,9 +73,9 @@ def check_user_fmu(block: str, fmu) -> Path:
         md = read_model_description(str(fmu), validate=False)
     except Exception as e:
         raise SystemError_(f"{block} FMU {fmu}: not a readable FMU ({type(e).__name__}: {e})") from None
-    if not str(md.fmiVersion).startswith("2."):
-        raise SystemError_(f"{block} FMU {fmu}: FMI {md.fmiVersion}; the harness's masters run FMI 2.0 "
-                           f"co-simulation FMUs only")
+    if not str(md.fmiVersion).startswith(("2.", "3.")):
+        raise SystemError_(f"{block} FMU {fmu}: FMI {md.fmiVersion}; the harness runs FMI 2.0 and 3.0 "
+                           f"co-simulation FMUs")
     if md.coSimulation is None:
         raise SystemError_(f"{block} FMU {fmu}: no co-simulation interface (model exchange only)")
     from harness.cosim.system import fmu_problem
@@ -84,10 +88,19 @@ def check_user_fmu(block: str, fmu) -> Path:
         want = f"{causality} {typ}"
         if v is None:
             raise SystemError_(f"{block} FMU {fmu.name}: no variable '{name}' (the {block} interface needs {want})")
-        if v.causality not in _CAUSALITY_OK[causality] or v.type != typ:
+        if v.causality not in _CAUSALITY_OK[causality] or v.type not in _TYPE_OK[typ]:
             raise SystemError_(f"{block} FMU {fmu.name}: variable '{name}' is {v.causality} {v.type}, "
                                f"expected {want}")
     return fmu
+
+
+def check_engine(fmus: dict, engine: str) -> None:
+    """SystemError_ when an FMI 3.0 user FMU would go to the native master (FMI 2.0 C API only)."""
+    from fmpy import read_model_description
+    for block, fmu in fmus.items():
+        if engine == "native" and str(read_model_description(str(fmu), validate=False).fmiVersion).startswith("3."):
+            raise SystemError_(f"{block} FMU {Path(fmu).name} is FMI 3.0: the native master calls the FMI 2.0 "
+                               f"C API; run it with --engine python")
 
 
 def user_start(fmu: Path, start: dict) -> dict:

@@ -22,7 +22,7 @@ import numpy as np
 
 from harness.cosim.system import FMU_DIR, System, SystemError_, check_fmu
 
-TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "Enumeration": 1}
+TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "Enumeration": 1, "Float64": 0, "Int32": 1}   # FMI 2.0 and 3.0 names
 NATIVE_SRC = Path(__file__).with_name("native_master.c")
 EXTRACT_DIR = FMU_DIR / "extracted"
 
@@ -65,10 +65,12 @@ def _extract(fmu: Path) -> Path:
 
 
 class _Instance:
+    """One FMU instance, FMI 2.0 or 3.0 co-simulation (fmpy's FMU2Slave / FMU3Slave): typed
+    access by variable name (``set``, ``get``) or by type code and value reference (``get_vr``,
+    ``set_vr``: TYPES' 0 Real/Float64, 1 Integer/Int32, 2 Boolean)."""
+
     def __init__(self, comp, start_time: float, logs: list[str], logging_on: bool = False):
         from fmpy import read_model_description
-        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-        from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
         self.name = comp.name
         unzip = Path(comp.fmu) if Path(comp.fmu).is_dir() else _extract(comp.fmu)   # a folder: already unzipped
@@ -78,58 +80,81 @@ class _Instance:
             raise SystemError_(f"{comp.fmu}: unreadable modelDescription.xml: {e}; rebuild with 'make fmus'") from None
         self.vars = {v.name: v for v in md.modelVariables}
         self.logs = logs
+        self.fmi3 = str(md.fmiVersion).startswith("3.")
+        cwd = os.getcwd()
+        try:   # loads the shared library; fmpy raises a bare Exception when it cannot
+            from fmpy.fmi2 import FMU2Slave
+            from fmpy.fmi3 import FMU3Slave
+            self.fmu = (FMU3Slave if self.fmi3 else FMU2Slave)(
+                guid=md.guid, unzipDirectory=str(unzip), modelIdentifier=md.coSimulation.modelIdentifier,
+                instanceName=comp.name)
+        except Exception as e:
+            os.chdir(cwd)   # fmpy left the process in the FMU's binaries folder
+            raise SystemError_(f"{comp.fmu}: cannot load the FMU's binary ({e}); rebuild with 'make fmus'") from None
+        try:
+            self._instantiate(logging_on)
+        except Exception as e:
+            raise CoSimError(f"{comp.name} ({comp.fmu.name}): instantiation failed: {e}; log: {logs[-5:]}") from None
+        f = self.fmu
+        self._get = ({0: f.getFloat64, 1: f.getInt32, 2: f.getBoolean} if self.fmi3
+                     else {0: f.getReal, 1: f.getInteger, 2: f.getBoolean})
+        self._set = ({0: f.setFloat64, 1: f.setInt32, 2: f.setBoolean} if self.fmi3
+                     else {0: f.setReal, 1: f.setInteger, 2: f.setBoolean})
+        if not self.fmi3:   # FMI 3.0 takes the start time at fmi3EnterInitializationMode (0.0)
+            self.fmu.setupExperiment(startTime=start_time)
+        for var, value in comp.start.items():
+            self.set(var, value)
+
+    def _instantiate(self, logging_on: bool) -> None:
+        labels = ['OK', 'WARNING', 'DISCARD', 'ERROR', 'FATAL', 'PENDING']
+        if self.fmi3:
+            def log3(env, status, category, message):
+                self.logs.append(f"[{labels[status]}] {message.decode(errors='replace')}")
+            self.fmu.instantiate(loggingOn=logging_on, logMessage=log3)
+            return
+        from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
+        from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 
         def logger(env, instance, status, category, message):
-            logs.append(f"[{['OK', 'WARNING', 'DISCARD', 'ERROR', 'FATAL', 'PENDING'][status]}] "
-                        f"{message.decode(errors='replace')}")
+            self.logs.append(f"[{labels[status]}] {message.decode(errors='replace')}")
 
         self.callbacks = fmi2CallbackFunctions()
         self.callbacks.logger = fmi2CallbackLoggerTYPE(logger)
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        cwd = os.getcwd()
-        try:   # loads the shared library; fmpy raises a bare Exception when it cannot
-            self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(unzip),
-                                 modelIdentifier=md.coSimulation.modelIdentifier, instanceName=comp.name)
-        except Exception as e:
-            os.chdir(cwd)   # fmpy left the process in the FMU's binaries folder
-            raise SystemError_(f"{comp.fmu}: cannot load the FMU's binary ({e}); rebuild with 'make fmus'") from None
-        try:
-            self.fmu.instantiate(callbacks=self.callbacks, loggingOn=logging_on)
-        except Exception as e:
-            raise CoSimError(f"{comp.name} ({comp.fmu.name}): instantiation failed: {e}; log: {logs[-5:]}") from None
-        self.fmu.setupExperiment(startTime=start_time)
-        for var, value in comp.start.items():
-            self.set(var, value)
+        self.fmu.instantiate(callbacks=self.callbacks, loggingOn=logging_on)
 
     def vr(self, name: str) -> int:
         if name not in self.vars:
             raise SystemError_(f"component {self.name}: no variable '{name}'")
         return self.vars[name].valueReference
 
+    def get_vr(self, code: int, vr: int) -> float:
+        return float(self._get[code]([vr])[0])
+
+    def set_vr(self, code: int, vr: int, x: float) -> None:
+        self._set[code]([vr], [x if code == 0 else int(x) if code == 1 else x != 0.0])
+
     def set(self, name: str, value) -> None:
         v = self.vars.get(name)
         if v is None:
             raise SystemError_(f"component {self.name}: no variable '{name}'")
         try:
-            if v.type == "Real":
-                self.fmu.setReal([v.valueReference], [float(value)])
-            elif v.type in ("Integer", "Enumeration"):
-                self.fmu.setInteger([v.valueReference], [int(value)])
-            elif v.type == "Boolean":
-                self.fmu.setBoolean([v.valueReference], [bool(value)])
-            else:
+            if v.type == "String":
                 self.fmu.setString([v.valueReference], [str(value)])
+            else:
+                code = TYPES[v.type]
+                self._set[code]([v.valueReference], [float(value) if code == 0 else int(value) if code == 1
+                                                     else bool(value)])
         except Exception:
             raise CoSimError(f"component {self.name}: cannot set {name} = {value!r}: {' | '.join(self.logs[-3:])}") from None
 
     def get(self, name: str) -> float:
         v = self.vars[name]
-        if v.type == "Real":
-            return self.fmu.getReal([v.valueReference])[0]
-        if v.type == "Boolean":
-            return float(self.fmu.getBoolean([v.valueReference])[0])
-        return float(self.fmu.getInteger([v.valueReference])[0])
+        return self.get_vr(TYPES[v.type], v.valueReference)
+
+    def do_step(self, t: float, h: float) -> None:
+        self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
 
 
 def _instantiate(system: System) -> tuple[list[_Instance], dict[str, list[str]]]:
@@ -160,6 +185,11 @@ def _instantiate(system: System) -> tuple[list[_Instance], dict[str, list[str]]]
         _free(insts)
         raise
     return insts, logs
+
+
+def _fmi_version(fmu: Path) -> str:
+    from fmpy import read_model_description
+    return str(read_model_description(str(fmu), validate=False).fmiVersion)
 
 
 def _free(insts) -> None:
@@ -208,19 +238,15 @@ def simulate_python(system: System, record: list[str], jacobi: bool = False) -> 
         conn, rec = _plan(system, insts, record)
         h = system.step_size
         n = int(round(system.stop_time / h))
-        getters = {0: lambda i, vr: i.fmu.getReal([vr])[0], 1: lambda i, vr: float(i.fmu.getInteger([vr])[0]),
-                   2: lambda i, vr: float(i.fmu.getBoolean([vr])[0])}
-        setters = {0: lambda i, vr, x: i.fmu.setReal([vr], [x]), 1: lambda i, vr, x: i.fmu.setInteger([vr], [int(x)]),
-                   2: lambda i, vr, x: i.fmu.setBoolean([vr], [x != 0.0])}
         out = np.empty((n + 1, len(rec)))
-        out[0] = [getters[t](insts[c], vr) for t, c, vr in rec]
+        out[0] = [insts[c].get_vr(t, vr) for t, c, vr in rec]
         for k in range(n):
             t = k * h
             if jacobi:
-                vals = [getters[ty](insts[s], svr) for ty, s, svr, d, dvr in conn]
+                vals = [insts[s].get_vr(ty, svr) for ty, s, svr, d, dvr in conn]
                 for (ty, s, svr, d, dvr), x in zip(conn, vals):
                     if k % system.components[d].period_steps == 0:
-                        setters[ty](insts[d], dvr, x)
+                        insts[d].set_vr(ty, dvr, x)
             for i, inst in enumerate(insts):
                 per = system.components[i].period_steps
                 if k % per:
@@ -228,12 +254,12 @@ def simulate_python(system: System, record: list[str], jacobi: bool = False) -> 
                 if not jacobi:
                     for ty, s, svr, d, dvr in conn:
                         if d == i:
-                            setters[ty](inst, dvr, getters[ty](insts[s], svr))
+                            inst.set_vr(ty, dvr, insts[s].get_vr(ty, svr))
                 try:
-                    inst.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h * per)
+                    inst.do_step(t, h * per)
                 except Exception:
                     raise _fail(insts, i, k, h, "failed") from None
-            out[k + 1] = [getters[t_](insts[c], vr) for t_, c, vr in rec]
+            out[k + 1] = [insts[c].get_vr(t_, vr) for t_, c, vr in rec]
         return Result(np.arange(n + 1) * h, list(record), out, logs)
     finally:
         _free(insts)
@@ -278,6 +304,10 @@ def native_library() -> ctypes.CDLL:
 def simulate_native(system: System, record: list[str], jacobi: bool = False) -> Result:
     """Default master: fmpy instantiates, native_master.c steps, routes and records."""
     lib = native_library()
+    fmi3 = [c.name for c in system.components if _fmi_version(c.fmu).startswith("3.")]
+    if fmi3:
+        raise SystemError_(f"component {fmi3[0]} is an FMI 3.0 FMU: the native master calls the FMI 2.0 C API; "
+                           f"run it with the Python master (--engine python)")
     insts, logs = _instantiate(system)
     try:
         conn, rec = _plan(system, insts, record)

@@ -4,7 +4,7 @@
     summary = run_case("keops", "bird", ["scurve", "pso"], "results/keops_bird")
 
 Per planner: plan (offline) → ``NAME/path.json`` + ``NAME/profile.csv`` → the system as SSP
-(``NAME/SystemStructure.ssd/.ssv``) → co-simulation of what that file describes → metrics →
+(``NAME/SystemStructure.ssd``) → co-simulation of what that file describes → metrics →
 ``NAME/command.csv``, ``NAME/run.mcap``, ``NAME/run.rrd``. Then ``summary.json`` (metrics;
 deterministic: same inputs and seed ⇒ same bytes) and ``timing.json`` (wall times).
 A planner or co-simulation that fails is recorded with its reason; the others go on.
@@ -35,7 +35,8 @@ RECORD = (["interpolator.x", "interpolator.y", "interpolator.z", "interpolator.s
           + [f"ethercat.q{k}_target" for k in (1, 2, 3)]
           + [f"drive{k}.{v}" for k in (1, 2, 3) for v in ("position", "velocity", "current", "following_error", "fault")])
 
-# every file a run writes into a planner folder (stale_planner_dirs removes only such folders)
+# every file a run writes into a planner folder (stale_planner_dirs removes only such folders);
+# SystemStructure.ssv: written by earlier versions, so their folders are recognised too
 PLANNER_FILES = {"path.json", "profile.csv", "SystemStructure.ssd", "SystemStructure.ssv", "lateness.csv",
                  "command.csv", "run.mcap", "run.rrd"}
 TAIL_S = 0.02   # co-simulate a little past the profile's end, so the drives settle
@@ -104,9 +105,10 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     try:
         check_chain_fmus()
         if fmus:
-            from harness.cosim.blocks import check_blocks, check_user_fmu
+            from harness.cosim.blocks import check_blocks, check_engine, check_user_fmu
             check_blocks(fmus)
             fmus = {b: check_user_fmu(b, f) for b, f in fmus.items()}
+            check_engine(fmus, engine)
     except SystemError_ as e:   # before anything is planned or removed: every planner would fail alike
         raise RunError(str(e)) from None
     out_dir = Path(out_dir)

@@ -3,12 +3,16 @@
 DESIGN.md chain, every servo period T:
   Interpolator ─x,y,z─► Kinematics (IK) ─q_cmd─► EtherCAT ─q_target, sync_ok─► Drive ×3
   Drive position ─q_act─► Kinematics (FK)
-A run writes its system as ``SystemStructure.ssd`` + ``SystemStructure.ssv`` (SSP 1.0) and the
-harness runs what it reads back from those files, so other SSP tools load the same system.
+A run writes its system as ``SystemStructure.ssd`` (SSP 1.0) and the harness runs what it reads
+back from that file, so other SSP tools load the same system. Each component carries its start
+values in its own ``ParameterBinding`` (inline ``ssv:ParameterSet``, names as in the FMU): OSP
+libcosim applies only component-level bindings, FMPy's ``read_ssd`` parses them too.
 The folder is self-contained, as an unzipped .ssp: the FMUs are copied to ``resources/`` and
-every path in the two files that lies in the folder is relative to it, so the folder can be
-moved, or zipped into an .ssp for ``fmpy.ssp``. (A latency ``histogram_file`` outside the
-folder stays absolute.)
+every path in the file that lies in the folder is relative to it, so the folder can be moved,
+or zipped into an .ssp for ``fmpy.ssp``. A master other than the harness resolves those
+relative file names from its working folder (an FMU opens files from the process's folder), so
+it runs in the SSP's folder (``harness.cosim.libcosim``). (A latency ``histogram_file`` outside
+the folder stays absolute.)
 """
 from __future__ import annotations
 
@@ -23,6 +27,9 @@ NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
       "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
       "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues"}
 
+
+# SSP 1.0 connector types of the FMI 3.0 types the chain uses (FMI 2.0 names are SSP's own)
+SSP_TYPE = {"Float64": "Real", "Int32": "Integer"}
 
 # String parameters that name files: relative to the .ssd's folder when they lie in it
 FILE_PARAMS = ("path_file", "profile_file", "histogram_file", "histogram_out")
@@ -73,7 +80,7 @@ def fmu_problem(fmu: Path, model: str | None = None) -> str | None:
     """Why ``fmu`` is not a loadable FMU, or None: a zip whose members pass their CRC, whose
     modelDescription.xml parses and names a co-simulation model (``model``, when given) whose
     binary for this platform is inside."""
-    from fmpy import platform, sharedLibraryExtension
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
     with open(fmu, "rb") as f:   # an unreadable file: OSError, for the caller to word
         try:
@@ -96,7 +103,8 @@ def fmu_problem(fmu: Path, model: str | None = None) -> str | None:
         return "modelDescription.xml has no co-simulation modelIdentifier"
     if model and ident != model:
         return f"modelDescription.xml names model '{ident}', not '{model}'"
-    binary = f"binaries/{platform}/{ident}{sharedLibraryExtension}"
+    fmi3 = (root.get("fmiVersion") or "").startswith("3.")   # FMI 3.0 names platforms as x86_64-linux
+    binary = f"binaries/{platform_tuple if fmi3 else platform}/{ident}{sharedLibraryExtension}"
     if binary not in names:
         return f"no {binary}"
     return None
@@ -200,9 +208,19 @@ def _type_of(value) -> str:
     return "String"
 
 
+def _start_text(var: str, value, out_dir: Path) -> tuple[str, str]:
+    """(ssv type, value attribute) of one start value; a file inside the folder becomes relative
+    to it, one outside absolute (read_ssp's rule)."""
+    t = _type_of(value)
+    if var in FILE_PARAMS and value:
+        f = Path(value).resolve()
+        value = f.relative_to(out_dir.resolve()).as_posix() if f.is_relative_to(out_dir.resolve()) else str(f)
+    return t, (("true" if value else "false") if t == "Boolean" else repr(value) if t == "Real" else str(value))
+
+
 def write_ssp(system: System, out_dir: Path) -> Path:
-    """Write SystemStructure.ssd (components, connectors, connections, experiment) and
-    SystemStructure.ssv (every start value). Returns the .ssd path."""
+    """Write SystemStructure.ssd: components with their connectors and start values,
+    connections, experiment. Returns its path."""
     import shutil
 
     from fmpy import read_model_description
@@ -210,14 +228,11 @@ def write_ssp(system: System, out_dir: Path) -> Path:
     out_dir = Path(out_dir)
     resources = out_dir / "resources"
     resources.mkdir(parents=True, exist_ok=True)
-    ET.register_namespace("ssd", NS["ssd"])
-    ET.register_namespace("ssc", NS["ssc"])
-    ET.register_namespace("ssv", NS["ssv"])
+    for ns in NS:
+        ET.register_namespace(ns, NS[ns])
     q = lambda ns, tag: f"{{{NS[ns]}}}{tag}"  # noqa: E731
     root = ET.Element(q("ssd", "SystemStructureDescription"), {"version": "1.0", "name": "pkmbench"})
     sysel = ET.SubElement(root, q("ssd", "System"), {"name": "chain"})
-    binds = ET.SubElement(sysel, q("ssd", "ParameterBindings"))
-    ET.SubElement(binds, q("ssd", "ParameterBinding"), {"source": "SystemStructure.ssv"})
     elements = ET.SubElement(sysel, q("ssd", "Elements"))
     used = {(c.src, c.src_var) for c in system.connections} | {(c.dst, c.dst_var) for c in system.connections}
     for comp in system.components:
@@ -237,10 +252,17 @@ def write_ssp(system: System, out_dir: Path) -> Path:
                 raise SystemError_(f"{comp.fmu.name} has no variable '{var}' (component {comp.name})")
             v = variables[var]
             c = ET.SubElement(cons, q("ssd", "Connector"), {"name": var, "kind": v.causality})
-            ET.SubElement(c, q("ssc", v.type))
-        for var in comp.start:
+            ET.SubElement(c, q("ssc", SSP_TYPE.get(v.type, v.type)))
+        if comp.start:
+            binding = ET.SubElement(ET.SubElement(el, q("ssd", "ParameterBindings")), q("ssd", "ParameterBinding"))
+            pset = ET.SubElement(ET.SubElement(binding, q("ssd", "ParameterValues")), q("ssv", "ParameterSet"),
+                                 {"version": "1.0", "name": "start values"})
+            params = ET.SubElement(pset, q("ssv", "Parameters"))
+        for var, value in comp.start.items():
             if var not in variables:
                 raise SystemError_(f"{comp.fmu.name} has no parameter '{var}' (component {comp.name})")
+            t, text = _start_text(var, value, out_dir)
+            ET.SubElement(ET.SubElement(params, q("ssv", "Parameter"), {"name": var}), q("ssv", t), {"value": text})
     conns = ET.SubElement(sysel, q("ssd", "Connections"))
     for c in system.connections:
         ET.SubElement(conns, q("ssd", "Connection"), {"startElement": c.src, "startConnector": c.src_var,
@@ -252,20 +274,8 @@ def write_ssp(system: System, out_dir: Path) -> Path:
     ET.indent(root)
     ssd = out_dir / "SystemStructure.ssd"
     ET.ElementTree(root).write(ssd, xml_declaration=True, encoding="UTF-8")
-
-    pset = ET.Element(q("ssv", "ParameterSet"), {"version": "1.0", "name": "start values"})
-    params = ET.SubElement(pset, q("ssv", "Parameters"))
-    for comp in system.components:
-        for var, value in comp.start.items():
-            p = ET.SubElement(params, q("ssv", "Parameter"), {"name": f"{comp.name}.{var}"})
-            t = _type_of(value)
-            if var in FILE_PARAMS and value:   # relative to the folder, else absolute (read_ssp's rule)
-                f = Path(value).resolve()
-                value = f.relative_to(out_dir.resolve()).as_posix() if f.is_relative_to(out_dir.resolve()) else str(f)
-            text = (("true" if value else "false") if t == "Boolean" else repr(value) if t == "Real" else str(value))
-            ET.SubElement(p, q("ssv", t), {"value": text})
-    ET.indent(pset)
-    ET.ElementTree(pset).write(out_dir / "SystemStructure.ssv", xml_declaration=True, encoding="UTF-8")
+    # earlier versions kept the start values in a separate file; one left here would contradict the .ssd
+    (out_dir / "SystemStructure.ssv").unlink(missing_ok=True)
     return ssd
 
 
@@ -281,23 +291,28 @@ def read_ssp(ssd: Path) -> System:
             desc = el.get("description") or ""
             if desc.startswith("period_steps="):
                 k = int(desc.split("=", 1)[1])
-            comps.append(Component(el.get("name"), ssd.parent / el.get("source"), {}, k))
+            comp = Component(el.get("name"), ssd.parent / el.get("source"), {}, k)
+            for p in el.findall("ssd:ParameterBindings/ssd:ParameterBinding/ssd:ParameterValues/"
+                                "ssv:ParameterSet/ssv:Parameters/ssv:Parameter", NS):
+                comp.start[p.get("name")] = _start_value(p, ssd.parent)
+            comps.append(comp)
         conns = [Connection(c.get("startElement"), c.get("startConnector"), c.get("endElement"), c.get("endConnector"))
                  for c in sysel.find("ssd:Connections", NS).findall("ssd:Connection", NS)]
         de = root.find("ssd:DefaultExperiment", NS)
         step = float(de.find(".//FixedStepMaster").get("stepSize"))
         stop = float(de.get("stopTime"))
-        by_name = {c.name: c for c in comps}
-        src = sysel.find("ssd:ParameterBindings/ssd:ParameterBinding", NS).get("source")
-        for p in ET.parse(ssd.parent / src).getroot().find("ssv:Parameters", NS):
-            comp, var = p.get("name").split(".", 1)
-            (val_el,) = list(p)
-            tag = val_el.tag.split("}")[1]
-            raw = val_el.get("value")
-            if tag == "String" and var in FILE_PARAMS and raw and not Path(raw).is_absolute():
-                raw = str(ssd.parent / raw)         # the FMUs open files from the process's folder
-            by_name[comp].start[var] = (raw == "true" if tag == "Boolean" else int(raw) if tag == "Integer"
-                                        else float(raw) if tag == "Real" else raw)
     except (ET.ParseError, AttributeError, KeyError, ValueError, TypeError) as e:
         raise SystemError_(f"{ssd}: not a pkmbench SSP system ({type(e).__name__}: {e})") from None
     return System(comps, conns, step, stop)
+
+
+def _start_value(p: ET.Element, folder: Path):
+    """The value of one ssv:Parameter; a relative file name is made absolute from ``folder``
+    (the FMUs open files from the process's folder)."""
+    (val_el,) = list(p)
+    tag = val_el.tag.split("}")[1]
+    raw = val_el.get("value")
+    if tag == "String" and p.get("name") in FILE_PARAMS and raw and not Path(raw).is_absolute():
+        return str(folder / raw)
+    return (raw == "true" if tag == "Boolean" else int(raw) if tag == "Integer"
+            else float(raw) if tag == "Real" else raw)

@@ -224,10 +224,29 @@ def rows_from_sweep(sweep_db: Path, keys=None, regressions: dict | None = None) 
     return out
 
 
+def rows_from_corpus(rows) -> list[dict]:
+    """Store rows of `pkmbench corpus` (harness.corpus.Row: planned and checked at T, no
+    co-simulation); metrics named as a run's summary.json names them."""
+    out = []
+    for r in rows:
+        ok = r.status == "ok"
+        metrics = {"path_kind": r.kind, "planning_time_s": r.planning_time_s}
+        if ok:
+            metrics |= {"execution_time_s": r.execution_time_s, "feasible": r.feasible,
+                        "cartesian_feasible": r.cartesian_feasible, "own_limits_ok": r.own_limits_ok,
+                        "joint_peak_ratio": {"velocity": r.joint_v, "acceleration": r.joint_a, "jerk": r.joint_j},
+                        "cartesian_peak_ratio": {"velocity": r.cart_v, "acceleration": r.cart_a,
+                                                 "jerk": r.cart_j, "feed": r.feed}}
+        out.append(make_row(entry=f"{r.machine}/{r.path}/{r.planner}", machine=r.machine, path=r.path,
+                            planner=r.planner, seed=0, status=r.status, error=r.error or None, metrics=metrics))
+    return out
+
+
 def append_sweep(sweep_db: Path, keys, *, kind: str, suite: str, store: str | Path | None = None,
                  run_info: dict | None = None, regressions: dict | None = None,
                  code_version: str = "") -> str:
-    """Append the rows ``keys`` of a sweep folder's table to the store (sweep, corpus, ci call this)."""
+    """Append the rows ``keys`` of a sweep folder's table to the store (sweep and ci call this;
+    corpus appends :func:`rows_from_corpus`)."""
     rows = rows_from_sweep(sweep_db, keys, regressions)
     with ResultStore(store) as st:
         return st.append(rows, kind=kind, suite=suite, code_version=code_version, run_info=run_info)
