@@ -33,7 +33,6 @@ left them alone).
 """
 from __future__ import annotations
 
-import math
 import os
 import time
 
@@ -255,32 +254,37 @@ def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15):
     return Ns, hs, S, V, A, U
 
 
+class _CubicSpans:
+    """The piecewise-cubic solutions joined end to end: one piece of `Profile.from_pieces`,
+    evaluated by span index; s and ṡ floored at 0 (a solver's rounding below rest)."""
+
+    s0 = 0.0
+
+    def __init__(self, pieces_sol):
+        knots_t, S, V, A, U = [], [], [], [], []
+        t0 = 0.0
+        for (h, s, v, a, u) in pieces_sol:
+            knots_t.append(t0 + np.concatenate([[0.0], np.cumsum(h)[:-1]]))
+            S.append(s[:-1]); V.append(v[:-1]); A.append(a[:-1]); U.append(u)
+            t0 += float(np.sum(h))
+        self.kt = np.concatenate(knots_t)
+        self.S, self.V, self.A, self.U = (np.concatenate(x) for x in (S, V, A, U))
+        self.duration = t0
+
+    def at(self, tt):
+        k = np.clip(np.searchsorted(self.kt, tt, side="right") - 1, 0, len(self.kt) - 1)
+        tau = tt - self.kt[k]
+        S, V, A, U = self.S[k], self.V[k], self.A[k], self.U[k]
+        s = S + V * tau + A * tau ** 2 / 2 + U * tau ** 3 / 6
+        sd = V + A * tau + U * tau ** 2 / 2
+        return np.maximum(s, 0.0), np.maximum(sd, 0.0), A + U * tau, U.copy()
+
+
 def sample_cubic(pieces_sol, T, path, info) -> Profile:
     """Join the piecewise-cubic solutions and sample at exact multiples of T."""
-    knots_t, S, V, A, U = [], [], [], [], []
-    t0 = 0.0
-    for (h, s, v, a, u) in pieces_sol:
-        knots_t.append(t0 + np.concatenate([[0.0], np.cumsum(h)[:-1]]))
-        S.append(s[:-1]); V.append(v[:-1]); A.append(a[:-1]); U.append(u)
-        t0 += float(np.sum(h))
-    kt = np.concatenate(knots_t)
-    S, V, A, U = (np.concatenate(x) for x in (S, V, A, U))
-    total = t0
-    N = max(1, int(math.ceil(total / T - 1e-9)))
-    t = np.arange(N + 1) * T
-    k = np.clip(np.searchsorted(kt, t, side="right") - 1, 0, len(kt) - 1)
-    tau = t - kt[k]
-    s = S[k] + V[k] * tau + A[k] * tau ** 2 / 2 + U[k] * tau ** 3 / 6
-    sd = V[k] + A[k] * tau + U[k] * tau ** 2 / 2
-    sdd = A[k] + U[k] * tau
-    sddd = U[k].copy()
-    L = path.length
-    s = np.minimum(np.maximum.accumulate(np.maximum(s, 0.0)), L)
-    s[0], s[-1] = 0.0, L
-    sd[0] = sdd[0] = 0.0
-    sd[-1] = sdd[-1] = sddd[-1] = 0.0
-    sd = np.maximum(sd, 0.0)
-    return Profile("optimal", T, s, sd, sdd, sddd, path, info=dict(info, continuous_time_s=total))
+    prof = Profile.from_pieces("optimal", T, [_CubicSpans(pieces_sol)], path, info)
+    prof.sd[0] = prof.sdd[0] = 0.0
+    return prof
 
 
 def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: float = 1e-3,

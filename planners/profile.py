@@ -7,6 +7,7 @@ significant digits, so a round trip through the file is exact.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path as FsPath
 from typing import Any
@@ -55,6 +56,35 @@ class Profile:
         sdd[1:] = np.diff(sd) / T
         sddd[1:] = np.diff(sdd) / T
         return cls(planner, T, s, sd, sdd, sddd, path, **kw)
+
+    @classmethod
+    def from_pieces(cls, planner: str, T: float, pieces, path, info: dict | None = None) -> "Profile":
+        """Sample pieces laid end to end from t = 0 at exact multiples of T, ending at s = L at rest.
+
+        Each piece has ``duration`` (s), ``s0`` (mm, its start on the path) and ``at(tt)`` →
+        (s − s0, ṡ, s̈, s⃛) at local times tt ∈ [0, duration] (arrays).  The samples after the last
+        piece's end evaluate it there; s is made monotone, ≤ L and 0 at t = 0.  info gains the
+        pieces' total ``continuous_time_s``.
+        """
+        starts = np.concatenate([[0.0], np.cumsum([g.duration for g in pieces])])
+        total = float(starts[-1])
+        N = max(1, int(math.ceil(total / T - 1e-9)))
+        t = np.arange(N + 1) * T
+        s = np.empty(N + 1)
+        sd, sdd, sddd = np.zeros(N + 1), np.zeros(N + 1), np.zeros(N + 1)
+        k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(pieces) - 1)
+        # k is sorted: each piece's samples are one slice (a mask per piece was O(pieces × N))
+        bounds = np.searchsorted(k, np.arange(len(pieces) + 1), side="left")
+        for i, g in enumerate(pieces):
+            m = slice(bounds[i], bounds[i + 1])
+            if m.stop > m.start:
+                p, v, a, j = g.at(t[m] - starts[i])
+                s[m], sd[m], sdd[m], sddd[m] = g.s0 + p, v, a, j
+        L = path.length
+        s = np.minimum(np.maximum.accumulate(s), L)
+        s[0] = 0.0
+        s[-1], sd[-1], sdd[-1], sddd[-1] = L, 0.0, 0.0, 0.0
+        return cls(planner, T, s, sd, sdd, sddd, path, info=dict(info or {}, continuous_time_s=total))
 
     def validate(self, length: float | None = None, tol: float = 1e-9) -> None:
         """Raise ProfileError unless the profile is finite, monotone and at rest at both ends."""

@@ -400,31 +400,14 @@ class _Planner:
 
 def sample(segs, path, T, planner, info) -> Profile:
     """Join the segments and sample s(t) at exact multiples of T, ending at s = L at rest."""
-    durs = np.array([g.duration for g in segs])
-    starts = np.concatenate([[0.0], np.cumsum(durs)])
-    total = float(starts[-1])
-    N = max(1, int(math.ceil(total / T - 1e-9)))
-    t = np.arange(N + 1) * T
-    s = np.empty(N + 1)
-    sd, sdd, sddd = np.zeros(N + 1), np.zeros(N + 1), np.zeros(N + 1)
-    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(segs) - 1)
-    # k is sorted: each segment's samples are one slice (a mask per segment was O(segments × N))
-    bounds = np.searchsorted(k, np.arange(len(segs) + 1), side="left")
-    for i, g in enumerate(segs):
-        m = slice(bounds[i], bounds[i + 1])
-        if m.stop > m.start:
-            p, v, a, j = g.at(t[m] - starts[i])
-            s[m], sd[m], sdd[m], sddd[m] = g.s0 + p, v, a, j
-    L = path.length
-    s = np.minimum(np.maximum.accumulate(s), L)
-    s[0] = 0.0
-    s[-1], sd[-1], sdd[-1], sddd[-1] = L, 0.0, 0.0, 0.0
+    prof = Profile.from_pieces(planner, T, segs, path, info)
     # times where the jerk changes (phase ends), for planners that start from this profile (pso)
+    starts = np.concatenate([[0.0], np.cumsum([g.duration for g in segs])])
     sw = [float(starts[i] + c) for i, g in enumerate(segs)
           for c, dt in zip(g.tcum[1:], np.diff(g.tcum)) if dt > 1e-12]
-    rest = [float(starts[i]) for i, g in enumerate(segs) if g.v0 == 0.0] + [total]
-    info = dict(info, continuous_time_s=total, jerk_switch_times_s=[0.0] + sw, rest_times_s=rest)
-    return Profile(planner, T, s, sd, sdd, sddd, path, info=info)
+    rest = [float(starts[i]) for i, g in enumerate(segs) if g.v0 == 0.0] + [float(starts[-1])]
+    prof.info.update(jerk_switch_times_s=[0.0] + sw, rest_times_s=rest)
+    return prof
 
 
 def _plan(path, machine, limits, joint: bool, margin: float, grid_mm: float) -> Profile:

@@ -130,27 +130,30 @@ def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
     return np.concatenate(S), np.concatenate(SD), fallbacks
 
 
+class _ConstAccelGrid:
+    """s(t) with constant s̈ between grid points (ṡ² linear in s): the whole grid as one piece of
+    `Profile.from_pieces`, evaluated by span index."""
+
+    s0 = 0.0
+
+    def __init__(self, s_grid, sd_grid):
+        ds = np.diff(s_grid)
+        self.s_grid, self.v0, v1 = s_grid, sd_grid[:-1], sd_grid[1:]
+        self.dt = 2 * ds / np.maximum(self.v0 + v1, 1e-300)
+        self.acc = (v1 * v1 - self.v0 * self.v0) / (2 * ds)
+        self.starts = np.concatenate([[0.0], np.cumsum(self.dt)])
+        self.duration = float(self.starts[-1])
+
+    def at(self, tt):
+        k = np.clip(np.searchsorted(self.starts, tt, side="right") - 1, 0, len(self.dt) - 1)
+        tau = np.clip(tt - self.starts[k], 0.0, self.dt[k])
+        v0, acc = self.v0[k], self.acc[k]
+        return self.s_grid[k] + v0 * tau + acc * tau * tau / 2, v0 + acc * tau, acc.copy(), np.zeros_like(tau)
+
+
 def sample_const_accel(s_grid, sd_grid, T, path, planner, info) -> Profile:
     """s(t) with constant s̈ between grid points (ṡ² linear in s), sampled at multiples of T."""
-    ds = np.diff(s_grid)
-    v0, v1 = sd_grid[:-1], sd_grid[1:]
-    dt = 2 * ds / np.maximum(v0 + v1, 1e-300)
-    acc = (v1 * v1 - v0 * v0) / (2 * ds)
-    starts = np.concatenate([[0.0], np.cumsum(dt)])
-    total = float(starts[-1])
-    N = max(1, int(math.ceil(total / T - 1e-9)))
-    t = np.arange(N + 1) * T
-    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(dt) - 1)
-    tau = np.clip(t - starts[k], 0.0, dt[k])
-    s = s_grid[k] + v0[k] * tau + acc[k] * tau * tau / 2
-    sd = v0[k] + acc[k] * tau
-    sdd = acc[k].copy()
-    L = path.length
-    s = np.minimum(np.maximum.accumulate(s), L)
-    s[0], s[-1] = 0.0, L
-    sd[-1] = sdd[-1] = 0.0
-    info = dict(info, continuous_time_s=total)
-    return Profile(planner, T, s, sd, sdd, np.zeros_like(s), path, info=info)
+    return Profile.from_pieces(planner, T, [_ConstAccelGrid(s_grid, sd_grid)], path, info)
 
 
 def plan(path, machine, limits=None, *, grid_mm: float = 0.25) -> Profile:

@@ -127,3 +127,39 @@ def test_worst_sample_finds_a_single_step():
     assert ratio == pytest.approx(3 * d / T ** 3 / 1e3)
     order, i, ratio = worst_sample(X, T, Limits(1e-4, 1.0, 1e9))
     assert (order, i, ratio) == ("velocity", 9, pytest.approx(d / T / 1e-4))
+
+
+class _Piece:
+    """s0 + p(t) on [0, duration]: a jerk ramp from rest (jerk J) or a cruise at feed F."""
+
+    def __init__(self, duration, s0, J=0.0, F=0.0, sampled=True):
+        self.duration, self.s0, self.J, self.F, self.sampled = duration, s0, J, F, sampled
+
+    def at(self, tt):
+        assert self.sampled, "a piece with no sample time inside it was evaluated"
+        tt = np.minimum(tt, self.duration)
+        J, F = self.J, self.F
+        return J * tt ** 3 / 6 + F * tt, J * tt ** 2 / 2 + F, J * tt, np.full_like(tt, J)
+
+
+def test_profile_from_pieces_samples_each_piece_at_its_own_time():
+    # ramp 10.5 ms (J = 6e5 mm/s³), cruise 20 ms at 50 mm/s, 0.3 ms between two samples, cruise
+    # 9.5 ms: samples at k·T in closed form, the last at the path end at rest
+    T, J, F = 1e-3, 6e5, 50.0
+    d = [0.0105, 0.020, 0.0003, 0.0095]
+    s1 = J * d[0] ** 3 / 6
+    s2 = s1 + F * d[1]
+    s3 = s2 + F * d[2]
+    L = s3 + F * d[3]
+    pieces = [_Piece(d[0], 0.0, J=J), _Piece(d[1], s1, F=F), _Piece(d[2], s2, F=F, sampled=False),
+              _Piece(d[3], s3, F=F)]
+    p = Profile.from_pieces("x", T, pieces, Line([0, 0, 0], [L, 0, 0]), {"a": 1})
+    assert len(p.s) == 42 and p.info == {"a": 1, "continuous_time_s": pytest.approx(sum(d), rel=1e-15)}
+    t = np.arange(42) * T
+    ramp = t < d[0]
+    want_s = np.where(ramp, J * t ** 3 / 6, np.where(t < d[0] + d[1], s1 + F * (t - d[0]), s3 + F * (t - sum(d[:3]))))
+    assert np.allclose(p.s[:-1], want_s[:-1], rtol=1e-12, atol=0)
+    assert np.allclose(p.sd[:-1], np.where(ramp, J * t ** 2 / 2, F)[:-1], rtol=1e-12, atol=0)
+    assert np.array_equal(p.sddd[:-1], np.where(ramp, J, 0.0)[:-1])
+    assert (p.s[-1], p.sd[-1], p.sdd[-1], p.sddd[-1]) == (L, 0.0, 0.0, 0.0)
+    p.validate()

@@ -6,7 +6,8 @@ import pytest
 from planners.verify import command_metrics
 from kins import load_machine
 from planners import PlanningError, plan
-from planners import pso
+from planners.pso import basis, join, problem, seed as pso_seed, tuning
+from planners.pso.polish import polish
 from planners.constraints import rest_pieces
 from planners.paths import Arc, Line, SegmentPath
 
@@ -47,7 +48,7 @@ def test_time_scaling_law():
     m = KEOPS
     from planners.constraints import PathTable
     table = PathTable(PATH, m)
-    pr = pso._PieceProblem(table, 0.0, PATH.length, m.limits, m.servo_period_s, [], 12, 300,
+    pr = problem.PieceProblem(table, 0.0, PATH.length, m.limits, m.servo_period_s, [], 12, 300,
                            table.s, np.full(len(table.s), 1e9))
     X = np.linspace(1, 3, 8)[None, :] * np.array([[1.0], [2.0]])
     lam, (s, v, a, j) = pr.scale(X, 0.0)
@@ -61,8 +62,8 @@ def test_time_scaling_law():
 
 def test_no_feasible_particle_is_a_clear_error(monkeypatch):
     # PATH's line–arc–line has two G1 joins: one piece, searched whole and cut into three
-    monkeypatch.setattr(pso._PieceProblem, "start", lambda self, x0, margin: None)
-    monkeypatch.setattr(pso._SubPiece, "start", lambda self, x0, margin: None)
+    monkeypatch.setattr(problem.PieceProblem, "start", lambda self, x0, margin: None)
+    monkeypatch.setattr(problem.SubPiece, "start", lambda self, x0, margin: None)
     with pytest.raises(PlanningError, match=r"pso: no feasible particle on piece\(s\) \[0\]"):
         plan("pso", PATH, KEOPS, **FAST)
 
@@ -86,9 +87,9 @@ def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
     cap = feed_cap(path, table.s, m.limits, m.servo_period_s, kappa=kappa)
     seed = plan_joint(path, m)
     for s0, s1 in rest_pieces(path):
-        tau, v, jerk, D, knots = pso._seed_window(seed, s0, s1)
-        pr = pso._PieceProblem(table, s0, s1, m.limits, m.servo_period_s, [], 15, 400, table.s, cap,
-                               pso.knot_density(tau, jerk), inner=knots)
+        tau, v, jerk, D, knots = pso_seed.seed_window(seed, s0, s1)
+        pr = problem.PieceProblem(table, s0, s1, m.limits, m.servo_period_s, [], 15, 400, table.s, cap,
+                               pso_seed.knot_density(tau, jerk), inner=knots)
         lam, _ = pr.scale(pr.shape.fit(tau, v)[None, :], 0.005)
         assert lam[0] == pytest.approx(D, rel=0.01), (s0, s1)
 
@@ -112,13 +113,13 @@ def test_join_stretch_is_the_root_of_the_join_cubic():
     J = 5e5
     read = rng.uniform(0, 3e6, 200) * rng.integers(0, 2, 200)
     cont = rng.uniform(0, 3e6, 200) * rng.integers(0, 2, 200)
-    lam = pso.join_stretch(read, cont, J)
+    lam = join.join_stretch(read, cont, J)
     for r, c, x in zip(read, cont, lam):
         roots = np.roots([J, 0.0, -r, -c])
         ref = max(z.real for z in roots if abs(z.imag) < 1e-9 * max(1.0, abs(z)))
         assert x == pytest.approx(max(ref, 0.0), rel=1e-10, abs=1e-12)
-    np.testing.assert_allclose(pso.join_stretch(np.array([2e6]), np.array([0.0]), J), [2.0], rtol=1e-12)
-    np.testing.assert_allclose(pso.join_stretch(np.array([0.0]), np.array([4e6]), J), [2.0], rtol=1e-12)
+    np.testing.assert_allclose(join.join_stretch(np.array([2e6]), np.array([0.0]), J), [2.0], rtol=1e-12)
+    np.testing.assert_allclose(join.join_stretch(np.array([0.0]), np.array([4e6]), J), [2.0], rtol=1e-12)
 
 
 def test_sub_piece_duration_and_ratio_at_constant_feed():
@@ -129,7 +130,7 @@ def test_sub_piece_duration_and_ratio_at_constant_feed():
     m, L, c = KEOPS, 40.0, 150.0
     line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
     table = PathTable(line, m)
-    sub = pso._SubPiece(table, 0.0, L, c, c, [], m.limits, m.servo_period_s, 10, 300, table.s,
+    sub = problem.SubPiece(table, 0.0, L, c, c, [], m.limits, m.servo_period_s, 10, 300, table.s,
                         np.full(len(table.s), 1e9))
     X = np.full((1, len(sub.free)), c)
     d, need = sub.ratio(X, 0.0)
@@ -156,8 +157,8 @@ def test_cut_piece_passes_each_join_at_its_join_feed():
     for sj in (40.0, 40.0 + 10 * np.pi):        # the arc's ends
         h = 1e-4                                # one-sided q″ by second differences of the IK
         dq2 = np.diff(m.ik(PATH.point(sj + h * np.arange(-2, 3))), 2, axis=0)[[0, 2]] / h ** 2
-        want = pso.JOIN_FEED_FRACTION * pso._join_feed(table, sj, np.abs(dq2[1] - dq2[0]), m.limits,
-                                                        0.005, T, cap) / p.info["t_check_stretch"][0]
+        want = tuning.JOIN_FEED_FRACTION * join.join_feed(table, sj, np.abs(dq2[1] - dq2[0]), m.limits,
+                                                          0.005, T, cap) / p.info["t_check_stretch"][0]
         i = int(np.searchsorted(p.s, sj))
         assert np.interp(sj, p.s, p.sd) == pytest.approx(want, rel=2e-3)
         assert abs(p.sd[i] - p.sd[i - 1]) < a_max * T
@@ -174,11 +175,11 @@ def test_polish_climbs_to_the_feed_cap():
     line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
     table = PathTable(line, m)
     free = SimpleNamespace(joint=SimpleNamespace(v=1e9, a=1e12, j=1e15))
-    sub = pso._SubPiece(table, 0.0, L, c, c, [], free, m.servo_period_s, 10, 300, table.s,
+    sub = problem.SubPiece(table, 0.0, L, c, c, [], free, m.servo_period_s, 10, 300, table.s,
                         np.full(len(table.s), c))
     x0 = np.full(len(sub.free), c / 2)
     assert sub.duration(x0[None, :])[0] > 1.3 * L / c
-    x, f, its = pso.polish(sub, x0, 0.0, 60)
+    x, f, its = polish(sub, x0, 0.0, 60)
     d, need = sub.ratio(x[None, :], 0.0)
     assert need[0] <= 1 + 1e-7 and f == pytest.approx(d[0], rel=1e-6)
     assert d[0] == pytest.approx(L / c, rel=1e-4)
@@ -192,8 +193,8 @@ def test_join_index_search_is_the_first_sample_at_or_after_each_join():
     s[2, 20:23] = s[2, 19] - 0.5                 # a row that dips (rounding at a plateau)
     pts = [-1.0, 0.3, 3.0, 10.0, 24.9, 25.0, 1e9]
     want = np.stack([np.clip(np.argmax(s >= p, axis=1), 1, 49) for p in pts], axis=1)
-    assert np.array_equal(pso._first_at_or_after(s, pts), want)
-    assert pso._first_at_or_after(s, []).shape == (7, 0)
+    assert np.array_equal(join.first_at_or_after(s, pts), want)
+    assert join.first_at_or_after(s, []).shape == (7, 0)
 
 
 def test_sparse_basis_is_the_dense_basis():
@@ -202,8 +203,8 @@ def test_sparse_basis_is_the_dense_basis():
     # and antiderivative recurrences
     rng = np.random.default_rng(2)
     inner = np.sort(rng.random(25))
-    d = pso._Shape(0, 300, inner=inner)
-    s = pso._Shape(0, 300, inner=inner, sparse=True)
+    d = basis.Shape(0, 300, inner=inner)
+    s = basis.Shape(0, 300, inner=inner, sparse=True)
     assert s.K == d.K and np.array_equal(s.tau, d.tau)
     for D, S in ((d.B, s.B), (d.B1, s.B1), (d.B2, s.B2)):
         assert np.abs(D - S.toarray()).max() <= 1e-12 * np.abs(D).max()
@@ -218,7 +219,7 @@ def test_sparse_basis_is_the_dense_basis():
 def test_piece_over_the_size_bound_is_searched_sparse_from_its_seed(monkeypatch):
     seed = plan("scurve_joint", PATH, KEOPS)
     opts = dict(seed=3, seed_profile=seed, particles=16, iterations=20, control_points=30)
-    monkeypatch.setattr(pso, "BASIS_MAX_ELEMENTS", 1000)
+    monkeypatch.setattr(tuning, "BASIS_MAX_ELEMENTS", 1000)
     a = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
     b = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
     assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
