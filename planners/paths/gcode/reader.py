@@ -266,16 +266,46 @@ def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
     return prog
 
 
-def program_path(prog: GCodeProgram, speed_limits=None) -> SegmentPath:
+def program_path(prog: GCodeProgram, speed_limits=None, *, deferred: bool = False) -> SegmentPath:
     """The blended path of a program (G61 corners kept sharp, G64 corners rounded).
 
     ``speed_limits`` = (axis v, axis a, F_max, programmed F?) sizes each G64 blend arc to the
     speed as LinuxCNC's tp does (planners.paths.blend.BlendSpeed); without it (the standard
-    paths) a corner gets the largest arc its tolerance and half of each line allow."""
+    paths) a corner gets the largest arc its tolerance and half of each line allow.
+    ``deferred``: blend on the first use of the geometry (``program`` and ``source`` are there
+    at once): a planner that re-blends the program at its own speeds (trapezoid) never pays
+    for these blends, seconds on a 10⁵-line program."""
+    if deferred:
+        return _DeferredProgramPath(prog, speed_limits)
     with gc_paused():
-        speed = None if speed_limits is None else blend_speed(prog, *speed_limits)
-        segs, _ = blend_corners(prog.segments(), prog.blend_tolerances(), speed)
-        return SegmentPath(segs, prog.source, program=prog)
+        return SegmentPath(_blended_segments(prog, speed_limits), prog.source, program=prog)
+
+
+def _blended_segments(prog: GCodeProgram, speed_limits) -> list:
+    speed = None if speed_limits is None else blend_speed(prog, *speed_limits)
+    return blend_corners(prog.segments(), prog.blend_tolerances(), speed)[0]
+
+
+class _DeferredProgramPath(SegmentPath):
+    """program_path(prog, speed_limits), built when an attribute of the geometry is first read."""
+
+    def __init__(self, prog: GCodeProgram, speed_limits):
+        self.program, self.source, self._speed_limits = prog, prog.source, speed_limits
+
+    def __getattr__(self, name):
+        # only reached for an attribute not set yet, i.e. one that SegmentPath.__init__ sets
+        d = self.__dict__
+        if name.startswith("__") or "_speed_limits" not in d:
+            raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
+        speed_limits = d.pop("_speed_limits")
+        try:
+            with gc_paused():
+                SegmentPath.__init__(self, _blended_segments(self.program, speed_limits), self.source,
+                                     program=self.program)
+        except BaseException:
+            d["_speed_limits"] = speed_limits     # a blend error is raised again on the next read
+            raise
+        return getattr(self, name)
 
 
 def blend_speed(prog: GCodeProgram, v_axis: float, a_axis: float, feed_max: float,
