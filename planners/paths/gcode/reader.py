@@ -12,7 +12,8 @@ Corners: the path-control mode in force when a move is read governs the corner a
 G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tolerance other
 than the room available (half of each adjoining segment); ``program_path(prog, speed_limits)``
 blends as LinuxCNC's tp does instead (arcs sized to the speed, line↔arc corners blended: what
-the ``trapezoid`` planner plans on). Blending is done by
+the ``trapezoid`` planner plans on). G64 … Q q joins runs of short moves that stay within q
+of one line into that line first, as LinuxCNC's canon does (:mod:`.naivecam`). Blending is done by
 :mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
 """
@@ -26,6 +27,7 @@ import numpy as np
 
 from planners.paths.base import PathError, gc_paused
 from planners.paths.blend import BlendSpeed, blend_corners
+from planners.paths.gcode.naivecam import join_moves
 from planners.paths.segments import Arc, Line, SegmentPath
 
 INCH_MM = 25.4
@@ -135,9 +137,10 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
             cp = interpret(text, source, start=tuple(np.asarray(home, float)), **opts)
     except RS274Error as e:
         raise GCodeError(e.file, e.line, e.message) from None
-    canon = cp.moves
+    # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
+    canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M)
     prog = GCodeProgram(source, None)
-    prog.events = cp.events
+    prog.events = canon_events
     prog.notes += cp.notes
     first = 0
     if positioning and canon:
@@ -173,7 +176,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         pos = seg.end.copy() if cm.kind == "arc" else end
     made[len(canon)] = len(prog.moves)
     # an event's index: the segments before it (LinuxCNC stops there for an M code)
-    prog.events = [replace(e, index=made[e.index]) for e in cp.events]
+    prog.events = [replace(e, index=made[e.index]) for e in canon_events]
     if not prog.moves and positioning and canon:
         m0 = canon[0]
         if home is None:
