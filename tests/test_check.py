@@ -238,3 +238,14 @@ def test_deferred_program_path_blends_on_first_read(tmp_path):
     assert lazy.length == eager.length and len(lazy.segments) == len(eager.segments)
     s = np.linspace(0.0, eager.length, 101)
     assert np.array_equal(lazy.point(s), eager.point(s)) and np.array_equal(lazy.corners(), eager.corners())
+
+
+def test_start_gives_the_machine_position_before_the_program(tmp_path, capsys):
+    # LinuxCNC's rule with --start: the only move is a segment from the given point
+    f = prog(tmp_path, "G21 G90\nG1 X30 Y40 Z-250 F600\nM2\n")
+    rep = check_program(f, KOSSEL, "trapezoid", start=(0.0, 0.0, -250.0))
+    assert rep.stats["length_mm"] == pytest.approx(50.0)
+    assert main(["check", str(f), "--machine", "kossel", "--start", "0,0,-250", "--json"]) == rep.exit_code
+    assert json.loads(capsys.readouterr().out)["stats"]["length_mm"] == pytest.approx(50.0)
+    assert main(["check", str(f), "--machine", "kossel", "--start", "0,0"]) == 2
+    assert "--start 0,0: expected X,Y,Z in mm" in capsys.readouterr().err
