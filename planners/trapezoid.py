@@ -327,8 +327,10 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
         raise PlanningError(f"trapezoid: chord tolerance {chord} mm must be > 0")
     if blend < 0:
         raise PlanningError(f"trapezoid: blend tolerance {blend} mm must be ≥ 0")
-    check_path_in_workspace(path, machine, check_workspace_step_mm)
     planned, info = prepare_geometry(path, chord, blend if blend > 0 else None, limits, programmed_feed)
+    # the workspace of the path that runs: a program's speed-sized blends (so a G-code path's
+    # own blends are never built, see planners.paths.gcode.program_path), else the given curve
+    check_path_in_workspace(planned if isinstance(path, SegmentPath) else path, machine, check_workspace_step_mm)
     vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)
     feeds = segment_feeds(planned, limits.feed_max) if programmed_feed else None
     if feeds is not None:

@@ -206,3 +206,46 @@ def test_dynamics_findings_read_the_metrics_differences(tmp_path):
         D = M.differences(Q, m.servo_period_s)[x.kind[len("joint_"):]]
         worst = np.abs(D).max(axis=1)[lines[-len(D):] == x.lines[0]]
         assert x.value == worst.max()
+
+
+def test_trapezoid_check_builds_only_the_blends_it_runs(tmp_path, monkeypatch):
+    # trapezoid re-blends a program at its speeds (LinuxCNC's arcs): the check must not build
+    # the standard blends too, and its geometry is that of the path that ran
+    import planners.paths.gcode.reader as reader
+    calls = []
+    real = reader.blend_corners
+    monkeypatch.setattr(reader, "blend_corners", lambda *a, **k: calls.append(a[2] if len(a) > 2 else None) or real(*a, **k))
+    f = prog(tmp_path, "G21 G90 G64 P0.05\nG1 X0 Y0 Z-400 F3000\nG1 X20\nG1 Y20\nG1 X0\nM2\n")
+    rep = check_program(f, KEOPS, "trapezoid")
+    assert len(calls) == 1 and calls[0] is not None          # one blend, sized to the speed
+    from planners.paths.gcode import program_path, read_gcode
+    sized = program_path(read_gcode(f, home=KEOPS.home), (KEOPS.limits.cartesian.v, KEOPS.limits.cartesian.a,
+                                                           KEOPS.limits.feed_max, True))
+    assert rep.stats["length_mm"] == sized.length < 60.0     # three 20 mm lines minus two blends
+    # every other planner gets the standard blends, built once
+    calls.clear()
+    rep = check_program(f, KEOPS, "scurve")
+    assert calls == [None] and rep.stats["length_mm"] == program_path(read_gcode(f, home=KEOPS.home)).length
+
+
+def test_deferred_program_path_blends_on_first_read(tmp_path):
+    from planners.paths.gcode import program_path, read_gcode
+    f = prog(tmp_path, "G21 G90 G64 P0.1\nG1 X0 Y0 Z-400 F600\nG1 X10\nG2 X20 Y0 I5 J0\nG1 Y10\nM2\n")
+    p = read_gcode(f)
+    lazy = program_path(p, deferred=True)
+    assert lazy.program is p and "segments" not in vars(lazy)  # nothing built by reading these
+    eager = program_path(p)
+    assert lazy.length == eager.length and len(lazy.segments) == len(eager.segments)
+    s = np.linspace(0.0, eager.length, 101)
+    assert np.array_equal(lazy.point(s), eager.point(s)) and np.array_equal(lazy.corners(), eager.corners())
+
+
+def test_start_gives_the_machine_position_before_the_program(tmp_path, capsys):
+    # LinuxCNC's rule with --start: the only move is a segment from the given point
+    f = prog(tmp_path, "G21 G90\nG1 X30 Y40 Z-250 F600\nM2\n")
+    rep = check_program(f, KOSSEL, "trapezoid", start=(0.0, 0.0, -250.0))
+    assert rep.stats["length_mm"] == pytest.approx(50.0)
+    assert main(["check", str(f), "--machine", "kossel", "--start", "0,0,-250", "--json"]) == rep.exit_code
+    assert json.loads(capsys.readouterr().out)["stats"]["length_mm"] == pytest.approx(50.0)
+    assert main(["check", str(f), "--machine", "kossel", "--start", "0,0"]) == 2
+    assert "--start 0,0: expected X,Y,Z in mm" in capsys.readouterr().err

@@ -187,3 +187,21 @@ def test_readme_output_files_names_every_file_a_run_writes(tmp_path):
     for name in written:
         shown = re.sub(r"resources/\w+\.fmu", "resources/*.fmu", name).replace("SystemStructure.ssv", "SystemStructure.ssd`, `.ssv")
         assert f"`{shown}`" in section, name
+
+
+@needs_fmus
+def test_run_start_plans_a_program_from_the_given_position(tmp_path, capsys):
+    # a program whose only move is a G1 to (30, 40, -250): it starts at --start, else at home
+    prog = tmp_path / "one.ngc"
+    prog.write_text("G21 G90\nG1 X30 Y40 Z-250 F3000\nM2\n")
+    for start, first in (("0,0,-250", [0.0, 0.0, -250.0]), (None, [0.0, 0.0, -200.0])):
+        out = tmp_path / f"run_{start is None}"
+        args = ["run", "--machine", "kossel", "--path", str(prog), "--planners", "scurve", "--out", str(out),
+                "--no-recordings", "--ideal"] + (["--start", start] if start else [])
+        assert cli(args) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary.get("start_mm") == ([0.0, 0.0, -250.0] if start else None)
+        xyz = np.loadtxt(out / "scurve/command.csv", delimiter=",", skiprows=1, usecols=(1, 2, 3))
+        assert xyz[0] == pytest.approx(first, abs=1e-9) and xyz[-1] == pytest.approx([30.0, 40.0, -250.0], abs=1e-9)
+    assert cli(["run", "--machine", "kossel", "--path", str(prog), "--start", "a,b,c"]) == 2
+    assert "--start a,b,c: expected X,Y,Z in mm" in capsys.readouterr().err

@@ -36,6 +36,11 @@ PROGRAMS = {
     "mcodes": ("kossel", HERE / "programs/mcodes.ngc"),
     "spiral_arcs": ("kossel", HERE / "programs/spiral_arcs.ngc"),
     "delta_star": ("linuxcnc_delta", HERE / "programs/delta_star.ngc"),
+    # G64 Q (LinuxCNC's naive-CAM joining): our program and LinuxCNC's own quick tests
+    "naive_cam_q": ("kossel", HERE / "programs/naive_cam_q.ngc"),
+    "lcnc_naive_cam_corner1": ("kossel", HERE / "programs/lcnc_naive_cam_corner1.ngc"),
+    "lcnc_naive_cam_corner2": ("kossel", HERE / "programs/lcnc_naive_cam_corner2.ngc"),
+    "lcnc_naive_cam_reversal": ("kossel", HERE / "programs/lcnc_naive_cam_reversal.ngc"),
 }
 
 

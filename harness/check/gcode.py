@@ -227,16 +227,20 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     return out
 
 
-def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5) -> Report:
+def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5, *,
+                  start=None) -> Report:
+    """Check a program as ``planner`` runs it on ``machine`` (``start``: the machine position
+    before it, see planners.paths.gcode.parse_gcode; default: its first positioning move or
+    the machine's home)."""
     from planners.paths.base import gc_paused
 
     # the cyclic GC's full passes over the 10⁵–10⁶ objects a long program makes (segments,
     # findings, planner pieces) cost ~15 % of a check; none of them needs it to be freed
     with gc_paused():
-        return _check(file, machine, planner, workspace_step_mm)
+        return _check(file, machine, planner, workspace_step_mm, start)
 
 
-def _check(file, machine, planner: str, workspace_step_mm: float) -> Report:
+def _check(file, machine, planner: str, workspace_step_mm: float, start) -> Report:
     import planners
     from planners.paths.gcode import GCodeError, program_path, read_gcode
 
@@ -248,19 +252,38 @@ def _check(file, machine, planner: str, workspace_step_mm: float) -> Report:
         raise CheckError(f"{file}: no such file")
     # 1. compile
     try:
-        prog = read_gcode(file, home=machine.home)      # a one-move program starts there
-        path = program_path(prog)
+        prog = read_gcode(file, start, home=machine.home)    # a one-move program starts at home
     except GCodeError as e:
         rep.invalid = True
-        rep.findings.append(Finding("compile", "error", [int(e.line)], None, None, "", e.message
-                                    if hasattr(e, "message") else str(e)))
+        rep.findings.append(Finding("compile", "error", [int(e.line)], None, None, "", e.message))
         return rep
-    text = file.read_text(errors="replace")
-    rep.findings += _n_number_warnings(text, str(file))
+    rep.findings += _n_number_warnings(file.read_text(errors="replace"), str(file))
     rep.stats["moves"] = len(prog.moves)
-    rep.stats["length_mm"] = float(path.length)
-    # 2. geometry: every point of the path, densely, against the workspace (all findings)
-    n = max(2, int(np.ceil(path.length / workspace_step_mm)) + 1)
+    # 2. plan the program first, then check the geometry of the path that ran: a planner that
+    # re-blends the program at its speeds (trapezoid) never builds the standard blends
+    path = program_path(prog, deferred=True)
+    try:
+        prof, plan_error = planners.plan(planner, path, machine), None
+    except Exception as e:
+        prof, plan_error = None, e
+    ran = path if prof is None else prof.path
+    rep.stats["length_mm"] = float(ran.length)
+    # 3. geometry: every point of the path, densely, against the workspace (all findings)
+    if _geometry_findings(rep, ran, machine, workspace_step_mm):
+        rep.stats["dynamics"] = "skipped: the path leaves the workspace"
+        return rep
+    if plan_error is not None:
+        rep.findings.append(Finding("planning", "error", [], None, None, "", f"{planner} cannot plan it: {plan_error}"))
+        return rep
+    # 4. dynamics: the program as the planner runs it, at the servo period, through the IK
+    _dynamics_findings(rep, prof, machine)
+    return rep
+
+
+def _geometry_findings(rep: Report, path, machine, step_mm: float) -> bool:
+    """Add a finding per G-code line and kind where the path leaves the workspace, passes its
+    box or nears a singularity; True if it is out of reach or beyond a stroke (no dynamics)."""
+    n = max(2, int(np.ceil(path.length / step_mm)) + 1)
     s = np.linspace(0.0, path.length, n)
     P = path.point(s)
     lines = _lines_of(path, s)
@@ -282,37 +305,38 @@ def _check(file, machine, planner: str, workspace_step_mm: float) -> Report:
         by_line: dict[int, list] = {}          # one pass (a scan of fs per line was quadratic)
         for f in fs:
             by_line.setdefault(int(lines[f.index]), []).append(f)
-        for ln in sorted(by_line):
-            if kind == "box":      # kins gives no distance: the farthest point outside is the worst
-                worst = max(by_line[ln], key=lambda f: box_excess[f.index])
-            else:
-                worst = max(by_line[ln], key=lambda f: abs(f.value - f.limit))
-            at = P[worst.index]
-            where = f"at ({at[0]:.4g}, {at[1]:.4g}, {at[2]:.4g}) mm"
-            if kind == "unreachable":
-                msg = f"rod {worst.joint} cannot reach the point {where} (short by {worst.value:.4g} mm)"
-                val, lim = worst.value, 0.0
-            elif kind == "stroke":
-                msg = (f"joint {worst.joint} at {worst.value:.6g} mm is beyond its stroke limit "
-                       f"{worst.limit:g} mm by {abs(worst.value - worst.limit):.4g} mm {where}")
-                val, lim = worst.value, worst.limit
-            else:
-                val, lim = float(box_excess[worst.index]), 0.0
-                msg = f"outside the workspace box by {val:.4g} mm {where}"
-            rep.findings.append(Finding(kind, "error", [ln], val, lim, "mm", msg))
-    if bad_geometry:
-        rep.stats["dynamics"] = "skipped: the path leaves the workspace"
-        return rep
-    # 3. dynamics: the program as the planner runs it, at the servo period, through the IK
-    try:
-        prof = planners.plan(planner, path, machine)
-    except Exception as e:
-        rep.findings.append(Finding("planning", "error", [], None, None, "", f"{planner} cannot plan it: {e}"))
-        return rep
+        rep.findings += [_workspace_finding(kind, ln, by_line[ln], P, box_excess) for ln in sorted(by_line)]
+    return bad_geometry
+
+
+def _workspace_finding(kind: str, ln: int, fs: list, P: np.ndarray, box_excess: np.ndarray) -> Finding:
+    """The finding of one G-code line: its worst point of the kins findings ``fs`` of one kind."""
+    if kind == "box":      # kins gives no distance: the farthest point outside is the worst
+        worst = max(fs, key=lambda f: box_excess[f.index])
+    else:
+        worst = max(fs, key=lambda f: abs(f.value - f.limit))
+    at = P[worst.index]
+    where = f"at ({at[0]:.4g}, {at[1]:.4g}, {at[2]:.4g}) mm"
+    if kind == "unreachable":
+        msg = f"rod {worst.joint} cannot reach the point {where} (short by {worst.value:.4g} mm)"
+        val, lim = worst.value, 0.0
+    elif kind == "stroke":
+        msg = (f"joint {worst.joint} at {worst.value:.6g} mm is beyond its stroke limit "
+               f"{worst.limit:g} mm by {abs(worst.value - worst.limit):.4g} mm {where}")
+        val, lim = worst.value, worst.limit
+    else:
+        val, lim = float(box_excess[worst.index]), 0.0
+        msg = f"outside the workspace box by {val:.4g} mm {where}"
+    return Finding(kind, "error", [ln], val, lim, "mm", msg)
+
+
+def _dynamics_findings(rep: Report, prof, machine) -> None:
+    """Joint and Cartesian velocity, acceleration and jerk of the sampled profile, read as
+    differences at T (planners.verify), one finding per G-code line and limit exceeded."""
     T = machine.servo_period_s
     P = prof.path.point(prof.s)
     Q = machine.ik(P)
-    slines = _lines_of(prof.path, prof.s) if hasattr(prof.path, "line_at") else np.full(len(P), -1)
+    slines = _lines_of(prof.path, prof.s)
     rep.stats["samples"] = int(len(P))
     rep.stats["execution_time_s"] = prof.execution_time_s
     for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
@@ -335,4 +359,3 @@ def _check(file, machine, planner: str, workspace_step_mm: float) -> Report:
                 rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col)
             else:
                 rep.findings += _group(f"cartesian_{order}", mask, worst, ln, L, unit, f"Cartesian {order}")
-    return rep

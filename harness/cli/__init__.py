@@ -6,6 +6,7 @@ prints.
 from __future__ import annotations
 
 import argparse
+import math
 import importlib
 import subprocess
 import sys
@@ -32,6 +33,24 @@ COMMANDS = {
 
 class CliError(Exception):
     """A user-facing error: printed as one line, exit code 2."""
+
+
+START_HELP = ("G-code: the machine position before the program (mm); every move, the first included, "
+              "is then planned from it, as LinuxCNC runs it (default: a first absolute G0/G1 with X, Y "
+              "and Z positions the tool, else the machine's home)")
+
+
+def parse_start(text: str | None) -> list[float] | None:
+    """--start X,Y,Z → [x, y, z] (mm), None when not given; CliError naming the value otherwise."""
+    if text is None:
+        return None
+    try:
+        xyz = [float(v) for v in text.split(",")]
+    except ValueError:
+        xyz = []
+    if len(xyz) != 3 or not all(map(math.isfinite, xyz)):
+        raise CliError(f"--start {text}: expected X,Y,Z in mm (three finite numbers)")
+    return xyz
 
 
 def version_string() -> str:

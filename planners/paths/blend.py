@@ -192,26 +192,6 @@ def line_arc_blend(line, arc, line_room: float, arc_angle: float, line_first: bo
     return R, abs(x), trim, centre, binormal, v_plan, dev
 
 
-def line_blend(u1: np.ndarray, u2: np.ndarray, room: float, tolerance: float):
-    """(radius, tangent length d, deviation, turn angle) of the blend arc of a line corner.
-
-    u1, u2: unit directions in and out; ``room``: the longest tangent length allowed
-    (half of the shorter adjoining line); ``tolerance``: the largest distance allowed
-    between the corner point and the arc (inf = no limit but the room).
-    The arc touches the lines at d = R·tan(δ/2) from the corner and passes the corner at
-    R·(1/cos(δ/2) − 1), δ being the turn angle.
-    """
-    # atan2(|u1 × u2|, u1 · u2), not acos(u1 · u2): acos loses the angle of a nearly straight
-    # corner to rounding (~1e-8 rad), and R·δ then puts the arc's end 1e-7 mm off its line
-    delta = math.atan2(float(norm3(cross3(u1, u2))), float(u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2]))
-    half = 0.5 * delta
-    R_room = room / math.tan(half)
-    sec_m1 = 1.0 / math.cos(half) - 1.0
-    R_tol = tolerance / sec_m1 if math.isfinite(tolerance) else math.inf
-    R = min(R_room, R_tol)
-    return R, R * math.tan(half), R * sec_m1, delta
-
-
 def _norms(V: np.ndarray) -> np.ndarray:
     """norm3 of each row: √(x·x + y·y + z·z), summed in that order."""
     return np.sqrt(V[:, 0] * V[:, 0] + V[:, 1] * V[:, 1] + V[:, 2] * V[:, 2])
@@ -234,107 +214,162 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
     segs = list(segments)
     if len(tolerances) != max(len(segs) - 1, 0):
         raise PathError(f"blend: {len(tolerances)} corner tolerances for {len(segs)} segments")
-    trim_start = [0.0] * len(segs)
-    trim_end = [0.0] * len(segs)
-    arcs: dict[int, tuple] = {}
-    done = []
-    # the turn of every line–line corner at once (a CAM program has 10⁵ of them)
+    trim_start = np.zeros(len(segs))
+    trim_end = np.zeros(len(segs))
     is_line = np.array([g.kind == "line" for g in segs])
-    cand = [i for i, tol in enumerate(tolerances) if tol is not None and is_line[i] and is_line[i + 1]]
-    turns = []
-    if cand:
+    # every line–line corner at once (a CAM program has 10⁵ of them): they are independent,
+    # each takes at most half of each line, and the line↔arc corners never take more either
+    cand = np.array([i for i, tol in enumerate(tolerances) if tol is not None and is_line[i] and is_line[i + 1]],
+                    dtype=np.int64)
+    arcs, done = {}, []
+    if len(cand):
         U = np.array([g.direction if g.kind == "line" else (0.0, 0.0, 0.0) for g in segs])
-        c = np.array(cand)
-        turns = np.arctan2(np.linalg.norm(np.cross(U[c], U[c + 1]), axis=1),
-                           np.einsum("ij,ij->i", U[c], U[c + 1])).tolist()
-    turn_of = dict(zip(cand, turns))
-    if speed is not None and cand:
-        # every line-line corner at once: they are independent (each takes at most half of
-        # each line), and the line↔arc corners below never take more than half a line either
-        sp, c = speed, np.array(cand)
-        tolc = np.array([tolerances[i] for i in cand], float)
-        if not (tolc > 0).all():
-            i = cand[int(np.argmin(tolc > 0))]
-            raise PathError(f"blend: corner {i} tolerance {tolerances[i]} must be > 0 (or None for an exact stop)")
         L = np.array([g.length for g in segs])
-        req, mv = np.array(sp.req, float), np.array(sp.maxvel, float)
-        R, d, dev, phi, vp = speed_blends(U[c], U[c + 1], L[c], L[c + 1], tolc,
-                                          req[c], req[c + 1], mv[c], mv[c + 1], sp.v_axis, sp.a_axis)
-        t = np.array(turns)
-        # blendComputeParameters aborts an arc below TP_POS_EPSILON / TP_MIN_ARC_LENGTH
-        with np.errstate(invalid="ignore"):
-            ok = ((t > CORNER_ANGLE) & (t < REVERSAL_ANGLE) & (R >= 1e-12) & (R * phi >= 1e-6)
-                  & (R > 0) & (d > 0))
-        idx = c[ok].tolist()
-        ts, te = np.array(trim_start), np.array(trim_end)
-        te[c[ok]] = d[ok]
-        ts[c[ok] + 1] = d[ok]
-        trim_start, trim_end = ts.tolist(), te.tolist()
-        arcs.update(zip(idx, zip(R[ok].tolist(), d[ok].tolist(), phi[ok].tolist(), vp[ok].tolist())))
-        done += list(zip(idx, dev[ok].tolist()))
-        cand = []                         # done: only the line↔arc corners are left
+        tolc = np.array([tolerances[i] for i in cand.tolist()], float)
+        if not (tolc > 0).all():
+            i = int(cand[np.argmin(tolc > 0)])
+            raise PathError(f"blend: corner {i} tolerance {tolerances[i]} must be > 0 (or None for an exact stop)")
+        turns = np.arctan2(np.linalg.norm(np.cross(U[cand], U[cand + 1]), axis=1),
+                           np.einsum("ij,ij->i", U[cand], U[cand + 1]))
+        sized = _speed_line_corners if speed is not None else _room_line_corners
+        idx, R, d, angle, v_plan, dev = sized(U, L, cand, tolc, turns, speed)
+        trim_end[idx] = d
+        trim_start[idx + 1] = d
+        arcs = dict(zip(idx.tolist(), zip(R.tolist(), d.tolist(), angle.tolist(), v_plan)))
+        done = list(zip(idx.tolist(), dev.tolist()))
+    trim_start, trim_end = trim_start.tolist(), trim_end.tolist()
     # with speed sizing, line↔arc corners are blended too (tp.c tpCreateLineArcBlend /
-    # tpCreateArcLineBlend), in program order with the line-line ones
+    # tpCreateArcLineBlend), in program order
     mixed = [] if speed is None else [i for i, tol in enumerate(tolerances)
                                       if tol is not None and is_line[i] != is_line[i + 1]]
-    arc_trim = {}                         # arc index → [angle cut at its start, at its end]
-    mixed_built = {}
-    for i in sorted(cand + mixed):
+    arc_trim, mixed_built = _line_arc_corners(segs, tolerances, mixed, speed, trim_start, trim_end, done)
+    out = _assemble(segs, trim_start, trim_end, arcs, arc_trim, mixed_built)
+    done.sort(key=lambda x: x[0])
+    return out, done
+
+
+def _speed_line_corners(U, L, c, tolc, turns, sp: BlendSpeed):
+    """The line–line corners sized to the speed (speed_blends): (corner indices, R, d, turn,
+    v_plan, deviation) of those that get an arc."""
+    req, mv = np.array(sp.req, float), np.array(sp.maxvel, float)
+    R, d, dev, phi, vp = speed_blends(U[c], U[c + 1], L[c], L[c + 1], tolc,
+                                      req[c], req[c + 1], mv[c], mv[c + 1], sp.v_axis, sp.a_axis)
+    # blendComputeParameters aborts an arc below TP_POS_EPSILON / TP_MIN_ARC_LENGTH
+    with np.errstate(invalid="ignore"):
+        ok = ((turns > CORNER_ANGLE) & (turns < REVERSAL_ANGLE) & (R >= 1e-12) & (R * phi >= 1e-6)
+              & (R > 0) & (d > 0))
+    return c[ok], R[ok], d[ok], phi[ok], vp[ok].tolist(), dev[ok]
+
+
+def _room_line_corners(U, L, c, tolc, turns, _speed=None):
+    """The line–line corners rounded as large as the tolerance and half of each line allow.
+
+    The arc of a turn δ touches the lines at d = R·tan(δ/2) from the corner and passes it at
+    R·(1/cos(δ/2) − 1): R is the smaller of the room's (d = half the shorter line) and the
+    tolerance's. δ = atan2(|u1 × u2|, u1 · u2), not acos(u1 · u2): acos loses the angle of a
+    nearly straight corner to rounding (~1e-8 rad), and R·δ then puts the arc's end 1e-7 mm off
+    its line. The angles by ``math``, one corner at a time: numpy's SIMD kernels round them
+    differently per CPU."""
+    keep = (turns > CORNER_ANGLE) & (turns < REVERSAL_ANGLE)
+    c, tol = c[keep], tolc[keep]
+    U1, U2 = U[c], U[c + 1]
+    sin_n = _norms(_cross(U1, U2)).tolist()
+    cos_n = (U1[:, 0] * U2[:, 0] + U1[:, 1] * U2[:, 1] + U1[:, 2] * U2[:, 2]).tolist()
+    delta = [math.atan2(y, x) for y, x in zip(sin_n, cos_n)]
+    tan_h = np.array([math.tan(0.5 * x) for x in delta])
+    sec_m1 = 1.0 / np.array([math.cos(0.5 * x) for x in delta]) - 1.0
+    room = 0.5 * np.minimum(L[c], L[c + 1])
+    with np.errstate(divide="ignore"):
+        R_tol = np.where(np.isfinite(tol), tol / sec_m1, math.inf)
+    R = np.minimum(room / tan_h, R_tol)
+    d, dev = R * tan_h, R * sec_m1
+    ok = (R > 0) & (d > 0)
+    return c[ok], R[ok], d[ok], np.array(delta)[ok], [None] * int(ok.sum()), dev[ok]
+
+
+def _line_arc_corners(segs, tolerances, mixed, sp: BlendSpeed, trim_start, trim_end, done):
+    """The line↔arc corners ``mixed`` (ascending), sized to the speed (line_arc_blend): trims the
+    lines in ``trim_start``/``trim_end`` and appends (corner, deviation) to ``done``; returns
+    ({arc index: [angle cut at its start, at its end]}, {corner: blend arc})."""
+    arc_trim, built = {}, {}
+    for i in mixed:
         a, b, tol = segs[i], segs[i + 1], tolerances[i]
-        if i not in turn_of:
-            if not tol > 0:
-                raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
-            sp = speed
-            line_first = a.kind == "line"
-            line, arc = (a, b) if line_first else (b, a)
-            ta = arc_trim.setdefault(i + 1 if line_first else i, [0.0, 0.0])
-            room = a.length - trim_start[i] if line_first else line.length
-            k_line, k_arc = (i, i + 1) if line_first else (i + 1, i)
-            res = line_arc_blend(line, arc, room, arc.angle - ta[0] - ta[1], line_first, tol,
-                                 min(sp.req[k_line], sp.maxvel[k_line]), min(sp.req[k_arc], sp.maxvel[k_arc]),
-                                 sp.v_axis, sp.a_axis)
-            if res is None:
-                continue
-            R, dL, trim, centre, bn, v_plan, dev = res
-            if line_first:
-                t1, t2 = line.end - dL * line.direction, _arc_point(arc, trim)
-            else:
-                t1, t2 = _arc_point(arc, arc.angle - trim), line.start + dL * line.direction
-            r1, r2 = t1 - centre, t2 - centre
-            ang = math.atan2(float(np.dot(cross3(r1, r2), bn)), float(np.dot(r1, r2)))
-            if not ang > 0:
-                continue
-            if line_first:
-                trim_end[i], ta[0] = dL, trim
-            else:
-                trim_start[i + 1], ta[1] = dL, trim
-            g = Arc.exact(t1, centre, bn, ang, segs[i + 1].line)
-            g.v_cap = v_plan                  # tpInitBlendArcFromPrev: maxvel = v_plan
-            mixed_built[i] = g
-            done.append((i, dev))
-            continue
-        turn = turn_of[i]
         if not tol > 0:
             raise PathError(f"blend: corner {i} tolerance {tol} must be > 0 (or None for an exact stop)")
-        if turn <= CORNER_ANGLE or turn >= REVERSAL_ANGLE:
-            continue                      # tangent already, or a reversal: nothing to round
-        if speed is None:
-            room = 0.5 * min(a.length, b.length)
-            R, d, dev, delta = line_blend(a.direction, b.direction, room, tol)
-            v_plan = None
-        else:
-            raise AssertionError("speed-sized line-line corners are sized column-wise above")
-        if not (R > 0 and d > 0):
+        line_first = a.kind == "line"
+        line, arc = (a, b) if line_first else (b, a)
+        ta = arc_trim.setdefault(i + 1 if line_first else i, [0.0, 0.0])
+        room = a.length - trim_start[i] if line_first else line.length
+        k_line, k_arc = (i, i + 1) if line_first else (i + 1, i)
+        res = line_arc_blend(line, arc, room, arc.angle - ta[0] - ta[1], line_first, tol,
+                             min(sp.req[k_line], sp.maxvel[k_line]), min(sp.req[k_arc], sp.maxvel[k_arc]),
+                             sp.v_axis, sp.a_axis)
+        if res is None:
             continue
-        trim_end[i] = d
-        trim_start[i + 1] = d
-        arcs[i] = (R, d, delta, v_plan)
+        R, dL, trim, centre, bn, v_plan, dev = res
+        if line_first:
+            t1, t2 = line.end - dL * line.direction, _arc_point(arc, trim)
+        else:
+            t1, t2 = _arc_point(arc, arc.angle - trim), line.start + dL * line.direction
+        r1, r2 = t1 - centre, t2 - centre
+        ang = math.atan2(float(np.dot(cross3(r1, r2), bn)), float(np.dot(r1, r2)))
+        if not ang > 0:
+            continue
+        if line_first:
+            trim_end[i], ta[0] = dL, trim
+        else:
+            trim_start[i + 1], ta[1] = dL, trim
+        g = Arc.exact(t1, centre, bn, ang, segs[i + 1].line)
+        g.v_cap = v_plan                  # tpInitBlendArcFromPrev: maxvel = v_plan
+        built[i] = g
         done.append((i, dev))
-    # Assemble from exact positions: trimmed lines keep their original direction (so a
-    # short leftover never gets a direction of rounding noise, i.e. a false corner) and each
-    # blend arc runs from C − d·u1 to C + d·u2 of its corner C.
-    # The vector arithmetic of all lines and arcs is done column-wise: the same element-wise
-    # operations in the same order as one 3-vector at a time (10⁵ corners cost seconds so).
+    return arc_trim, built
+
+
+def _line_line_arcs(segs, arcs):
+    """{corner: blend Arc} from {corner: (R, d, turn, v_plan)}: each arc from C − d·u1 to
+    C + d·u2 of its corner C, column-wise (the same element-wise operations in the same order
+    as one 3-vector at a time: 10⁵ corners cost seconds so)."""
+    built = {}
+    if not arcs:
+        return built
+    ai = sorted(arcs)
+    R = np.array([arcs[i][0] for i in ai])[:, None]
+    d = np.array([arcs[i][1] for i in ai])[:, None]
+    delta = [arcs[i][2] for i in ai]
+    U1 = np.array([segs[i].direction for i in ai])
+    U2 = np.array([segs[i + 1].direction for i in ai])
+    m = U2 - np.array([math.cos(x) for x in delta])[:, None] * U1
+    m /= _norms(m)[:, None]
+    n = _cross(U1, U2)
+    n /= _norms(n)[:, None]
+    # n exactly ⟂ m: on a nearly straight corner both carry ~1e-10 rounding, and the arc
+    # projects start − centre (= −R·m, R up to 10⁴ mm) onto n's plane, moving it 1e-6 mm
+    n = n - (n[:, 0] * m[:, 0] + n[:, 1] * m[:, 1] + n[:, 2] * m[:, 2])[:, None] * m
+    n /= _norms(n)[:, None]
+    t1 = np.array([segs[i].end for i in ai]) - d * U1
+    C = t1 + R * m
+    # Arc._derive's in-plane basis, radius, length and end, column-wise (rise = 0)
+    a = t1 - C
+    off = a[:, 0] * n[:, 0] + a[:, 1] * n[:, 1] + a[:, 2] * n[:, 2]
+    a = a - off[:, None] * n
+    b = _cross(n, a)
+    radius = _norms(a).tolist()
+    length = [float(th * math.hypot(r, 0.0 / th)) for th, r in zip(delta, radius)]
+    end = (C + np.array([math.cos(x) for x in delta])[:, None] * a
+           + np.array([math.sin(x) for x in delta])[:, None] * b + 0.0 * n)
+    for k, i in enumerate(ai):
+        built[i] = Arc.from_parts(t1[k], C[k], n[k], delta[k], segs[i + 1].line,
+                                  a[k], b[k], radius[k], length[k], end[k])
+        if arcs[i][3] is not None:
+            built[i].v_cap = arcs[i][3]     # tp.c tpCreateLineLineBlend: maxvel = v_plan
+    return built
+
+
+def _assemble(segs, trim_start, trim_end, arcs, arc_trim, mixed_built):
+    """The blended segment list: trimmed lines (keeping their original direction, so a short
+    leftover never gets a direction of rounding noise, i.e. a false corner), trimmed arcs and
+    the blend arcs, in path order."""
     lines = [i for i, g in enumerate(segs) if g.kind == "line"]
     trimmed = {}
     if lines:
@@ -345,38 +380,7 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
         E = np.array([segs[i].end for i in lines]) - te * D
         lens = [segs[i].length - trim_start[i] - trim_end[i] for i in lines]
         trimmed = {i: (S[k], E[k], D[k], lens[k]) for k, i in enumerate(lines)}
-    built = {}
-    if arcs:
-        ai = sorted(arcs)
-        R = np.array([arcs[i][0] for i in ai])[:, None]
-        d = np.array([arcs[i][1] for i in ai])[:, None]
-        delta = [arcs[i][2] for i in ai]
-        U1 = np.array([segs[i].direction for i in ai])
-        U2 = np.array([segs[i + 1].direction for i in ai])
-        m = U2 - np.array([math.cos(x) for x in delta])[:, None] * U1
-        m /= _norms(m)[:, None]
-        n = _cross(U1, U2)
-        n /= _norms(n)[:, None]
-        # n exactly ⟂ m: on a nearly straight corner both carry ~1e-10 rounding, and the arc
-        # projects start − centre (= −R·m, R up to 10⁴ mm) onto n's plane, moving it 1e-6 mm
-        n = n - (n[:, 0] * m[:, 0] + n[:, 1] * m[:, 1] + n[:, 2] * m[:, 2])[:, None] * m
-        n /= _norms(n)[:, None]
-        t1 = np.array([segs[i].end for i in ai]) - d * U1
-        C = t1 + R * m
-        # Arc._derive's in-plane basis, radius, length and end, column-wise (rise = 0)
-        a = t1 - C
-        off = a[:, 0] * n[:, 0] + a[:, 1] * n[:, 1] + a[:, 2] * n[:, 2]
-        a = a - off[:, None] * n
-        b = _cross(n, a)
-        radius = _norms(a).tolist()
-        length = [float(th * math.hypot(r, 0.0 / th)) for th, r in zip(delta, radius)]
-        end = (C + np.array([math.cos(x) for x in delta])[:, None] * a
-               + np.array([math.sin(x) for x in delta])[:, None] * b + 0.0 * n)
-        for k, i in enumerate(ai):
-            built[i] = Arc.from_parts(t1[k], C[k], n[k], delta[k], segs[i + 1].line,
-                                      a[k], b[k], radius[k], length[k], end[k])
-            if arcs[i][3] is not None:
-                built[i].v_cap = arcs[i][3]     # tp.c tpCreateLineLineBlend: maxvel = v_plan
+    built = _line_line_arcs(segs, arcs)
     out = []
     for i, g in enumerate(segs):
         if g.kind == "line":
@@ -392,8 +396,7 @@ def blend_corners(segments, tolerances, speed: BlendSpeed | None = None):
             out.append(built[i])
         if i in mixed_built:
             out.append(mixed_built[i])
-    done.sort(key=lambda x: x[0])
-    return out, done
+    return out
 
 
 def _arc_point(g, phi: float):

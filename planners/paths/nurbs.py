@@ -8,7 +8,6 @@ inverted by Newton's method, so ``point(s)`` is on the curve at arc length s to 
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from planners.paths.base import CORNER_ANGLE, Path, PathError
 
@@ -65,6 +64,8 @@ class NurbsPath(Path):
         H = np.column_stack([Pc * w[:, None], w])          # homogeneous control points
         # Derivatives by BSpline.__call__(u, nu): evaluated span by span, so they also work
         # at knots repeated ``degree`` times (BSpline.derivative() refuses those).
+        # imported here: scipy.interpolate takes 0.5 s to import, and G-code never needs it
+        from scipy.interpolate import BSpline
         self._H = BSpline(U, H, p, extrapolate=True)
         self._build_table()
 

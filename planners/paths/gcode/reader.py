@@ -12,7 +12,8 @@ Corners: the path-control mode in force when a move is read governs the corner a
 G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tolerance other
 than the room available (half of each adjoining segment); ``program_path(prog, speed_limits)``
 blends as LinuxCNC's tp does instead (arcs sized to the speed, line↔arc corners blended: what
-the ``trapezoid`` planner plans on). Blending is done by
+the ``trapezoid`` planner plans on). G64 … Q q joins runs of short moves that stay within q
+of one line into that line first, as LinuxCNC's canon does (:mod:`.naivecam`). Blending is done by
 :mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
 """
@@ -26,6 +27,7 @@ import numpy as np
 
 from planners.paths.base import PathError, gc_paused
 from planners.paths.blend import BlendSpeed, blend_corners
+from planners.paths.gcode.naivecam import join_moves
 from planners.paths.segments import Arc, Line, SegmentPath
 
 INCH_MM = 25.4
@@ -135,9 +137,10 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
             cp = interpret(text, source, start=tuple(np.asarray(home, float)), **opts)
     except RS274Error as e:
         raise GCodeError(e.file, e.line, e.message) from None
-    canon = cp.moves
+    # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
+    canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M)
     prog = GCodeProgram(source, None)
-    prog.events = cp.events
+    prog.events = canon_events
     prog.notes += cp.notes
     first = 0
     if positioning and canon:
@@ -173,7 +176,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         pos = seg.end.copy() if cm.kind == "arc" else end
     made[len(canon)] = len(prog.moves)
     # an event's index: the segments before it (LinuxCNC stops there for an M code)
-    prog.events = [replace(e, index=made[e.index]) for e in cp.events]
+    prog.events = [replace(e, index=made[e.index]) for e in canon_events]
     if not prog.moves and positioning and canon:
         m0 = canon[0]
         if home is None:
@@ -266,16 +269,46 @@ def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
     return prog
 
 
-def program_path(prog: GCodeProgram, speed_limits=None) -> SegmentPath:
+def program_path(prog: GCodeProgram, speed_limits=None, *, deferred: bool = False) -> SegmentPath:
     """The blended path of a program (G61 corners kept sharp, G64 corners rounded).
 
     ``speed_limits`` = (axis v, axis a, F_max, programmed F?) sizes each G64 blend arc to the
     speed as LinuxCNC's tp does (planners.paths.blend.BlendSpeed); without it (the standard
-    paths) a corner gets the largest arc its tolerance and half of each line allow."""
+    paths) a corner gets the largest arc its tolerance and half of each line allow.
+    ``deferred``: blend on the first use of the geometry (``program`` and ``source`` are there
+    at once): a planner that re-blends the program at its own speeds (trapezoid) never pays
+    for these blends, seconds on a 10⁵-line program."""
+    if deferred:
+        return _DeferredProgramPath(prog, speed_limits)
     with gc_paused():
-        speed = None if speed_limits is None else blend_speed(prog, *speed_limits)
-        segs, _ = blend_corners(prog.segments(), prog.blend_tolerances(), speed)
-        return SegmentPath(segs, prog.source, program=prog)
+        return SegmentPath(_blended_segments(prog, speed_limits), prog.source, program=prog)
+
+
+def _blended_segments(prog: GCodeProgram, speed_limits) -> list:
+    speed = None if speed_limits is None else blend_speed(prog, *speed_limits)
+    return blend_corners(prog.segments(), prog.blend_tolerances(), speed)[0]
+
+
+class _DeferredProgramPath(SegmentPath):
+    """program_path(prog, speed_limits), built when an attribute of the geometry is first read."""
+
+    def __init__(self, prog: GCodeProgram, speed_limits):
+        self.program, self.source, self._speed_limits = prog, prog.source, speed_limits
+
+    def __getattr__(self, name):
+        # only reached for an attribute not set yet, i.e. one that SegmentPath.__init__ sets
+        d = self.__dict__
+        if name.startswith("__") or "_speed_limits" not in d:
+            raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
+        speed_limits = d.pop("_speed_limits")
+        try:
+            with gc_paused():
+                SegmentPath.__init__(self, _blended_segments(self.program, speed_limits), self.source,
+                                     program=self.program)
+        except BaseException:
+            d["_speed_limits"] = speed_limits     # a blend error is raised again on the next read
+            raise
+        return getattr(self, name)
 
 
 def blend_speed(prog: GCodeProgram, v_axis: float, a_axis: float, feed_max: float,

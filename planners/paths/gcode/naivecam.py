@@ -1,0 +1,103 @@
+"""G64 Q: LinuxCNC's "naive CAM detector", which joins runs of short G1 moves into one line.
+
+LinuxCNC 2.9 does this in its canon layer, between the interpreter and the trajectory planner
+(src/emc/task/emccanon.cc ``see_segment``, ``linkable``, ``flush_segments``; the XY arcs of
+``ARC_FEED``), so every planner here sees the joined moves, as LinuxCNC's tp does:
+
+- in G64 with Q > 0, each STRAIGHT_FEED end point joins the current chain when every point of the
+  chain lies within Q of the line from the chain's start to the new point (at most 101 points);
+  otherwise the chain is sent as one line (start → last point, the last point's line number)
+  and a new chain starts with the point;
+- an XY arc (G17, G64) whose sagitta r·(1 − cos(θ/2)) is below Q becomes two points: its
+  angular midpoint (z halfway) and its end (``chord_deviation``);
+- any other canonical call that flushes in emccanon.cc ends the chain first: rapids, other arcs,
+  and here the events between moves (M codes, dwells, tool changes, messages), a change of feed
+  or of path-control mode, and the interpreter's "flush" events (an F, S or G64 word).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+MAX_CHAIN = 100          # linkable(): "if (chained_points.size() > 100) return false"
+
+
+def join_moves(moves: list, events: list, stateless_m=frozenset()) -> tuple[list, list]:
+    """(moves, events) with the G64 Q chains joined; each event's index (moves before it) is
+    mapped onto the joined moves. ``stateless_m``: M codes that flush nothing (M70–M73)."""
+    if not any(m.path_mode[0] == "blend" and m.path_mode[2] > 0 for m in moves):
+        return moves, events
+    flush_at = {e.index for e in events if not (e.kind == "m" and e.value in stateless_m)}
+    out: list = []
+    chain: list = []           # [(end point, the move it comes from)]
+    start = None               # the chain's start: where the last move sent ended
+    index_of = [0] * (len(moves) + 1)
+
+    def flush():
+        if chain:
+            end, last = chain[-1]
+            out.append(last if len(chain) == 1 and last.kind == "feed" and tuple(last.start) == start
+                       else replace(last, kind="feed", start=start, end=end, center=None, turn=0))
+            chain.clear()
+
+    for k, m in enumerate(moves):
+        if k in flush_at or (chain and (m.feed_mm_min != chain[-1][1].feed_mm_min
+                                        or m.path_mode != chain[-1][1].path_mode)):
+            flush()
+        index_of[k] = len(out)
+        points = _chain_points(m)
+        if points is None:
+            flush()
+            out.append(m)
+            continue
+        for p in points:
+            if chain and not _linkable(start, chain, p, m.path_mode):
+                flush()
+            if not chain:
+                start = tuple(m.start) if p is points[0] else tuple(chain_end)
+            chain.append((p, m))
+            chain_end = p
+    flush()
+    index_of[len(moves)] = len(out)
+    return out, [replace(e, index=index_of[e.index]) for e in events]
+
+
+def _chain_points(m):
+    """The points a move adds to a chain, or None when it flushes and is sent as it is."""
+    if m.kind == "feed":
+        return [tuple(m.end)]
+    if m.kind == "arc" and m.plane == 17 and m.path_mode[0] == "blend":
+        mx, my, dev = _chord_deviation(m.start, m.end, m.center, m.turn)
+        if dev < m.path_mode[2]:
+            return [(mx, my, 0.5 * (m.start[2] + m.end[2])), tuple(m.end)]
+    return None
+
+
+def _linkable(start, chain, p, path_mode) -> bool:
+    """emccanon.cc linkable(): every chained point within Q of the line start → p."""
+    q = path_mode[2] if path_mode[0] == "blend" else 0.0
+    if q == 0 or len(chain) > MAX_CHAIN or tuple(p) == tuple(start):
+        return False
+    M = [p[i] - start[i] for i in range(3)]
+    mm = M[0] * M[0] + M[1] * M[1] + M[2] * M[2]
+    for P, _ in chain:
+        d = [P[i] - start[i] for i in range(3)]
+        t = min(max((M[0] * d[0] + M[1] * d[1] + M[2] * d[2]) / mm, 0.0), 1.0)
+        if math.sqrt(sum((d[i] - t * M[i]) ** 2 for i in range(3))) > q:
+            return False
+    return True
+
+
+def _chord_deviation(s, e, c, rotation):
+    """emccanon.cc chord_deviation() in the XY plane: (x, y of the arc's angular midpoint, its
+    sagitta r·(1 − cos(θ/2)) with θ the included angle, at most one turn)."""
+    th1 = math.atan2(s[1] - c[1], s[0] - c[0])
+    th2 = math.atan2(e[1] - c[1], e[0] - c[0])
+    r = math.hypot(s[1] - c[1], s[0] - c[0])
+    for _ in range(2):      # twice: atan2 may give −π and π for the two ends
+        if rotation < 0 and th2 - th1 >= -1e-5:
+            th2 -= 2 * math.pi
+        elif rotation >= 0 and th2 - th1 <= 1e-5:
+            th2 += 2 * math.pi
+    mid = 0.5 * (th1 + th2)
+    return c[0] + r * math.cos(mid), c[1] + r * math.sin(mid), r * (1 - math.cos(abs(th2 - th1) / 2))
