@@ -20,7 +20,7 @@ from pathlib import Path
 
 from harness.cli import CliError
 from harness.outdir import output_dir, output_file
-from kins.resources import BASELINE, CI_DIR, REPO, SUITE_DIR, repo_relative
+from kins.resources import BASELINE, CI_DIR, SUITE_DIR, repo_relative
 
 
 def add_arguments(p) -> None:
@@ -56,101 +56,30 @@ def _load_baseline(file: Path) -> dict:
 
 
 def main(args) -> int:
-    from harness.sweep import (DEFAULT_TASK, SuiteError, SweepError, SweepStore, code_version,
-                               expand, load_suite, resolve_task_fn, run_sweep, task_label)
     from harness.ci import baseline as ci
-    from harness.store import ResultStore, StoreError, make_row
+    from harness.store import ResultStore, StoreError
 
-    if args.suite is None:           # recorded as the checkout-relative name, read from the checkout
-        args.suite = repo_relative(SUITE_DIR / "nightly.toml")
-        suite_file = SUITE_DIR / "nightly.toml"
-    else:
-        suite_file = Path(args.suite)
-    task_fn = args.task or DEFAULT_TASK
-    baseline_file = Path(args.baseline)
+    suite_file, task_fn, baseline_file = _inputs(args)
     baseline = None if args.update_baseline else _load_baseline(baseline_file)
-    try:
-        resolve_task_fn(task_fn)
-    except SweepError as e:
-        raise CliError(str(e)) from None
-    try:
-        suite = load_suite(suite_file)
-        tasks = expand(suite, src=args.suite, base=Path.cwd())
-        tolerances = ci.tolerances_from_suite(suite)
-        if args.no_timing:
-            tolerances = ci.without_timing(tolerances)
-    except SuiteError as e:
-        raise CliError(str(e)) from None
-
-    # every file this command writes, checked before the suite runs for minutes
-    out = output_dir(args.out)
-    junit = output_file(args.junit or out / "junit.xml", "JUnit file")
-    mdfile = output_file(args.markdown or out / "summary.md", "summary file")
-    try:
-        ResultStore(args.store).close()          # a store that cannot be read fails now, not after the suite
-    except StoreError as e:
-        raise CliError(str(e)) from None
-    if args.update_baseline:
-        output_file(baseline_file, "baseline file")
-
-    t0 = time.perf_counter()
-    reference_s = ci.reference_workload_s()
-    run_dir = out / "run"
-    shutil.rmtree(run_dir, ignore_errors=True)            # CI measures afresh: nothing skipped
-    try:
-        tasks = [t | {"ci_inner_task": task_fn} for t in tasks]
-        res = run_sweep(tasks, run_dir, task_fn="harness.ci.baseline:reference_timed_task", workers=args.workers,
-                        scheduler=args.scheduler, force=True, progress=sys.stderr.isatty())
-    except SweepError as e:
-        raise CliError(str(e)) from None
-    reference_s = min(reference_s, ci.reference_workload_s())   # best of before and after
-    with SweepStore(run_dir / "results.sqlite") as store:
-        entries, errors = ci.entries_from_rows(store.to_rows(), reference_s)
-    wall_s = time.perf_counter() - t0
+    tasks, tolerances = _load_tasks(args, suite_file, task_fn)
+    junit, mdfile, out = _check_outputs(args, baseline_file)
+    run_dir, reference_s, entries, errors, wall_s = _run_suite(args, tasks, task_fn, out)
+    from harness.sweep import code_version
     version = code_version()
-
     if args.update_baseline:
-        if errors:
-            for label, err in sorted(errors.items()):
-                print(f"FAILED {label}: {err}")
-            print(f"ci: {len(errors)} task(s) failed; baseline NOT updated")
-            checks = ci.compare({"entries": entries}, entries, errors, tolerances)
-            passed = False
-        else:
-            doc = {"format": ci.FORMAT, "suite": args.suite, "task_fn": task_fn,
-                   "code_version": version, "reference_s": reference_s, "host": ci.host_info(),
-                   "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-                   "entries": entries}
-            baseline_file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
-            checks = ci.compare(doc, entries, errors, tolerances)
-            passed = True
-            print(f"ci: baseline {baseline_file} written: {len(entries)} runs, "
-                  f"{sum(len(v) for v in entries.values())} metrics, {wall_s:.1f} s")
-        base_entries = entries
+        checks, passed = _update_baseline(args, baseline_file, task_fn, version, reference_s, entries,
+                                          errors, tolerances, wall_s)
     else:
         if baseline.get("task_fn") and baseline["task_fn"] != task_fn:
             print(f"ci: note: the baseline was made with task {baseline['task_fn']}, this run uses {task_fn}")
         checks = ci.compare(baseline, entries, errors, tolerances)
         passed = all(c.ok for c in checks)
-        base_entries = baseline["entries"]
 
     md = ci.markdown_summary(checks, reference_s=reference_s, baseline_file=str(baseline_file),
                              suite_file=args.suite, wall_s=wall_s, tolerances=tolerances)
     for f, text in ((junit, ci.junit_xml(checks, wall_s)), (mdfile, md)):
         f.write_text(text)
-    regressions: dict[str, list[str]] = {}
-    for c in checks:
-        if not c.ok:
-            regressions.setdefault(c.entry, []).append(c.metric)
-    rows = []
-    with SweepStore(run_dir / "results.sqlite") as store:
-        for r in store.to_rows():
-            label = task_label(r["task"])
-            rows.append(make_row(entry=label, machine=r["machine"], path=r["path"], planner=r["planner"],
-                                 seed=r["seed"], preset=r["preset"], variation=r["variation"],
-                                 status=r["status"], error=r["error"], metrics=entries.get(label),
-                                 regressions=regressions.get(label, ()),
-                                 run_dir=str(run_dir / r["run_dir"]) if r["run_dir"] else None))
+    rows = _store_rows(run_dir, entries, checks)
     info = {"mode": "update-baseline" if args.update_baseline else "check", "passed": passed,
             "reference_s": reference_s, "wall_s": wall_s, "baseline": str(baseline_file),
             "checks": len(checks), "task_fn": task_fn}
@@ -165,3 +94,114 @@ def main(args) -> int:
         print(md.split("## Tolerances")[0].rstrip())
     print(f"ci: JUnit {junit}, summary {mdfile}, results store {store_dir} run {run_id}")
     return 0 if passed else 1
+
+
+def _inputs(args) -> tuple[Path, str, Path]:
+    """The suite file, the task function (checked to resolve) and the baseline file."""
+    from harness.sweep import DEFAULT_TASK
+    if args.suite is None:           # recorded as the checkout-relative name, read from the checkout
+        args.suite = repo_relative(SUITE_DIR / "nightly.toml")
+        suite_file = SUITE_DIR / "nightly.toml"
+    else:
+        suite_file = Path(args.suite)
+    task_fn = args.task or DEFAULT_TASK
+    return suite_file, task_fn, Path(args.baseline)
+
+
+def _load_tasks(args, suite_file: Path, task_fn: str):
+    """The suite's tasks and its tolerances (without planning time under --no-timing)."""
+    from harness.ci import baseline as ci
+    from harness.sweep import SuiteError, SweepError, expand, load_suite, resolve_task_fn
+    try:
+        resolve_task_fn(task_fn)
+    except SweepError as e:
+        raise CliError(str(e)) from None
+    try:
+        suite = load_suite(suite_file)
+        tasks = expand(suite, src=args.suite, base=Path.cwd())
+        tolerances = ci.tolerances_from_suite(suite)
+        if args.no_timing:
+            tolerances = ci.without_timing(tolerances)
+    except SuiteError as e:
+        raise CliError(str(e)) from None
+    return tasks, tolerances
+
+
+def _check_outputs(args, baseline_file: Path):
+    """Every file this command writes, checked before the suite runs for minutes: the JUnit
+    and summary files, the output folder, the results store, the baseline under --update."""
+    from harness.store import ResultStore, StoreError
+    out = output_dir(args.out)
+    junit = output_file(args.junit or out / "junit.xml", "JUnit file")
+    mdfile = output_file(args.markdown or out / "summary.md", "summary file")
+    try:
+        ResultStore(args.store).close()          # a store that cannot be read fails now, not after the suite
+    except StoreError as e:
+        raise CliError(str(e)) from None
+    if args.update_baseline:
+        output_file(baseline_file, "baseline file")
+    return junit, mdfile, out
+
+
+def _run_suite(args, tasks, task_fn: str, out: Path):
+    """Run every task afresh (timed against the reference workload, best of before and
+    after) in OUT/run; the run folder, the reference time, the metrics, the errors, the wall
+    time."""
+    from harness.ci import baseline as ci
+    from harness.sweep import SweepError, SweepStore, run_sweep
+    t0 = time.perf_counter()
+    reference_s = ci.reference_workload_s()
+    run_dir = out / "run"
+    shutil.rmtree(run_dir, ignore_errors=True)            # CI measures afresh: nothing skipped
+    try:
+        tasks = [t | {"ci_inner_task": task_fn} for t in tasks]
+        run_sweep(tasks, run_dir, task_fn="harness.ci.baseline:reference_timed_task", workers=args.workers,
+                  scheduler=args.scheduler, force=True, progress=sys.stderr.isatty())
+    except SweepError as e:
+        raise CliError(str(e)) from None
+    reference_s = min(reference_s, ci.reference_workload_s())   # best of before and after
+    with SweepStore(run_dir / "results.sqlite") as store:
+        entries, errors = ci.entries_from_rows(store.to_rows(), reference_s)
+    wall_s = time.perf_counter() - t0
+    return run_dir, reference_s, entries, errors, wall_s
+
+
+def _update_baseline(args, baseline_file: Path, task_fn: str, version: str, reference_s: float, entries,
+                     errors, tolerances, wall_s: float):
+    """--update-baseline: write the baseline if every task ran (else name the failures and
+    keep the old one); the checks of the run against itself, and whether it passed."""
+    from harness.ci import baseline as ci
+    if errors:
+        for label, err in sorted(errors.items()):
+            print(f"FAILED {label}: {err}")
+        print(f"ci: {len(errors)} task(s) failed; baseline NOT updated")
+        return ci.compare({"entries": entries}, entries, errors, tolerances), False
+    doc = {"format": ci.FORMAT, "suite": args.suite, "task_fn": task_fn,
+           "code_version": version, "reference_s": reference_s, "host": ci.host_info(),
+           "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+           "entries": entries}
+    baseline_file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    checks = ci.compare(doc, entries, errors, tolerances)
+    print(f"ci: baseline {baseline_file} written: {len(entries)} runs, "
+          f"{sum(len(v) for v in entries.values())} metrics, {wall_s:.1f} s")
+    return checks, True
+
+
+def _store_rows(run_dir: Path, entries, checks) -> list:
+    """The results-store rows of the run, each with its metrics out of tolerance."""
+    from harness.store import make_row
+    from harness.sweep import SweepStore, task_label
+    regressions: dict[str, list[str]] = {}
+    for c in checks:
+        if not c.ok:
+            regressions.setdefault(c.entry, []).append(c.metric)
+    rows = []
+    with SweepStore(run_dir / "results.sqlite") as store:
+        for r in store.to_rows():
+            label = task_label(r["task"])
+            rows.append(make_row(entry=label, machine=r["machine"], path=r["path"], planner=r["planner"],
+                                 seed=r["seed"], preset=r["preset"], variation=r["variation"],
+                                 status=r["status"], error=r["error"], metrics=entries.get(label),
+                                 regressions=regressions.get(label, ()),
+                                 run_dir=str(run_dir / r["run_dir"]) if r["run_dir"] else None))
+    return rows

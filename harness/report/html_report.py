@@ -90,19 +90,43 @@ def write_html(rows: list[dict], out: Path, *, title: str, reference: str = "opt
     ``machine_of(row)`` → the row's kins machine (for the joint limits), ``history`` a
     harness.ci.history.History or None.
     """
-    import plotly.graph_objects as go
-
-    parts, plots = [], 0
-    first = True
-
-    def add(fig, name):
-        nonlocal first, plots
-        parts.append(_fig_html(fig, f"plot-{plots:02d}-{name}", first))
-        first, plots = False, plots + 1
-
+    doc = _Doc()
     groups = defaultdict(list)
     for r in rows:
         groups[(r["machine"], r["path"], r["preset"], r["variation"])].append(r)
+    _comparison(doc, rows, groups, reference)
+    _profile_section(doc, rows)
+    _along_path_section(doc, groups, machine_of)
+    trend_runs = _trend_section(doc, history)
+    Path(out).write_text(doc.html(title))
+    return {"tables": len(groups), "plots": doc.plots, "trend_runs": trend_runs}
+
+
+class _Doc:
+    """The report's HTML parts in order; plots numbered as added, plotly.js inlined in the first."""
+
+    def __init__(self):
+        self.parts: list[str] = []
+        self.plots = 0
+
+    def add(self, fig, name: str) -> None:
+        self.parts.append(_fig_html(fig, f"plot-{self.plots:02d}-{name}", self.plots == 0))
+        self.plots += 1
+
+    def html(self, title: str) -> str:
+        style = ("body{font-family:sans-serif;max-width:1200px;margin:auto;padding:0 1em}"
+                 "table{border-collapse:collapse;margin-bottom:1em}"
+                 f"th{{background:{TABLE_HEAD_COLOUR};color:white;padding:4px 8px;font-size:13px}}"
+                 "td{border:1px solid #ccc;padding:2px 8px;font-size:13px;text-align:right}"
+                 "tr.bad td{background:#fde8e8}")
+        return ("<!doctype html>\n<html><head><meta charset='utf-8'>"
+                f"<title>{html.escape(title)}</title><style>{style}</style></head><body>\n"
+                f"<h1>{html.escape(title)}</h1>\n" + "\n".join(self.parts) + "\n</body></html>\n")
+
+
+def _comparison(doc: _Doc, rows, groups, reference: str) -> None:
+    """The run counts and one table per machine × path × preset × variation."""
+    parts = doc.parts
     n_ok = sum(r["status"] == "ok" for r in rows)
     parts.append(f"<p>{len(rows)} runs, {n_ok} ok, {len(rows) - n_ok} failed. Joint ratios: peak "
                  f"|derivative| / limit on the commanded joints (feasible ⇔ all ≤ 1). ÷ best: execution "
@@ -117,33 +141,44 @@ def write_html(rows: list[dict], out: Path, *, title: str, reference: str = "opt
         parts.append(f"<h3>{html.escape(' / '.join(map(str, key)))}</h3><table class='comparison'><tr>"
                      + "".join(f"<th>{html.escape(c)}</th>" for c in cols) + "</tr>")
         for r in rs:
-            if r["status"] != "ok":
-                cells = [r["planner"], str(r["seed"])] + ["—"] * 10 + [f"FAILED: {r['error']}"]
-            else:
-                m = r["metrics"]
-                jp = m.get("joint_peak_ratio", {})
-                et = m["execution_time_s"]
-                best = min(v for (sd, _), v in t.items() if sd == r["seed"])
-                ref = t.get((r["seed"], reference))
-                cells = [r["planner"], str(r["seed"]), _f(et), _f(et / best, "{:.3f}"),
-                         _f(et / ref if ref else None, "{:.3f}"), "yes" if m.get("feasible") else "NO",
-                         _f(jp.get("velocity"), "{:.3f}"), _f(jp.get("acceleration"), "{:.3f}"),
-                         _f(jp.get("jerk"), "{:.3f}"), _f(m.get("max_following_error_um")),
-                         _f(m.get("max_contour_error_um")), _f(m.get("planning_time_s"), "{:.3g}"), "ok"]
+            cells = _cells(r, t, reference)
             cls = " class='bad'" if r["status"] != "ok" or not (r["metrics"] or {}).get("feasible") else ""
             parts.append(f"<tr{cls}>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
         parts.append("</table>")
 
+
+def _cells(r, t: dict, reference: str) -> list[str]:
+    """One run's table cells; ``t``: (seed, planner) → execution time of the case's ok runs."""
+    if r["status"] != "ok":
+        return [r["planner"], str(r["seed"])] + ["—"] * 10 + [f"FAILED: {r['error']}"]
+    m = r["metrics"]
+    jp = m.get("joint_peak_ratio", {})
+    et = m["execution_time_s"]
+    best = min(v for (sd, _), v in t.items() if sd == r["seed"])
+    ref = t.get((r["seed"], reference))
+    return [r["planner"], str(r["seed"]), _f(et), _f(et / best, "{:.3f}"),
+            _f(et / ref if ref else None, "{:.3f}"), "yes" if m.get("feasible") else "NO",
+            _f(jp.get("velocity"), "{:.3f}"), _f(jp.get("acceleration"), "{:.3f}"),
+            _f(jp.get("jerk"), "{:.3f}"), _f(m.get("max_following_error_um")),
+            _f(m.get("max_contour_error_um")), _f(m.get("planning_time_s"), "{:.3g}"), "ok"]
+
+
+def _profile_section(doc: _Doc, rows) -> None:
+    import plotly.graph_objects as go
     cases, tau, prof = performance_profile(rows)
-    parts.append(f"<h2>Performance profile</h2><p>Over {len(cases)} case(s): the share of cases in which a "
-                 f"planner's execution time is within τ × the best planner's (Dolan &amp; Moré 2002); "
-                 f"higher and further left is better, ρ(1) = share of cases it is the fastest.</p>")
+    doc.parts.append(f"<h2>Performance profile</h2><p>Over {len(cases)} case(s): the share of cases in which a "
+                     f"planner's execution time is within τ × the best planner's (Dolan &amp; Moré 2002); "
+                     f"higher and further left is better, ρ(1) = share of cases it is the fastest.</p>")
     fig = go.Figure([go.Scatter(x=tau, y=prof[p], name=p, mode="lines", line_shape="hv") for p in sorted(prof)])
     fig.update_layout(xaxis_title="τ (execution time ÷ best)", yaxis_title="ρ(τ)", yaxis_range=[0, 1.05],
                       height=380, margin=dict(t=30))
-    add(fig, "profile")
+    doc.add(fig, "profile")
 
-    parts.append("<h2>Along the path</h2>")
+
+def _along_path_section(doc: _Doc, groups, machine_of) -> None:
+    """Per case: feed and the worst joint ratio over arc length of each ok run with files."""
+    import plotly.graph_objects as go
+    doc.parts.append("<h2>Along the path</h2>")
     for key in sorted(groups):
         curves = {}
         for r in sorted(groups[key], key=lambda r: (r["planner"], r["seed"])):
@@ -167,34 +202,27 @@ def write_html(rows: list[dict], out: Path, *, title: str, reference: str = "opt
         fig.update_yaxes(title_text="ratio", type="log", row=2, col=1)
         fig.update_xaxes(title_text="arc length s, mm", row=2, col=1)
         fig.update_layout(height=560, margin=dict(t=40), title_text=" / ".join(map(str, key)))
-        add(fig, "path")
+        doc.add(fig, "path")
 
-    trend_runs = 0
-    parts.append("<h2>Nightly trend</h2>")
+
+def _trend_section(doc: _Doc, history) -> int:
+    """The ci runs' values of TREND_METRICS, out-of-tolerance ones marked; the number of runs."""
+    import plotly.graph_objects as go
+    doc.parts.append("<h2>Nightly trend</h2>")
     runs = history.runs() if history is not None else []
     if not runs:
-        parts.append("<p>No ci runs in the results store yet (`pkmbench ci` appends them).</p>")
-    else:
-        trend_runs = len(runs)
-        parts.append(f"<p>{len(runs)} ci runs; a red ✕ marks a value out of tolerance in that run.</p>")
-        names = set(history.metric_names())
-        for metric in [m for m in TREND_METRICS if m in names]:
-            fig = go.Figure()
-            for entry, pts in sorted(history.series_marked(metric).items()):
-                fig.add_trace(go.Scatter(x=[p[0] for p in pts], y=[p[1] for p in pts], name=entry, mode="lines+markers"))
-                bad = [p for p in pts if p[2]]
-                if bad:
-                    fig.add_trace(go.Scatter(x=[p[0] for p in bad], y=[p[1] for p in bad], mode="markers",
-                                             name=f"{entry}: regression", marker=dict(symbol="x", size=13, color="red")))
-            fig.update_layout(title_text=metric, xaxis_title="ci run #", height=360, margin=dict(t=40))
-            add(fig, "trend")
-    style = ("body{font-family:sans-serif;max-width:1200px;margin:auto;padding:0 1em}"
-             "table{border-collapse:collapse;margin-bottom:1em}"
-             f"th{{background:{TABLE_HEAD_COLOUR};color:white;padding:4px 8px;font-size:13px}}"
-             "td{border:1px solid #ccc;padding:2px 8px;font-size:13px;text-align:right}"
-             "tr.bad td{background:#fde8e8}")
-    doc = ("<!doctype html>\n<html><head><meta charset='utf-8'>"
-           f"<title>{html.escape(title)}</title><style>{style}</style></head><body>\n"
-           f"<h1>{html.escape(title)}</h1>\n" + "\n".join(parts) + "\n</body></html>\n")
-    Path(out).write_text(doc)
-    return {"tables": len(groups), "plots": plots, "trend_runs": trend_runs}
+        doc.parts.append("<p>No ci runs in the results store yet (`pkmbench ci` appends them).</p>")
+        return 0
+    doc.parts.append(f"<p>{len(runs)} ci runs; a red ✕ marks a value out of tolerance in that run.</p>")
+    names = set(history.metric_names())
+    for metric in [m for m in TREND_METRICS if m in names]:
+        fig = go.Figure()
+        for entry, pts in sorted(history.series_marked(metric).items()):
+            fig.add_trace(go.Scatter(x=[p[0] for p in pts], y=[p[1] for p in pts], name=entry, mode="lines+markers"))
+            bad = [p for p in pts if p[2]]
+            if bad:
+                fig.add_trace(go.Scatter(x=[p[0] for p in bad], y=[p[1] for p in bad], mode="markers",
+                                         name=f"{entry}: regression", marker=dict(symbol="x", size=13, color="red")))
+        fig.update_layout(title_text=metric, xaxis_title="ci run #", height=360, margin=dict(t=40))
+        doc.add(fig, "trend")
+    return len(runs)

@@ -20,6 +20,7 @@ table with status ok is skipped.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import logging
@@ -220,67 +221,80 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
         if res.skipped:
             log(f"sweep: {res.skipped} of {len(keyed)} tasks already done, skipped")
         bar = Progress(len(todo), progress)
-
-        def record(key, task, result):
-            rd = run_dir_of(task)
-            target = out_dir / rd
-            shutil.rmtree(target, ignore_errors=True)
-            for rel, data in result.get("files", {}).items():
-                (target / rel).parent.mkdir(parents=True, exist_ok=True)
-                (target / rel).write_bytes(data)
-            store.put(key, {k: v for k, v in task.items() if k != "files"}, version, result,
-                      rd if result.get("files") else None)
-            res.keys.append(key)
-            if store.status(key) == "ok":
-                res.ok += 1
-            else:
-                res.failed += 1
-                err = store.db.execute("SELECT error FROM results WHERE key=?", (key,)).fetchone()[0]
-                res.failures.append((task_label(task), err))
-            bar.update(store.status(key) == "ok")
-
+        record = functools.partial(_record, store, res, bar, out_dir, version)
         if todo and workers == 0 and not scheduler:
             fmus = _fmu_payload()
             for key, task in todo:
                 record(key, task, execute_task(task_fn, task, fmus or None))
         elif todo:
-            client, cluster = _connect(scheduler, workers, processes)
-            try:
-                if scheduler:
-                    theirs = client.run(_worker_code_version)
-                    mine = code_version()
-                    odd = sorted(w for w, v in theirs.items() if v != mine)
-                    if not theirs:
-                        raise SweepError(f"the scheduler at {scheduler} has no workers")
-                    if odd:
-                        raise SweepError(f"workers {', '.join(odd)} run other code (kins/planners/"
-                                         f"harness/FMU hash differs from this checkout); update them")
-                fmus = _fmu_payload()
-                fmus_ref = client.scatter([fmus], broadcast=True)[0] if fmus else None
-                futures, labels = {}, {}
-                # dask re-runs the tasks of a worker that died without telling the client:
-                # the scheduler's remove-worker event names them, so the user hears of it
-                client.subscribe_topic("all", lambda event: _worker_lost(event[1], labels, log))
-                for key, task in todo:
-                    f = client.submit(execute_task, task_fn, task, fmus_ref, pure=False,
-                                      key=f"pkmbench-{key[:16]}-{uuid.uuid4().hex[:8]}")
-                    futures[f] = (key, task)
-                    labels[f.key] = task_label(task)
-                from distributed import as_completed
-                for f in as_completed(futures):
-                    key, task = futures[f]
-                    try:
-                        result = f.result()
-                    except Exception as e:   # the worker died (segfault in an FMU, OOM kill, …)
-                        result = {"status": "error", "error": f"{type(e).__name__}: {e}",
-                                  "traceback": None}
-                    record(key, task, result)
-            finally:
-                # unsubscribed first: else the scheduler sends the client's own remove-client
-                # event down the closing comm and logs a CRITICAL traceback
-                client.unsubscribe_topic("all")
-                client.close()
-                if cluster is not None:
-                    cluster.close()
+            _run_on_dask(todo, task_fn, scheduler, workers, processes, log, record)
     res.wall_s = time.perf_counter() - t0
     return res
+
+
+def _record(store, res: SweepResult, bar: Progress, out_dir: Path, version: str, key, task, result) -> None:
+    """One task's result: its files in its run folder (replacing an earlier run's), its row
+    in the store, and the count of ok/failed runs."""
+    rd = run_dir_of(task)
+    target = out_dir / rd
+    shutil.rmtree(target, ignore_errors=True)
+    for rel, data in result.get("files", {}).items():
+        (target / rel).parent.mkdir(parents=True, exist_ok=True)
+        (target / rel).write_bytes(data)
+    store.put(key, {k: v for k, v in task.items() if k != "files"}, version, result,
+              rd if result.get("files") else None)
+    res.keys.append(key)
+    if store.status(key) == "ok":
+        res.ok += 1
+    else:
+        res.failed += 1
+        err = store.db.execute("SELECT error FROM results WHERE key=?", (key,)).fetchone()[0]
+        res.failures.append((task_label(task), err))
+    bar.update(store.status(key) == "ok")
+
+
+def _run_on_dask(todo, task_fn: str, scheduler: str | None, workers: int, processes: bool, log, record) -> None:
+    """The tasks on a local cluster or the scheduler's workers, recorded as they complete."""
+    client, cluster = _connect(scheduler, workers, processes)
+    try:
+        if scheduler:
+            _check_workers(client, scheduler)
+        fmus = _fmu_payload()
+        fmus_ref = client.scatter([fmus], broadcast=True)[0] if fmus else None
+        futures, labels = {}, {}
+        # dask re-runs the tasks of a worker that died without telling the client:
+        # the scheduler's remove-worker event names them, so the user hears of it
+        client.subscribe_topic("all", lambda event: _worker_lost(event[1], labels, log))
+        for key, task in todo:
+            f = client.submit(execute_task, task_fn, task, fmus_ref, pure=False,
+                              key=f"pkmbench-{key[:16]}-{uuid.uuid4().hex[:8]}")
+            futures[f] = (key, task)
+            labels[f.key] = task_label(task)
+        from distributed import as_completed
+        for f in as_completed(futures):
+            key, task = futures[f]
+            try:
+                result = f.result()
+            except Exception as e:   # the worker died (segfault in an FMU, OOM kill, …)
+                result = {"status": "error", "error": f"{type(e).__name__}: {e}",
+                          "traceback": None}
+            record(key, task, result)
+    finally:
+        # unsubscribed first: else the scheduler sends the client's own remove-client
+        # event down the closing comm and logs a CRITICAL traceback
+        client.unsubscribe_topic("all")
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _check_workers(client, scheduler: str) -> None:
+    """An existing cluster must have workers, all running this checkout's code."""
+    theirs = client.run(_worker_code_version)
+    mine = code_version()
+    odd = sorted(w for w, v in theirs.items() if v != mine)
+    if not theirs:
+        raise SweepError(f"the scheduler at {scheduler} has no workers")
+    if odd:
+        raise SweepError(f"workers {', '.join(odd)} run other code (kins/planners/"
+                         f"harness/FMU hash differs from this checkout); update them")

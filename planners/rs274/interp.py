@@ -5,6 +5,10 @@ parameter settings (after the whole line is read, so ``#1=2 #2=#1`` sees the old
 M6/M61, M3-5, M7-9, M70-73, other M codes, G4, plane, units, cutter compensation (G40 only),
 tool length offset, coordinate system, path control, distance modes, retract mode, the
 non-modal G10/G28/G30/G92/G53, motion, then M0/M1/M2/M30/M60.
+
+This module holds that order (``execute`` and its steps), the parameters and the run loop; the
+word and code checks are in codes.py, offsets and coordinate systems in offsets.py, motion and
+arcs in motion.py, O-word control flow in flow.py.
 """
 from __future__ import annotations
 
@@ -13,65 +17,20 @@ from pathlib import Path as FsPath
 
 from planners.rs274 import expr as X
 from planners.rs274.canon import CanonEvent, CanonMove, CanonProgram
+from planners.rs274.codes import (AXES, MM_PER_INCH, check_axis_words, check_other_codes, g_groups, m_groups,
+                                  read_words)
 from planners.rs274.errors import LineError, RS274Error
+from planners.rs274.flow import Flow, Frame
 from planners.rs274.modal import Modal
+from planners.rs274.motion import Motion
+from planners.rs274.offsets import Offsets
 from planners.rs274.owords import SourceFile
 from planners.rs274.params import Parameters
 
-MM_PER_INCH = 25.4
-# interp_internal.hh: R-form reach tolerance and the spiral tolerance of I/J/K arcs (mm)
-RADIUS_TOLERANCE_MM = 0.00005 * MM_PER_INCH
-CENTER_ARC_RADIUS_TOLERANCE_MM = 2 * 0.01 * math.sqrt(2)
-CENTER_ARC_RADIUS_TOLERANCE_INCH = 2 * 0.001 * math.sqrt(2)
-SPIRAL_RELATIVE_TOLERANCE = 0.001
-TINY = 1e-12
-MAX_CALL_DEPTH = 50
 DEFAULT_MAX_LOOPS = 1_000_000
 
-# G codes (×10, as interp_read.cc's read_g) → modal group
-G_GROUP = {0: 1, 10: 1, 20: 1, 30: 1, 800: 1,
-           40: 0, 100: 0, 280: 0, 281: 0, 300: 0, 301: 0, 530: 0, 920: 0, 921: 0, 922: 0, 923: 0,
-           170: 2, 180: 2, 190: 2, 900: 3, 910: 3, 901: 4, 911: 4, 930: 5, 940: 5, 950: 5,
-           200: 6, 210: 6, 400: 7, 430: 8, 431: 8, 490: 8, 980: 10, 990: 10,
-           540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12, 591: 12, 592: 12, 593: 12,
-           610: 13, 611: 13, 640: 13, 970: 14, 80: 15}
-UNSUPPORTED_G = {
-    50: "G5 (cubic spline)", 51: "G5.1 (quadratic spline)", 52: "G5.2 (NURBS)", 70: "G7 (lathe diameter mode)",
-    330: "G33 (spindle-synchronised motion)", 331: "G33.1 (rigid tapping)", 382: "G38.2 (probing)",
-    383: "G38.3 (probing)", 384: "G38.4 (probing)", 385: "G38.5 (probing)", 730: "G73 (canned cycle)",
-    740: "G74 (canned cycle)", 760: "G76 (threading cycle)", 810: "G81 (canned cycle)", 820: "G82 (canned cycle)",
-    830: "G83 (canned cycle)", 840: "G84 (canned cycle)", 850: "G85 (canned cycle)", 860: "G86 (canned cycle)",
-    870: "G87 (canned cycle)", 880: "G88 (canned cycle)", 890: "G89 (canned cycle)",
-    410: "G41 (cutter radius compensation)", 420: "G42 (cutter radius compensation)",
-    411: "G41.1 (cutter radius compensation)", 421: "G42.1 (cutter radius compensation)",
-    432: "G43.2 (additional tool length offset)", 171: "G17.1 (UV plane)", 181: "G18.1 (WU plane)",
-    191: "G19.1 (VW plane)", 930: "G93 (inverse-time feed)", 950: "G95 (feed per revolution)",
-    960: "G96 (constant surface speed)", 520: "G52 (local offset)", 700: "G70 (lathe finishing cycle)",
-    710: "G71 (lathe roughing cycle)", 720: "G72 (lathe facing cycle)", 150: "G15 (polar coordinates)",
-    160: "G16 (polar coordinates)",
-}
-# interp_internal.hh: a line may carry one M code of each group
-M_GROUP = {0: 4, 1: 4, 2: 4, 30: 4, 60: 4, 6: 6, 61: 6, 3: 7, 4: 7, 5: 7, 7: 8, 8: 8, 9: 8,
-           48: 9, 49: 9, 50: 9, 51: 9, 52: 9, 53: 9, 70: 10, 71: 10, 72: 10, 73: 10,
-           62: 5, 63: 5, 64: 5, 65: 5, 66: 5, 67: 5, 68: 5}
-UNSUPPORTED_M = {19: "M19 (spindle orient)", 98: "M98 (Fanuc subroutine call)", 99: "M99 (Fanuc return)"}
-PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}   # (first, second, normal) axis indices
-AXES = "xyz"
-_ROTARY = "abcuvw"
 
-
-class Frame:
-    __slots__ = ("src", "pc", "named", "saved_numbered", "label", "m73", "call_line", "repeat")
-
-    def __init__(self, src, pc, label=None, call_line=0):
-        self.src, self.pc, self.label, self.call_line = src, pc, label, call_line
-        self.named: dict[str, float] = {}
-        self.saved_numbered = None
-        self.m73 = None
-        self.repeat: dict[int, int] = {}
-
-
-class Interpreter:
+class Interpreter(Offsets, Motion, Flow):
     """Run one program. ``start``: the machine position before it (mm); ``tools``: tool number
     → {"Z": length offset mm, …}; ``subroutine_path``: folders searched for ``name.ngc`` when
     ``O<name> call`` names no subroutine of the file; ``block_delete``: skip '/' lines."""
@@ -95,28 +54,6 @@ class Interpreter:
         self.value = 0.0
         self.value_returned = 0.0
         self._files: dict[str, SourceFile] = {}
-
-    # ------------------------------------------------------------------ coordinates
-    def unit(self) -> float:
-        return MM_PER_INCH if self.m.units == 20 else 1.0
-
-    def to_machine(self, p):
-        x, y, z = p
-        if self.rot:
-            t = math.radians(self.rot)
-            c, s = math.cos(t), math.sin(t)
-            x, y = x * c - y * s, x * s + y * c
-        o, g, t_ = self.g5x, self.g92, self.tlo
-        return [x + o[0] + g[0] + t_[0], y + o[1] + g[1] + t_[1], z + o[2] + g[2] + t_[2]]
-
-    def to_program(self, q):
-        o, g, t_ = self.g5x, self.g92, self.tlo
-        x, y, z = q[0] - o[0] - g[0] - t_[0], q[1] - o[1] - g[1] - t_[1], q[2] - o[2] - g[2] - t_[2]
-        if self.rot:
-            t = math.radians(-self.rot)
-            c, s = math.cos(t), math.sin(t)
-            x, y = x * c - y * s, x * s + y * c
-        return [x, y, z]
 
     # ------------------------------------------------------------------ parameters
     def read_param(self, n: float) -> float:
@@ -253,182 +190,67 @@ class Interpreter:
         self.out.end_line = self.cur_line
         return self.out
 
-    # ------------------------------------------------------------------ O-words
-    def _loop(self):
-        self.loops += 1
-        if self.loops > self.max_loops:
-            raise LineError(f"more than {self.max_loops} loop iterations (an endless loop?): stopped")
-
-    def control(self, b, fr: Frame, pc: int) -> None:
-        src, k = fr.src, b.okey
-        if k == "sub":                 # reached in the flow of the program: skip its body
-            fr.pc = src.jump[pc]
-        elif k == "call":
-            label = b.olabel if isinstance(b.olabel, str) else f"{self.evaluate(b.olabel, fr):g}"
-            args = [self.evaluate(a, fr) for a in b.oargs]
-            if len(args) > 30:
-                raise LineError("more than 30 subroutine arguments")
-            if len(self.frames) >= MAX_CALL_DEPTH:
-                raise LineError(f"subroutine calls nested deeper than {MAX_CALL_DEPTH}")
-            f, at = self.find_sub(label, fr, pc + 1)
-            new = Frame(f, at + 1, label, pc + 1)
-            new.saved_numbered = self.params.save_locals()
-            for i, v in enumerate(args, start=1):
-                self.params.set(i, v)
-            for i in range(len(args) + 1, 31):
-                self.params.set(i, 0.0)
-            self.frames.append(new)
-            self.value_returned = 0.0
-        elif k in ("return", "endsub"):
-            if len(self.frames) == 1:
-                if k == "return":
-                    raise LineError("O return outside a subroutine")
-                return
-            if b.oargs:
-                self.value = self.evaluate(b.oargs[0], fr)
-                self.value_returned = 1.0
-            done = self.frames.pop()
-            self.params.restore_locals(done.saved_numbered)
-            if done.m73 is not None:                  # M73: restore the modal state on return
-                self.restore_modal(done.m73)
-        elif k in ("if", "elseif"):
-            if k == "elseif" and src.taken.get(src.chain_head[pc]):
-                fr.pc = src.jump[pc]                   # an earlier branch ran: go to endif
-                return
-            cond = self.evaluate(b.oargs[0], fr)
-            src.taken[src.chain_head[pc]] = cond != 0.0
-            if cond == 0.0:
-                fr.pc = src.next_branch[pc]
-        elif k == "else":
-            if src.taken.get(src.chain_head[pc]):
-                fr.pc = src.jump[pc]
-        elif k == "endif":
-            pass
-        elif k == "while":
-            if pc in src.do_of:                       # the closing "while" of a do … while
-                if self.evaluate(b.oargs[0], fr) != 0.0:
-                    self._loop()
-                    fr.pc = src.do_of[pc] + 1
-            elif self.evaluate(b.oargs[0], fr) == 0.0:
-                fr.pc = src.jump[pc]
-        elif k == "endwhile":
-            self._loop()
-            fr.pc = src.jump[pc]                      # back to the while (re-tests)
-        elif k == "do":
-            pass
-        elif k == "repeat":
-            n = self.evaluate(b.oargs[0], fr)
-            fr.repeat[pc] = int(n)
-            if fr.repeat[pc] <= 0:
-                fr.pc = src.jump[pc]
-        elif k == "endrepeat":
-            start = src.jump[pc]
-            fr.repeat[start] -= 1
-            if fr.repeat[start] > 0:
-                self._loop()
-                fr.pc = start + 1
-        elif k == "break":
-            fr.pc = src.loop_exit[src.jump[pc]]
-        elif k == "continue":
-            loop = src.jump[pc]
-            kind = src.blocks[loop].okey
-            if kind == "repeat":
-                fr.pc = src.loop_exit[loop] - 1      # the endrepeat: counts down, maybe loops
-            elif kind == "do":
-                fr.pc = src.loop_exit[loop] - 1      # the closing while
-            else:
-                self._loop()
-                fr.pc = loop
-
     # ------------------------------------------------------------------ one block
     def execute(self, b, fr: Frame) -> None:
-        m = self.m
-        fast = b.fast
-        if fast is not None:
-            # the common CAM line (constant X/Y/Z/I/J/K/R/F words, at most a G0-G3): same
-            # semantics as the general path below, without its per-group bookkeeping
-            motion, w = fast
-            if "f" in w:
-                f = w["f"]
-                if f < 0:
-                    raise LineError(f"negative feed rate F{f:g}")
-                m.feed = f * (MM_PER_INCH if m.units == 20 else 1.0)
-            if motion is not None:
-                m.motion = motion
-            mm = m.motion
-            axes = [a for a in AXES if a in w]
-            self._arc_done = False
-            if motion is not None or axes:
-                if mm is None or mm == 800:
-                    if axes:
-                        raise LineError("axis words with no motion mode in force (G0/G1/G2/G3)")
-                else:
-                    self.motion(mm, dict(w), axes, False)
-            for letter in w:
-                if letter in "ijkr" and not self._arc_done:
-                    raise LineError(f"{letter.upper()} word with no code on the line that uses it")
+        if b.fast is not None:
+            self._execute_fast(b.fast)
             return
+        # the modal state as the line began: an M72 on the line replaces self.m, and the G
+        # codes of the line still set this object (as the interpreter always did; issue 18
+        # keeps behaviour)
+        m = self.m
         if b.comment is not None:
             c = b.comment.strip()
             if c[:4].lower() in ("msg,", "debu", "prin"):
                 self.event("message", c)
         if not b.words and not b.assigns:
             return
-        ev = self.evaluate
-        w: dict[str, float] = {}
-        gs: list[int] = []
-        ms: list[int] = []
-        for letter, node in b.words:
-            v = node if isinstance(node, float) else ev(node, fr)
-            if not math.isfinite(v):
-                raise LineError(f"{letter.upper()} value is not finite")
-            if letter == "g":
-                g10 = round(v * 10)
-                if abs(v * 10 - g10) > 1e-6:
-                    raise LineError(f"G{v:g}: G codes have at most one decimal")
-                gs.append(g10)
-            elif letter == "m":
-                if abs(v - round(v)) > 1e-6:
-                    raise LineError(f"M{v:g}: M codes are integers")
-                ms.append(int(round(v)))
-            else:
-                if letter in w:
-                    raise LineError(f"{letter.upper()} word given twice on one line")
-                w[letter] = v
+        w, gs, ms = read_words(b.words, self.evaluate, fr)
         if b.assigns:
-            vals = [(t, ev(node, fr)) for t, node in b.assigns]
-        # -- modal groups ----------------------------------------------------------
-        groups: dict[int, int] = {}
-        for g in gs:
-            if g in UNSUPPORTED_G:
-                raise LineError(f"{UNSUPPORTED_G[g]} is not supported")
-            grp = G_GROUP.get(g)
-            if grp is None:
-                raise LineError(f"unknown or unsupported G code G{g / 10:g}")
-            if grp in groups:
-                # interp_read.cc read_g: G80 beside another motion code yields to it
-                if grp == 1 and 800 in (g, groups[1]):
-                    groups[1] = groups[1] if g == 800 else g
-                    continue
-                raise LineError(f"G{groups[grp] / 10:g} and G{g / 10:g} are in the same modal group")
-            groups[grp] = g
-        mgroups: dict[int, int] = {}
-        for mc in ms:
-            if mc in UNSUPPORTED_M:
-                raise LineError(f"{UNSUPPORTED_M[mc]} is not supported")
-            grp = M_GROUP.get(mc, 11 if 100 <= mc <= 199 else None)
-            if grp is None:
-                raise LineError(f"unknown M code M{mc}")
-            if grp in mgroups and not (grp == 8 and {mc, mgroups[grp]} == {7, 8}):
-                raise LineError(f"M{mgroups[grp]} and M{mc} are in the same modal group")
-            mgroups[grp] = mc
-        for letter in w:
-            if letter in _ROTARY:
-                raise LineError(f"{letter.upper()} axis word: rotary/extra axes are not supported (X, Y, Z only)")
+            vals = [(t, self.evaluate(node, fr)) for t, node in b.assigns]
+        groups = g_groups(gs)
+        mg = m_groups(ms)
+        check_axis_words(w)
         if b.assigns:
             for t, v in vals:
                 self.assign(t, v, fr)
-        # -- F S T ------------------------------------------------------------------
+        self._feed_speed_tool(w, groups)
+        self._m_codes(mg, w, fr)
+        g0 = groups.get(0)
+        self._g_modes(m, g0, groups, w)
+        self._g_motion(m, g0, groups, w)
+        check_other_codes(w, g0, groups, mg, self._arc_done)
+        if 4 in mg:
+            self._program_stop(mg[4])
+
+    def _execute_fast(self, fast) -> None:
+        """The common CAM line (constant X/Y/Z/I/J/K/R/F words, at most a G0-G3): same
+        semantics as the general path of execute, without its per-group bookkeeping."""
+        m = self.m
+        motion, w = fast
+        if "f" in w:
+            f = w["f"]
+            if f < 0:
+                raise LineError(f"negative feed rate F{f:g}")
+            m.feed = f * (MM_PER_INCH if m.units == 20 else 1.0)
+        if motion is not None:
+            m.motion = motion
+        mm = m.motion
+        axes = [a for a in AXES if a in w]
+        self._arc_done = False
+        if motion is not None or axes:
+            if mm is None or mm == 800:
+                if axes:
+                    raise LineError("axis words with no motion mode in force (G0/G1/G2/G3)")
+            else:
+                self.motion(mm, dict(w), axes, False)
+        for letter in w:
+            if letter in "ijkr" and not self._arc_done:
+                raise LineError(f"{letter.upper()} word with no code on the line that uses it")
+
+    def _feed_speed_tool(self, w, groups) -> None:
+        """F (in the units of the line: a G20/G21 on it counts), S and T."""
+        m = self.m
         u = MM_PER_INCH if groups.get(6, m.units * 10) == 200 else 1.0
         if "f" in w:
             if w["f"] < 0:
@@ -442,7 +264,11 @@ class Interpreter:
             if w["t"] < 0 or w["t"] != int(w["t"]):
                 raise LineError(f"T{w['t']:g}: tool numbers are integers ≥ 0")
             m.selected_tool = int(w["t"])
-        mg = mgroups
+
+    def _m_codes(self, mg, w, fr: Frame) -> None:
+        """M6/M61 (tool change), M3-5 (spindle), M7-9 (coolant), M70-73 (modal state), then
+        the events of the M codes other than the program stops."""
+        m = self.m
         if 6 in mg:
             if mg[6] == 6:
                 self.tool = m.selected_tool
@@ -457,27 +283,32 @@ class Interpreter:
         if 8 in mg:
             m.coolant = mg[8]
         if 10 in mg:
-            c = mg[10]
-            if c == 70:
-                self.saved_modal = self.save_modal()
-            elif c == 71:
-                self.saved_modal = None
-            elif c == 72:
-                if getattr(self, "saved_modal", None) is None:
-                    raise LineError("M72: no modal state saved by M70")
-                self.restore_modal(self.saved_modal)
-            else:
-                if len(self.frames) == 1:
-                    raise LineError("M73 outside a subroutine")
-                fr.m73 = self.save_modal()
+            self._modal_state(mg[10], fr)
         for grp in (5, 9, 11):
             if grp in mg:
                 self.event("m", mg[grp])
         for grp in (6, 7, 8, 10):
             if grp in mg:
                 self.event("m", mg[grp])
-        # -- G codes, in execution order --------------------------------------------
-        g0 = groups.get(0)
+
+    def _modal_state(self, c: int, fr: Frame) -> None:
+        """M70 save, M71 forget, M72 restore the modal state; M73: restore it on return."""
+        if c == 70:
+            self.saved_modal = self.save_modal()
+        elif c == 71:
+            self.saved_modal = None
+        elif c == 72:
+            if getattr(self, "saved_modal", None) is None:
+                raise LineError("M72: no modal state saved by M70")
+            self.restore_modal(self.saved_modal)
+        else:
+            if len(self.frames) == 1:
+                raise LineError("M73 outside a subroutine")
+            fr.m73 = self.save_modal()
+
+    def _g_modes(self, m, g0, groups, w) -> None:
+        """G4 dwell, then the modal G codes before motion: plane, units, tool length offset,
+        coordinate system, path control, distance modes (set in ``m``)."""
         if g0 == 40:
             if "p" not in w or w["p"] < 0:
                 raise LineError("G4 dwell needs P ≥ 0 (seconds)")
@@ -504,6 +335,10 @@ class Interpreter:
             m.absolute = groups[3] == 900
         if 4 in groups:
             m.ijk_absolute = groups[4] == 901
+
+    def _g_motion(self, m, g0, groups, w) -> None:
+        """The non-modal G10/G28/G30/G92 (they take the axis words), else the motion of the
+        line in the motion mode of ``m`` (G53: in machine coordinates)."""
         motion = groups.get(1)
         self._arc_done = False
         axes = [a for a in AXES if a in w]
@@ -525,142 +360,18 @@ class Interpreter:
                 self.motion(mm, w, axes, g0 == 530)
         elif g0 == 530 and not axes_used:
             raise LineError("G53 needs a G0 or G1 move")
-        # interp_check.cc's check_other_codes: a word no code on the line uses is an error
-        used = set("xyzfstgmn@^")
-        if g0 == 40:
-            used.add("p")
-        if g0 == 100:
-            used |= set("lpr")
-        if groups.get(13) == 640:
-            used |= set("pq")
-        if 8 in groups:
-            used.add("h")
-        if 6 in mg and mg[6] == 61:
-            used.add("q")
-        if 5 in mg or 9 in mg:
-            used |= set("pqle")
-        if self._arc_done:
-            used |= set("ijkrp")
-        for letter in w:
-            if letter not in used:
-                raise LineError(f"{letter.upper()} word with no code on the line that uses it")
-        for grp in (4,):
-            if grp in mg:
-                c = mg[grp]
-                self.event("m", c)
-                if c in (2, 30):
-                    self.ended = True
-                    self.out.notes.append((self.cur_line, f"M{c}: end of program"))
 
+    def _program_stop(self, c: int) -> None:
+        """M0/M1/M2/M30/M60, last on the line; M2 and M30 end the program."""
+        self.event("m", c)
+        if c in (2, 30):
+            self.ended = True
+            self.out.notes.append((self.cur_line, f"M{c}: end of program"))
+
+    # ------------------------------------------------------------------ canonical output
     def event(self, kind, value):
         fr = self.frames[-1]
         self.out.events.append(CanonEvent(kind, self.cur_line, fr.src.name, value, len(self.out.moves)))
-
-    # ------------------------------------------------------------------ modal helpers
-    def save_modal(self):
-        return self.m.copy()
-
-    def restore_modal(self, saved):
-        coord = saved.coord
-        self.m = saved.copy()
-        self.m.motion = self.m.motion           # (motion mode is part of the saved state too)
-        if coord != self.active_coord:
-            self.select_coord(int(coord * 10))
-
-    @property
-    def active_coord(self):
-        return self.m.coord
-
-    def select_coord(self, g: int) -> None:
-        idx = {540: 1, 550: 2, 560: 3, 570: 4, 580: 5, 590: 6, 591: 7, 592: 8, 593: 9}[g]
-        self.m.coord = g / 10
-        self.m.coord_index = idx
-        self.params.set(5220, float(idx))
-        base = 5201 + 20 * idx
-        self.g5x = [self.params.get(base + i) for i in range(3)]
-        self.rot = self.params.get(5210 + 20 * idx)
-
-    def tool_length(self, g: int, w) -> None:
-        if g == 490:
-            self.tlo = [0.0, 0.0, 0.0]
-        elif g == 430:
-            h = int(w["h"]) if "h" in w else self.tool
-            if self.tools and h != 0 and h not in self.tools:
-                raise LineError(f"G43 H{h}: tool {h} is not in the tool table")
-            t = self.tools.get(h, {})
-            self.tlo = [t.get("X", 0.0), t.get("Y", 0.0), t.get("Z", 0.0)]
-        else:                                     # G43.1: dynamic offset from the axis words
-            u = self.unit()
-            self.tlo = [w.get(a, 0.0) * u for a in AXES]
-            for a in AXES:
-                w.pop(a, None)
-
-    def nonmodal(self, g: int, w, axes) -> None:
-        if "@" in axes:
-            raise LineError(f"polar coordinates (@ ^) with G{g / 10:g}")
-        u = self.unit()
-        prog = self.to_program(self.pos)
-        if g == 100:
-            lnum = w.get("l")
-            if lnum not in (2.0, 20.0):
-                raise LineError(f"G10 L{lnum if lnum is None else f'{lnum:g}'} is not supported (G10 L2/L20 only)")
-            p = int(w.get("p", 0))
-            if not 0 <= p <= 9:
-                raise LineError(f"G10 P{p}: coordinate system must be 0 … 9")
-            idx = p or self.m.coord_index
-            base = 5201 + 20 * idx
-            if lnum == 2.0:
-                for a in axes:
-                    self.params.set(base + AXES.index(a), w[a] * u)
-                if "r" in w:
-                    self.params.set(5210 + 20 * idx, w["r"])
-            else:
-                if "r" in w:
-                    raise LineError("R not allowed in G10 L20")
-                if self.params.get(5210 + 20 * idx):
-                    raise LineError("G10 L20 on a rotated coordinate system is not supported")
-                for a in axes:
-                    i = AXES.index(a)
-                    self.params.set(base + i, self.pos[i] - self.g92[i] - self.tlo[i] - w[a] * u)
-            if idx == self.m.coord_index:
-                self.select_coord(int(self.m.coord * 10))
-        elif g == 920:
-            if not axes:
-                raise LineError("G92 needs at least one axis word")
-            for a in axes:
-                i = AXES.index(a)
-                self.g92[i] = self.pos[i] - self.g5x[i] - self.tlo[i] - w[a] * u
-            if self.rot and ("x" in w or "y" in w):
-                raise LineError("G92 with an XY rotation in force is not supported")
-            for i in range(3):
-                self.params.set(5211 + i, self.g92[i])
-            self.params.set(5210, 1.0)
-        elif g in (921, 922):
-            self.g92 = [0.0, 0.0, 0.0]
-            if g == 921:
-                for i in range(3):
-                    self.params.set(5211 + i, 0.0)
-                self.params.set(5210, 0.0)
-        elif g == 923:
-            self.g92 = [self.params.get(5211 + i) for i in range(3)]
-        elif g in (281, 301):                       # store the current (machine) position
-            base = 5161 if g == 281 else 5181
-            for i in range(3):
-                self.params.set(base + i, self.pos[i])
-        else:                                       # G28 / G30: via an intermediate point
-            base = 5161 if g == 280 else 5181
-            # interp_convert.cc's convert_home: always a traverse to the intermediate point
-            # (the current point when no axis word is given), then to the stored point
-            mid = list(prog)
-            for a in axes:
-                i = AXES.index(a)
-                mid[i] = w[a] * u if self.m.absolute else prog[i] + w[a] * u
-            self.emit("rapid", self.to_machine(mid) if axes else list(self.pos))
-            end = list(self.pos)
-            for i, a in enumerate(AXES):
-                if not axes or a in axes:
-                    end[i] = self.params.get(base + i)
-            self.emit("rapid", end)
 
     def emit(self, kind, end, **kw):
         m = self.m
@@ -669,131 +380,6 @@ class Interpreter:
                                         None if kind == "rapid" else m.feed, m.path, **kw))
         self.pos = list(end)
 
-    # ------------------------------------------------------------------ motion
-    def polar(self, w, prog, endp, axes) -> None:
-        # as interp_find.cc's find_ends: @ (distance) and ^ (angle, degrees) about the origin,
-        # or, in G91, added to the current point's distance and angle
-        if "x" in axes or "y" in axes:
-            raise LineError("X or Y words with polar coordinates (@ ^)")
-        px, py = prog[0], prog[1]
-        u = self.unit()
-        if self.m.absolute:
-            if "@" in w and "^" in w:
-                px, py = w["@"] * u * math.cos(math.radians(w["^"])), w["@"] * u * math.sin(math.radians(w["^"]))
-            elif "@" in w:
-                if px == 0 and py == 0:
-                    raise LineError("polar @ at the origin needs an angle ^")
-                t = math.atan2(py, px)
-                px, py = w["@"] * u * math.cos(t), w["@"] * u * math.sin(t)
-            else:
-                r = math.hypot(py, px)
-                px, py = r * math.cos(math.radians(w["^"])), r * math.sin(math.radians(w["^"]))
-        else:
-            if px == 0 and py == 0:
-                raise LineError("incremental polar motion at the origin is indeterminate")
-            if "@" in w:
-                t = math.atan2(py, px)
-                r = math.hypot(py, px) + w["@"] * u
-                px, py = r * math.cos(t), r * math.sin(t)
-            if "^" in w:
-                t = math.atan2(py, px) + math.radians(w["^"])
-                r = math.hypot(py, px)
-                px, py = r * math.cos(t), r * math.sin(t)
-        endp[0], endp[1] = px, py
-
-    def motion(self, mm: int, w, axes, g53: bool) -> None:
-        m = self.m
-        u = self.unit()
-        prog = self.to_program(self.pos)
-        axes = [a for a in axes if a != "@"]
-        if g53:
-            if mm not in (0, 10):
-                raise LineError("G53 needs a G0 or G1 move")
-            if not m.absolute:
-                raise LineError("G53 with G91 (incremental) in force")
-            end = list(self.pos)
-            for a in axes:
-                end[AXES.index(a)] = w[a] * u
-        else:
-            endp = list(prog)
-            for a in axes:
-                i = AXES.index(a)
-                endp[i] = w[a] * u if m.absolute else prog[i] + w[a] * u
-        if "@" in w or "^" in w:
-            if g53:
-                raise LineError("polar coordinates (@ ^) with G53")
-            self.polar(w, prog, endp, axes)
-        if mm in (0, 10):
-            for letter in "ijkr":
-                if letter in w:
-                    raise LineError(f"{letter.upper()} word on a G{mm // 10} (straight) move")
-            if mm == 10 and not m.feed:
-                raise LineError("G1 feed move with a zero feed rate: give F")
-            self.emit("rapid" if mm == 0 else "feed", end if g53 else self.to_machine(endp))
-            return
-        # G2 / G3: as interp_convert.cc's convert_arc2 and interp_arc.cc's arc_data_ijk/arc_data_r
-        if not m.feed:
-            raise LineError(f"G{mm // 10} arc with a zero feed rate: give F")
-        i1, i2, ia = PLANES[m.plane]
-        letters = "ijk"
-        allowed = {letters[i1], letters[i2]}
-        offs = [c for c in "ijk" if c in w]
-        bad = [c for c in offs if c not in allowed]
-        if bad:
-            raise LineError(f"{bad[0].upper()} word for an arc in the G{m.plane} plane")
-        if self.rot and m.plane != 17:
-            raise LineError("G18/G19 arc with an XY rotation in force is not supported")
-        turns = 1
-        if "p" in w:
-            turns = int(round(w["p"]))
-            if abs(w["p"] - turns) > 1e-6 or turns < 1:
-                raise LineError(f"arc P{w['p']:g} (turns) must be an integer ≥ 1")
-        s1, s2 = prog[i1], prog[i2]
-        e1, e2 = endp[i1], endp[i2]
-        if "r" in w:
-            if offs:
-                raise LineError("R and I/J/K given together: use one arc form")
-            if e1 == s1 and e2 == s2:
-                raise LineError("R-form arc whose end is its start: a full circle needs I/J/K")
-            r = w["r"] * u
-            ar = abs(r)
-            mid1, mid2 = (e1 + s1) / 2.0, (e2 + s2) / 2.0
-            half = math.hypot(mid1 - e1, mid2 - e2)
-            if half - ar > RADIUS_TOLERANCE_MM * (1 if u == 1.0 else 1) and half - ar > (
-                    RADIUS_TOLERANCE_MM if u == 1.0 else 0.00005 * MM_PER_INCH):
-                raise LineError(f"arc radius R{abs(w['r']):g} is too small to reach the end point")
-            if ar == 0.0 or half / ar > 1 - TINY:
-                half = ar
-            if (mm == 20 and r > 0) or (mm == 30 and r < 0):
-                theta = math.atan2(e2 - s2, e1 - s1) - math.pi / 2
-            else:
-                theta = math.atan2(e2 - s2, e1 - s1) + math.pi / 2
-            off = ar * math.cos(math.asin(half / ar)) if ar else 0.0
-            c1, c2 = mid1 + off * math.cos(theta), mid2 + off * math.sin(theta)
-        else:
-            if not offs:
-                raise LineError(f"G{mm // 10} arc needs I/J/K (centre) or R")
-            o = {c: w[c] * u for c in offs}
-            a1, a2 = o.get(letters[i1], 0.0), o.get(letters[i2], 0.0)
-            if m.ijk_absolute:
-                c1, c2 = a1, a2
-            else:
-                c1, c2 = s1 + a1, s2 + a2
-            r1 = math.hypot(c1 - s1, c2 - s2)
-            r2 = math.hypot(c1 - e1, c2 - e2)
-            rtol = RADIUS_TOLERANCE_MM
-            if r1 < rtol or r2 < rtol:
-                raise LineError(f"zero-radius arc (radius to start {r1:.6g} mm, to end {r2:.6g} mm)")
-            err = abs(r1 - r2)
-            tol = CENTER_ARC_RADIUS_TOLERANCE_MM if m.units == 21 else CENTER_ARC_RADIUS_TOLERANCE_INCH * MM_PER_INCH
-            if err > tol * 100.0 or (err / max(r1, r2) > SPIRAL_RELATIVE_TOLERANCE and err > tol):
-                raise LineError(f"arc radius to end ({r2:.6g} mm) differs from radius to start ({r1:.6g} mm) "
-                                f"by {err:.3g} mm (LinuxCNC accepts {tol:.3g} mm or 0.1 %)")
-        cen = list(prog)
-        cen[i1], cen[i2] = c1, c2
-        turn = -turns if mm == 20 else turns
-        self.emit("arc", self.to_machine(endp), center=tuple(self.to_machine(cen)), plane=m.plane, turn=turn)
-        self._arc_done = True
 
 
 def _read_text(name: str) -> str:
