@@ -3,7 +3,7 @@
 What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of LinuxCNC 2.9):
 
 * Geometry as LinuxCNC gets it: lines and arcs. A NURBS is first cut into G1 lines within
-  the chord tolerance (as a CAM post does; :func:`planners.paths.blend.cut_into_lines`) and its
+  the chord tolerance (as a CAM post does; :func:`planners.paths.lines.cut_into_lines`) and its
   corners are then blended under ``G64 P<tolerance>`` by tangent arcs
   (:func:`planners.paths.blend.blend_corners`; blendmath.c). A G-code path is re-blended
   from its program as LinuxCNC blends it: G64 arcs sized to the speed (the moves' feeds, the
@@ -43,7 +43,8 @@ import numpy as np
 
 from planners.constraints import check_limits, check_path_in_workspace
 from planners.errors import PlanningError
-from planners.paths.blend import blend_corners, cut_into_lines
+from planners.paths.blend import blend_corners
+from planners.paths.lines import cut_into_lines
 from planners.paths import NurbsPath, Path, SegmentPath
 from planners.feed import segment_feeds
 from planners.profile import Profile

@@ -4,7 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from planners.paths.blend import BlendSpeed, blend_corners, cut_into_lines
+from planners.paths.blend import BlendSpeed, blend_corners
+from planners.paths.lines import cut_into_lines
 from planners.paths import Arc, Line, NurbsPath, SegmentPath
 
 

@@ -18,7 +18,8 @@ import numpy as np  # noqa: E402
 
 from kins import load_machine  # noqa: E402
 from planners import plan  # noqa: E402
-from planners.paths.blend import blend_corners, cut_into_lines  # noqa: E402
+from planners.paths.blend import blend_corners  # noqa: E402
+from planners.paths.lines import cut_into_lines  # noqa: E402
 from planners.paths import resolve_path  # noqa: E402
 
 

@@ -119,10 +119,42 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
 
     Zero-length moves are dropped (a note; an M code on their line still counts: ``events``).
     """
-    from planners.rs274 import RS274Error, interpret
     opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete)
     if max_loops is not None:
         opts["max_loops"] = max_loops
+    cp, positioning = _interpret(text, source, start, home, opts)
+    # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
+    canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M)
+    prog = GCodeProgram(source, None)
+    prog.notes += cp.notes
+    first = 0
+    if positioning and canon:
+        m0 = canon[0]
+        prog.start = np.array(m0.end, float)
+        prog.notes.append((m0.line, f"start point {prog.start.tolist()} (positioning move, no segment)"))
+        first = 1
+    else:
+        prog.start = np.array(cp.start, float)
+    made = _segments(prog, canon, first)
+    # an event's index: the segments before it (LinuxCNC stops there for an M code)
+    prog.events = [replace(e, index=made[e.index]) for e in canon_events]
+    if not prog.moves and positioning and canon:
+        _only_move_from_home(prog, canon[0], home)
+    if not prog.moves:
+        raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
+    for e in prog.events:
+        syncs = e.kind in ("dwell", "tool") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
+        if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop is None:
+            _stop(prog.moves[e.index - 1], "sync")
+    if prog.moves[-1].stop is None:
+        _stop(prog.moves[-1], "end")
+    return prog
+
+
+def _interpret(text: str, source: str, start, home, opts):
+    """(canonical program, positioning?): the interpreter's run from ``start``; without one, from
+    an unknown point (NaN) that the first move must set (positioning), else again from ``home``."""
+    from planners.rs274 import RS274Error, interpret
     positioning = start is None
     at = start if start is not None else (math.nan,) * 3     # unknown: NaN marks it
     try:
@@ -137,28 +169,25 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
             cp = interpret(text, source, start=tuple(np.asarray(home, float)), **opts)
     except RS274Error as e:
         raise GCodeError(e.file, e.line, e.message) from None
-    # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
-    canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M)
-    prog = GCodeProgram(source, None)
-    prog.events = canon_events
-    prog.notes += cp.notes
-    first = 0
-    if positioning and canon:
-        m0 = canon[0]
-        prog.start = np.array(m0.end, float)
-        prog.notes.append((m0.line, f"start point {prog.start.tolist()} (positioning move, no segment)"))
-        first = 1
-    else:
-        prog.start = np.array(cp.start, float)
+    return cp, positioning
+
+
+def _blend_of(path_mode) -> float | None:
+    """A move's corner tolerance from its path mode: G61 → None, G64 P0 → inf, G64 P p → p."""
+    return None if path_mode[0] == "exact" else (math.inf if path_mode[1] == 0 else path_mode[1])
+
+
+def _segments(prog: GCodeProgram, canon: list, first: int) -> list[int]:
+    """The canonical moves from ``first`` on as prog.moves (zero-length ones dropped, a rapid↔feed
+    change an exact stop); returns the number of moves made before each canonical move."""
     pos = prog.start.copy()
-    made = [0] * (len(canon) + 1)          # segments made before each canonical move
+    made = [0] * (len(canon) + 1)
     for k, cm in enumerate(canon[first:], start=first):
         made[k] = len(prog.moves)
         end = np.array(cm.end, float)
         if not np.isfinite(end).all():
             raise GCodeError(cm.file, cm.line, "the position is unknown here (pass start=, the machine's position)")
         ln = cm.line
-        blend = None if cm.path_mode[0] == "exact" else (math.inf if cm.path_mode[1] == 0 else cm.path_mode[1])
         feed = None if cm.kind == "rapid" else cm.feed_mm_min / 60.0
         if cm.kind == "arc":
             seg = _arc(cm, pos, end)
@@ -170,36 +199,28 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         if prog.moves and prog.moves[-1].rapid != (cm.kind == "rapid") and prog.moves[-1].stop is None:
             prog.moves[-1].stop = "mode"      # tp.c handleModeChange: exact stop, full acceleration
             prog.moves[-1].blend_mm = None
-        prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, blend))
+        prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, _blend_of(cm.path_mode)))
         # after an arc, the next segment starts where the arc's geometry ends (within ~1e-15
         # of the programmed end): segments chain exactly, and the standard paths plan as before
         pos = seg.end.copy() if cm.kind == "arc" else end
     made[len(canon)] = len(prog.moves)
-    # an event's index: the segments before it (LinuxCNC stops there for an M code)
-    prog.events = [replace(e, index=made[e.index]) for e in canon_events]
-    if not prog.moves and positioning and canon:
-        m0 = canon[0]
-        if home is None:
-            raise GCodeError(source, m0.line, "the program's only move positions the tool: nothing to plan "
-                                              "without the point it starts from (pass home=)")
-        home = np.asarray(home, float)
-        if np.linalg.norm(prog.start - home) <= ZERO_MOVE_MM:
-            raise GCodeError(source, m0.line, f"the program's only move goes to {home.tolist()}, where the tool "
-                                              "already is: nothing to plan")
-        target, prog.start = prog.start, home.copy()
-        prog.notes.append((m0.line, f"the only move: planned from home {home.tolist()}"))
-        blend = None if m0.path_mode[0] == "exact" else (math.inf if m0.path_mode[1] == 0 else m0.path_mode[1])
-        prog.moves.append(Move(Line(home, target, m0.line, f"{source}:{m0.line}"), m0.line, m0.kind == "rapid",
-                               None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, blend))
-    if not prog.moves:
-        raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
-    for e in prog.events:
-        syncs = e.kind in ("dwell", "tool") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
-        if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop is None:
-            _stop(prog.moves[e.index - 1], "sync")
-    if prog.moves[-1].stop is None:
-        _stop(prog.moves[-1], "end")
-    return prog
+    return made
+
+
+def _only_move_from_home(prog: GCodeProgram, m0, home) -> None:
+    """A program whose only move positions the tool: that move, planned from ``home``."""
+    source = prog.source
+    if home is None:
+        raise GCodeError(source, m0.line, "the program's only move positions the tool: nothing to plan "
+                                          "without the point it starts from (pass home=)")
+    home = np.asarray(home, float)
+    if np.linalg.norm(prog.start - home) <= ZERO_MOVE_MM:
+        raise GCodeError(source, m0.line, f"the program's only move goes to {home.tolist()}, where the tool "
+                                          "already is: nothing to plan")
+    target, prog.start = prog.start, home.copy()
+    prog.notes.append((m0.line, f"the only move: planned from home {home.tolist()}"))
+    prog.moves.append(Move(Line(home, target, m0.line, f"{source}:{m0.line}"), m0.line, m0.kind == "rapid",
+                           None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, _blend_of(m0.path_mode)))
 
 
 def _stop(move: Move, why: str) -> None:
