@@ -65,3 +65,14 @@ def test_a_flat_xy_arc_becomes_two_lines_through_its_midpoint(tmp_path):
     # a larger arc (sagitta 0.5 mm) stays an arc
     q = program(tmp_path, "G1 X0 Y0 Z-250\nG3 X10 Y10 I0 J10\n")
     assert [m.segment.kind for m in q.moves] == ["arc"]
+
+
+def test_an_f_or_g64_word_ends_the_chain_even_unchanged_but_a_comment_does_not(tmp_path):
+    # rs274 enqueues SET_FEED_RATE for every F word and SET_MOTION_CONTROL_MODE for every G64
+    # (both flush_segments() in emccanon.cc); COMMENT and SELECT_PLANE do not flush
+    line = "".join(f"G1 X{0.1 * k:.4f}\n" for k in range(1, 11))
+    more = "".join(f"G1 X{1 + 0.1 * k:.4f}\n" for k in range(1, 11))
+    assert len(program(tmp_path, line + "(a comment)\nG17\n" + more).moves) == 1
+    assert len(program(tmp_path, line + "F1200\n" + more).moves) == 2
+    assert len(program(tmp_path, line + "G64 P0.01 Q0.005\n" + more).moves) == 2
+    assert len(program(tmp_path, line + "S1000\n" + more).moves) == 2

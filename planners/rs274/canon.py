@@ -39,4 +39,7 @@ class CanonProgram:
     moves: list[CanonMove] = field(default_factory=list)
     events: list[CanonEvent] = field(default_factory=list)
     notes: list[tuple[int, str]] = field(default_factory=list)
+    # moves emitted before each canon call that flushes LinuxCNC's G64 Q chain (an F, S or G64
+    # word, a work or tool offset: emccanon.cc SET_FEED_RATE, SET_SPINDLE_SPEED, …)
+    flushes: list[int] = field(default_factory=list)
     end_line: int = 0

@@ -233,6 +233,7 @@ class Interpreter(Offsets, Motion, Flow):
             if f < 0:
                 raise LineError(f"negative feed rate F{f:g}")
             m.feed = f * (MM_PER_INCH if m.units == 20 else 1.0)
+            self.flush()
         if motion is not None:
             m.motion = motion
         mm = m.motion
@@ -256,10 +257,12 @@ class Interpreter(Offsets, Motion, Flow):
             if w["f"] < 0:
                 raise LineError(f"negative feed rate F{w['f']:g}")
             m.feed = w["f"] * u
+            self.flush()
         if "s" in w:
             if w["s"] < 0:
                 raise LineError(f"negative spindle speed S{w['s']:g}")
             m.speed = w["s"]
+            self.flush()
         if "t" in w:
             if w["t"] < 0 or w["t"] != int(w["t"]):
                 raise LineError(f"T{w['t']:g}: tool numbers are integers ≥ 0")
@@ -331,6 +334,7 @@ class Interpreter(Offsets, Motion, Flow):
                 m.path = ("blend", p, q)
             else:
                 m.path = ("exact",)
+            self.flush()
         if 3 in groups:
             m.absolute = groups[3] == 900
         if 4 in groups:
@@ -369,6 +373,10 @@ class Interpreter(Offsets, Motion, Flow):
             self.out.notes.append((self.cur_line, f"M{c}: end of program"))
 
     # ------------------------------------------------------------------ canonical output
+    def flush(self) -> None:
+        """A canon call that ends a G64 Q chain (see CanonProgram.flushes)."""
+        self.out.flushes.append(len(self.out.moves))
+
     def event(self, kind, value):
         fr = self.frames[-1]
         self.out.events.append(CanonEvent(kind, self.cur_line, fr.src.name, value, len(self.out.moves)))

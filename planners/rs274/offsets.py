@@ -51,6 +51,7 @@ class Offsets:
         return self.m.coord
 
     def select_coord(self, g: int) -> None:
+        self.flush()                     # emccanon.cc: offsets end a G64 Q chain
         idx = {540: 1, 550: 2, 560: 3, 570: 4, 580: 5, 590: 6, 591: 7, 592: 8, 593: 9}[g]
         self.m.coord = g / 10
         self.m.coord_index = idx
@@ -60,6 +61,7 @@ class Offsets:
         self.rot = self.params.get(5210 + 20 * idx)
 
     def tool_length(self, g: int, w) -> None:
+        self.flush()                     # emccanon.cc: offsets end a G64 Q chain
         if g == 490:
             self.tlo = [0.0, 0.0, 0.0]
         elif g == 430:
@@ -93,6 +95,7 @@ class Offsets:
 
     def _g10(self, w, axes, u) -> None:
         """G10 L2 (set a system's origin) and L20 (so that the current point reads the words)."""
+        self.flush()                     # emccanon.cc: offsets end a G64 Q chain
         lnum = w.get("l")
         if lnum not in (2.0, 20.0):
             raise LineError(f"G10 L{lnum if lnum is None else f'{lnum:g}'} is not supported (G10 L2/L20 only)")
@@ -120,6 +123,7 @@ class Offsets:
     def _g92(self, g: int, w, axes, u) -> None:
         """G92 (set the offset), G92.1 (clear it and its parameters), G92.2 (clear it),
         G92.3 (restore it from the parameters)."""
+        self.flush()                     # emccanon.cc: offsets end a G64 Q chain
         if g == 920:
             if not axes:
                 raise LineError("G92 needs at least one axis word")

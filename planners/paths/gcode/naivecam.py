@@ -11,8 +11,8 @@ LinuxCNC 2.9 does this in its canon layer, between the interpreter and the traje
 - an XY arc (G17, G64) whose sagitta r·(1 − cos(θ/2)) is below Q becomes two points: its
   angular midpoint (z halfway) and its end (``chord_deviation``);
 - any other canonical call that flushes in emccanon.cc ends the chain first: rapids, other arcs,
-  and here the events between moves (M codes, dwells, tool changes, messages), a change of feed
-  or of path-control mode, and the interpreter's "flush" events (an F, S or G64 word).
+  the events between moves (M codes, dwells, tool changes, messages) and the interpreter's
+  flushes (an F, S or G64 word, even with the same value; a work or tool offset).
 """
 from __future__ import annotations
 
@@ -22,12 +22,13 @@ from dataclasses import replace
 MAX_CHAIN = 100          # linkable(): "if (chained_points.size() > 100) return false"
 
 
-def join_moves(moves: list, events: list, stateless_m=frozenset()) -> tuple[list, list]:
+def join_moves(moves: list, events: list, stateless_m=frozenset(), flushes=()) -> tuple[list, list]:
     """(moves, events) with the G64 Q chains joined; each event's index (moves before it) is
-    mapped onto the joined moves. ``stateless_m``: M codes that flush nothing (M70–M73)."""
+    mapped onto the joined moves. ``stateless_m``: M codes that flush nothing (M70–M73);
+    ``flushes``: the other canon calls that end a chain (moves emitted before each)."""
     if not any(m.path_mode[0] == "blend" and m.path_mode[2] > 0 for m in moves):
         return moves, events
-    flush_at = {e.index for e in events if not (e.kind == "m" and e.value in stateless_m)}
+    flush_at = {e.index for e in events if not (e.kind == "m" and e.value in stateless_m)} | set(flushes)
     out: list = []
     chain: list = []           # [(end point, the move it comes from)]
     start = None               # the chain's start: where the last move sent ended

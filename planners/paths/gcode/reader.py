@@ -124,7 +124,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         opts["max_loops"] = max_loops
     cp, positioning = _interpret(text, source, start, home, opts)
     # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
-    canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M)
+    canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M, cp.flushes)
     prog = GCodeProgram(source, None)
     prog.notes += cp.notes
     first = 0
