@@ -328,7 +328,8 @@ class Interpreter(Offsets, Motion, Flow):
             g = groups[13]
             if g == 640:
                 p = w.get("p", 0.0) * self.unit()
-                q = w.get("q", 0.0) * self.unit()
+                # interp_convert.cc convert_control_mode: without Q the naive-CAM tolerance is P
+                q = w.get("q", w.get("p", 0.0)) * self.unit()
                 if p < 0 or q < 0:
                     raise LineError("G64 P and Q must be ≥ 0")
                 m.path = ("blend", p, q)
