@@ -40,6 +40,16 @@ START_HELP = ("G-code: the machine position before the program (mm); every move,
               "and Z positions the tool, else the machine's home)")
 
 
+READER_HELP = ("G-code reader: pkmbench (the built-in RS274NGC interpreter) or linuxcnc (LinuxCNC's own, "
+               "from linuxcnc-uspace: make linuxcnc) (default: %(default)s)")
+
+
+def add_gcode_arguments(p) -> None:
+    """--start and --reader: how a G-code program is read (run, plan, check)."""
+    p.add_argument("--start", default=None, metavar="X,Y,Z", help=START_HELP)
+    p.add_argument("--reader", choices=("pkmbench", "linuxcnc"), default="pkmbench", help=READER_HELP)
+
+
 def parse_start(text: str | None) -> list[float] | None:
     """--start X,Y,Z → [x, y, z] (mm), None when not given; CliError naming the value otherwise."""
     if text is None:

@@ -2,14 +2,14 @@
 1 findings, 2 invalid program)."""
 from __future__ import annotations
 
-from harness.cli import START_HELP, CliError, parse_start
+from harness.cli import CliError, add_gcode_arguments, parse_start
 
 
 def add_arguments(p):
     p.add_argument("program", help="G-code program (.ngc)")
     p.add_argument("--machine", required=True, help="machine id or .toml file")
     p.add_argument("--planner", default="trapezoid", help="planner that runs it (default: %(default)s)")
-    p.add_argument("--start", default=None, metavar="X,Y,Z", help=START_HELP)
+    add_gcode_arguments(p)
     p.add_argument("--json", action="store_true", help="machine-readable report (every finding)")
     p.add_argument("--all", action="store_true",
                    help="print every finding (default: a summary and the 50 worst entries)")
@@ -22,7 +22,7 @@ def main(args) -> int:
 
     try:
         m = load_machine(args.machine)
-        rep = check_program(args.program, m, args.planner, start=parse_start(args.start))
+        rep = check_program(args.program, m, args.planner, start=parse_start(args.start), reader=args.reader)
     except (MachineFileError, CheckError) as e:
         raise CliError(str(e)) from None
     print(rep.to_json() if args.json else rep.text(limit=None if args.all else TEXT_LIMIT))

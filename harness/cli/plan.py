@@ -1,7 +1,7 @@
 """`pkmbench plan`: plan feed profiles only (no co-simulation), write them, print their metrics."""
 from __future__ import annotations
 
-from harness.cli import START_HELP, CliError, parse_start
+from harness.cli import CliError, add_gcode_arguments, parse_start
 from harness.outdir import output_dir
 
 
@@ -12,7 +12,7 @@ def add_arguments(p):
     p.add_argument("--path", help="toolpath id or .json/.ngc file")
     p.add_argument("--planners", default="scurve",
                    help="comma-separated planners: names of --list or module:function (default: %(default)s)")
-    p.add_argument("--start", default=None, metavar="X,Y,Z", help=START_HELP)
+    add_gcode_arguments(p)
     p.add_argument("--max-feed", action="store_true", help="run G-code at F_max, ignoring its F words")
     p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
 
@@ -42,7 +42,7 @@ def main(args) -> int:
 
     try:
         m = load_machine(args.machine)
-        path = resolve_path(args.path, home=m.home, start=parse_start(args.start))
+        path = resolve_path(args.path, home=m.home, start=parse_start(args.start), reader=args.reader)
     except (MachineFileError, PathError) as e:
         raise CliError(str(e)) from None
     from harness.cosim.run import feed_summary

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from harness.cli import START_HELP, CliError, parse_start
+from harness.cli import CliError, add_gcode_arguments, parse_start
 from harness.outdir import output_dir
 from kins.resources import run_dir, suite_run_dir
 
@@ -27,7 +27,7 @@ def add_arguments(p):
     p.add_argument("--fmu", action="append", metavar="BLOCK=FILE.fmu",
                    help="a user FMU in place of ours: BLOCK one of Interpolator, Kinematics, EtherCAT, Drive "
                         "(repeatable; a suite's [fmus] table does the same; interface: harness/cosim/blocks.py)")
-    p.add_argument("--start", default=None, metavar="X,Y,Z", help=START_HELP)
+    add_gcode_arguments(p)
     p.add_argument("--max-feed", action="store_true",
                    help="run G-code at F_max, ignoring its F words (planner-only comparisons; "
                         "summary.json's 'feed' says so); a suite's [[run]] takes max_feed = true")
@@ -117,7 +117,7 @@ def main(args) -> int:
             summary = run_case(machine, path, planners, odir, seed=args.seed, jitter=args.jitter, ideal=args.ideal,
                                engine=args.engine, jacobi=args.jacobi, planner_options=opts,
                                recordings=not args.no_recordings, progress=_progress, max_feed=max_feed,
-                               fmus=fmus or None, start=start)
+                               fmus=fmus or None, start=start, reader=args.reader)
         except RunError as e:
             raise CliError(str(e)) from None
         sys.stderr.write("\r" + " " * 60 + "\r")

@@ -73,12 +73,13 @@ def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None
 def run_case(machine_name: str, path_name: str, planner_names: list[str], out_dir, *, seed: int = 0,
              jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
              planner_options: dict | None = None, recordings: bool = True, progress=None,
-             max_feed: bool = False, fmus: dict | None = None, start=None) -> dict:
+             max_feed: bool = False, fmus: dict | None = None, start=None, reader: str = "pkmbench") -> dict:
     """``max_feed``: run a G-code program at F_max instead of its programmed F (planner-only
     comparisons); summary.json's ``feed`` says which. ``fmus``: {block: user .fmu} in place of
     ours (harness.cosim.blocks), checked before anything runs; summary.json's ``fmus`` names them.
     ``start``: G-code only, the machine position before the program (default: its first positioning
-    move, else the machine's home; planners.paths.gcode.parse_gcode)."""
+    move, else the machine's home; planners.paths.gcode.parse_gcode); ``reader``: G-code read by
+    pkmbench's interpreter or LinuxCNC's (summary.json names it when it is not pkmbench's)."""
     from kins import load_machine
     from kins.machine import MachineFileError
     import planners
@@ -89,7 +90,7 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     except MachineFileError as e:
         raise RunError(str(e)) from None
     try:
-        path = resolve_path(path_name, home=machine.home, start=start)
+        path = resolve_path(path_name, home=machine.home, start=start, reader=reader)
     except PathError as e:
         raise RunError(str(e)) from None
     from planners.feed import use_max_feed
@@ -118,13 +119,13 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         with run_lock(output_dir(out_dir)):
             return _run(machine, path, path_name, planner_names, out_dir, seed=seed, jitter=jitter, ideal=ideal,
                         engine=engine, jacobi=jacobi, planner_options=planner_options, recordings=recordings,
-                        progress=progress, fmus=fmus, start=start)
+                        progress=progress, fmus=fmus, start=start, reader=reader)
     except OutDirError as e:
         raise RunError(str(e)) from None
 
 
 def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter, ideal, engine, jacobi,
-         planner_options, recordings, progress, fmus=None, start=None) -> dict:
+         planner_options, recordings, progress, fmus=None, start=None, reader="pkmbench") -> dict:
     """run_case's work, with the folder locked: nothing of an earlier run may look like this one's."""
     import planners
 
@@ -138,6 +139,8 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
                "feed": feed_summary(path), "planners": {}}
     if start is not None:      # only then, as fmus below
         summary["start_mm"] = [float(v) for v in start]
+    if reader != "pkmbench":
+        summary["gcode_reader"] = reader
     if fmus:   # only then: the summaries of runs with our chain keep their bytes
         summary["fmus"] = {b: str(f) for b, f in sorted(fmus.items())}
     timing = {}

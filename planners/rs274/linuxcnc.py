@@ -9,7 +9,7 @@ machine coordinates (mm), converted as AXIS's glcanon does: rotate X/Y by the XY
 then add the G5x, G92 and tool offsets. The interpreter calls back in inches (gcodemodule
 reports every length in inches), so lengths are multiplied by 25.4.
 
-    /usr/bin/python3 planners/rs274/linuxcnc.py PROGRAM.ngc [--tool-table FILE]
+    /usr/bin/python3 planners/rs274/linuxcnc.py PROGRAM.ngc [--tool-table FILE] [--start X,Y,Z]
       → {"kind": "rapid"|"feed"|"arc"|"dwell"|"mcode"|..., "line": N, ...} per line, then
         {"kind": "end", "result": CODE, "line": N, "error": TEXT|null}
 """
@@ -117,14 +117,18 @@ class Canon:
         return lambda *a: None
 
 
-def run(program, tool_table=None):
+def run(program, tool_table=None, start=None):
+    """``start`` (x, y, z mm): the machine position before the program. The module always starts
+    at 0: a G53 G0 there first (its move is the first one printed, "line" 0) and G80, the
+    interpreter's initial motion mode, again."""
     import gcode
     with tempfile.TemporaryDirectory() as d:
         var = os.path.join(d, "pkmbench.var")
         open(var, "w").close()
         c = Canon(_tool_table(tool_table), var)
-        # unitcode G21: the machine works in mm (as an INI with LINEAR_UNITS = mm)
-        result, last = gcode.parse(program, c, "G21", "")
+        # G21: the machine works in mm (as an INI with LINEAR_UNITS = mm)
+        init = ["G21"] + ([] if start is None else ["G53 G0 X%r Y%r Z%r" % tuple(start), "G80"])
+        result, last = gcode.parse(program, c, init)
         err = None if result <= gcode.MIN_ERROR else gcode.strerror(result)
     return c.out, {"kind": "end", "result": result, "line": last, "error": err}
 
@@ -136,7 +140,12 @@ if __name__ == "__main__":
         i = args.index("--tool-table")
         tbl = args[i + 1]
         del args[i:i + 2]
-    moves, end = run(args[0], tbl)
+    start = None
+    if "--start" in args:
+        i = args.index("--start")
+        start = [float(v) for v in args[i + 1].split(",")]
+        del args[i:i + 2]
+    moves, end = run(args[0], tbl, start)
     w = sys.stdout.write
     for m in moves:
         w(json.dumps(m) + "\n")

@@ -104,8 +104,12 @@ def strip_comments(text: str, src: str, ln: int) -> str:
     return "".join(out)
 
 
+READERS = ("pkmbench", "linuxcnc")
+
+
 def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, tools=None,
-                subroutine_path=(), block_delete: bool = False, max_loops: int | None = None) -> GCodeProgram:
+                subroutine_path=(), block_delete: bool = False, max_loops: int | None = None,
+                reader: str = "pkmbench") -> GCodeProgram:
     """Read G-code text into moves (lines/arcs in mm, machine coordinates, each with its line).
 
     The text runs through the RS274NGC interpreter (:mod:`planners.rs274`, LinuxCNC's semantics);
@@ -118,11 +122,23 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     - else the program starts from ``home`` (the machine's position), as LinuxCNC would.
 
     Zero-length moves are dropped (a note; an M code on their line still counts: ``events``).
+    ``reader="linuxcnc"``: LinuxCNC's own interpreter reads the file ``source`` instead
+    (planners.rs274.linuxcnc_reader; ``text`` is not used, nor tools, subroutine path, block delete).
     """
     opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete)
     if max_loops is not None:
         opts["max_loops"] = max_loops
-    cp, positioning = _interpret(text, source, start, home, opts)
+    if reader == "linuxcnc":
+        from planners.rs274 import RS274Error
+        from planners.rs274.linuxcnc_reader import linuxcnc_canon
+        try:
+            cp, positioning = linuxcnc_canon(source, start, home)
+        except RS274Error as e:
+            raise GCodeError(e.file, _refused_line(e, text, source, start, home, opts), e.message) from None
+    elif reader == "pkmbench":
+        cp, positioning = _interpret(text, source, start, home, opts)
+    else:
+        raise GCodeError(source, 0, f"unknown G-code reader {reader!r}; valid: {', '.join(READERS)}")
     # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
     canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M, cp.flushes)
     prog = GCodeProgram(source, None)
@@ -149,6 +165,17 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     if prog.moves[-1].stop is None:
         _stop(prog.moves[-1], "end")
     return prog
+
+
+def _refused_line(e, text: str, source: str, start, home, opts) -> int:
+    """The line of a refusal by LinuxCNC's interpreter: its gcode module names the line after a
+    read error (gcodemodule.cc error_line_offset), so the line our interpreter refuses, if it
+    refuses the program too, else LinuxCNC's."""
+    try:
+        _interpret(text, source, start, home, opts)
+    except GCodeError as ours:
+        return ours.line
+    return e.line
 
 
 def _interpret(text: str, source: str, start, home, opts):
