@@ -249,3 +249,16 @@ def test_start_gives_the_machine_position_before_the_program(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["stats"]["length_mm"] == pytest.approx(50.0)
     assert main(["check", str(f), "--machine", "kossel", "--start", "0,0"]) == 2
     assert "--start 0,0: expected X,Y,Z in mm" in capsys.readouterr().err
+
+
+def test_a_velocity_finding_names_the_feed_that_keeps_it_within(tmp_path):
+    # joint velocity = |q′(s)|·feed: the feed the finding names (speed × limit / value) is exact,
+    # so the line programmed at that feed has no joint velocity finding left
+    import re
+    f = prog(tmp_path, "G1 X-40 Y-40 Z-250 F1200\nG1 X40 Y40 Z-250\n")
+    v = [x for x in check_program(f, KOSSEL, "trapezoid").findings if x.kind == "joint_velocity"]
+    assert v and "(F1200 programmed)" in v[0].message
+    at, keep = map(float, re.search(r"at ([\d.]+) mm/s .*≤ ([\d.]+) mm/s keeps it within", v[0].message).groups())
+    assert at == pytest.approx(20.0, rel=1e-3) and keep <= at * 20.0 / v[0].value * (1 + 1e-9)
+    f2 = prog(tmp_path, f"G1 X-40 Y-40 Z-250 F{60 * keep * 0.999:.4f}\nG1 X40 Y40 Z-250\n", "p2.ngc")
+    assert not [x for x in check_program(f2, KOSSEL, "trapezoid").findings if x.kind == "joint_velocity"]

@@ -89,7 +89,7 @@ class Report:
     def text(self, limit: int | None = TEXT_LIMIT) -> str:
         """Summary per kind, then the findings worst first: consecutive lines of one kind merged
         into a range and at most ``limit`` entries (None: every finding, one per line)."""
-        head = f"{self.program}: {self.machine}, planner {self.planner}"
+        head = f"{self.program}: {self.machine}, planner {self.planner}" + _PLANNER_NOTES.get(self.planner, "")
         if self.invalid:
             return head + "\n" + "\n".join(f"  {self.program}:{f.lines[0] if f.lines else 0}: error: {f.message}"
                                            for f in self.findings if f.kind == "compile")
@@ -117,6 +117,12 @@ class Report:
                        "--all prints every one (--json too)")
         return "\n".join(out)
 
+
+
+# what the default planners stand for (issue 21: check reports what LinuxCNC would do)
+_PLANNER_NOTES = {"trapezoid": " (LinuxCNC 2.9's tp: the programmed F, its blends and stops; "
+                               "--planner linuxcnc runs the real one)",
+                  "linuxcnc": " (the real LinuxCNC 2.9, run headless)"}
 
 
 def _badness(f: Finding) -> tuple[float, float]:
@@ -202,9 +208,11 @@ def _lines_of(path, s: np.ndarray) -> np.ndarray:
 
 
 def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, limit: float, unit: str,
-           what: str, joints: np.ndarray | None = None) -> list[Finding]:
+           what: str, joints: np.ndarray | None = None, feed=None) -> list[Finding]:
     """One finding per G-code line where mask holds, with that line's worst value (and, given
-    ``joints``, the joint of that worst sample named first: "joint 2 …")."""
+    ``joints``, the joint of that worst sample named first: "joint 2 …"; given ``feed`` = (path
+    speed at each sample, {line: programmed F mm/s or None}, velocity?), what the machine does
+    there: its feed, the programmed F and, for a velocity, the feed that keeps it within)."""
     out = []
     idx = np.nonzero(mask)[0]
     if not len(idx):
@@ -219,12 +227,36 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     vals = values[idx[first]].tolist()
     lns = ln[first].tolist()
     jts = None if joints is None else joints[idx[first]].tolist()
+    speeds = None if feed is None else feed[0][idx[first]].tolist()
+    keep = _keep_feed(values, lines, feed[0], limit, lns) if feed is not None and feed[2] else [None] * len(lns)
     for k, (v, c) in enumerate(zip(vals, count)):
         name = what if jts is None else f"joint {int(jts[k]) + 1} {what}"
+        where = "" if speeds is None else _feed_note(speeds[k], feed[1].get(lns[k]), keep[k])
         out.append(Finding(kind, "error", [int(lns[k])], v, limit, unit,
                            f"{name} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
-                           f"(ratio {abs(v) / limit:.3f}, {c} sample(s))"))
+                           f"(ratio {abs(v) / limit:.3f}, {c} sample(s)){where}"))
     return out
+
+
+def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
+    """The largest feed at which each line's velocity stays within ``limit``: a joint or
+    Cartesian velocity is the feed times a factor of the geometry (|q′(s)|), so limit / the
+    line's largest factor, over all its samples (not only those over the limit)."""
+    ok = speed > 1e-9 * max(float(speed.max()), 1e-300)
+    ln, f = lines[ok], values[ok] / speed[ok]
+    order = np.argsort(ln, kind="stable")
+    ln, f = ln[order], f[order]
+    starts = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
+    gmax = dict(zip(ln[starts].tolist(), np.maximum.reduceat(f, starts).tolist()))
+    return [limit / gmax[x] if gmax.get(x) else None for x in lns]
+
+
+def _feed_note(speed: float, programmed, keep) -> str:
+    """', at 12.5 mm/s (F1200 programmed); ≤ 9.8 mm/s keeps it within': what the machine does
+    on that line and, for a velocity, the feed that keeps the line within (``keep``, mm/s);
+    acceleration and jerk depend on the planner's ramps too."""
+    prog = "rapid" if programmed is None else f"F{60 * programmed:.6g} programmed"
+    return f", at {speed:.4g} mm/s ({prog})" + ("" if keep is None else f"; ≤ {keep:.4g} mm/s keeps it within")
 
 
 def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5, *,
@@ -337,6 +369,9 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
     P = prof.path.point(prof.s)
     Q = machine.ik(P)
     slines = _lines_of(prof.path, prof.s)
+    prog = prof.path.program
+    programmed = {} if prog is None else {m.line: m.feed_mm_s for m in prog.moves}
+    speed = np.linalg.norm(np.diff(P, axis=0), axis=1) / T      # the path speed of each period
     rep.stats["samples"] = int(len(P))
     rep.stats["execution_time_s"] = prof.execution_time_s
     for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
@@ -355,7 +390,9 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
             if not mask.any():
                 continue
             ln = slines[-len(D):]
+            feed = (speed[-len(D):], programmed, order == "velocity")
             if space == "joint":
-                rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col)
+                rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col, feed=feed)
             else:
-                rep.findings += _group(f"cartesian_{order}", mask, worst, ln, L, unit, f"Cartesian {order}")
+                rep.findings += _group(f"cartesian_{order}", mask, worst, ln, L, unit, f"Cartesian {order}",
+                                       feed=feed)
