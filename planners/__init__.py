@@ -29,11 +29,11 @@ def plan(name: str, path, machine, limits=None, **options):
     ``path`` may be a Path or a file / standard path name (resolved first, not timed).
     A result that is not a valid :class:`Profile` is a PlanningError naming the planner.
     """
+    from planners.paths import Path, resolve_path
     from planners.profile import Profile, ProfileError
 
     fn = get_planner(name)
-    if not hasattr(path, "point"):
-        from planners.paths import resolve_path
+    if not isinstance(path, Path):
         path = resolve_path(path)
     t0 = time.perf_counter()
     profile = fn(path, machine, limits, **options)

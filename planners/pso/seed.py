@@ -54,7 +54,7 @@ def knot_density(tau, jerk):
     the feed dips at the FLF minima and G1 joins need the resolution)."""
     aj = np.abs(jerk)
     w = np.convolve(aj, np.ones(9) / 9, mode="same")
-    area = np.trapezoid(w, tau) if hasattr(np, "trapezoid") else np.trapz(w, tau)
+    area = np.trapezoid(w, tau)          # numpy ≥ 2 (constraints.txt pins 2.4)
     return tau, 1.0 + (w / area if area > 0 else 0.0)
 
 
