@@ -146,3 +146,62 @@ def test_wrong_fmu_is_refused_naming_the_variable(fmus, tmp_path, capsys, block,
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1] == f"pkmbench run: error: {message}" and "Traceback" not in "".join(err)
     assert not (tmp_path / "run/summary.json").exists()
+
+
+def test_sweep_and_ci_run_a_suites_user_fmu_as_run_does(fmus, tmp_path):
+    """A suite's [fmus] Drive (a path relative to the suite file) in `sweep` (on a Dask worker
+    process, which gets the FMU as bytes) and `ci`: the metrics of `run` with that Drive, bit
+    for bit; the rows name the FMU by file, content hash and source."""
+    import hashlib
+
+    from harness.store import ResultStore
+    from harness.sweep import SweepStore, task_key, tasks_from_suite_file
+    shutil.copy(fmus["good"], tmp_path / "LagDrive.fmu")
+    runs = f'[[run]]\nmachine = "keops"\npath = "{fmus["line"]}"\nplanners = ["scurve"]\n'
+    suite = tmp_path / "s.toml"
+    suite.write_text(runs + '[fmus]\nDrive = "LagDrive.fmu"\n')
+    assert cli(["run", str(suite), "--jitter", "none", "--no-recordings", "--out", str(tmp_path / "run")]) == 0
+    want = json.loads((tmp_path / "run/summary.json").read_text())["planners"]["scurve"]
+    assert want["max_following_error_um"] > 100          # the 2 ms lag's, not our drive's
+
+    assert cli(["sweep", str(suite), "--workers", "1", "--out", str(tmp_path / "sw"),
+                "--store", str(tmp_path / "store"), "--no-progress"]) == 0
+    row, = SweepStore(tmp_path / "sw/results.sqlite").to_rows()
+    assert row["worker"].rsplit(":", 1)[1] != str(__import__("os").getpid())   # another process
+    assert {k: v for k, v in row["metrics"].items() if k != "planning_time_s"} == want
+    sha = hashlib.sha256(fmus["good"].read_bytes()).hexdigest()
+    named = {"Drive": {"file": "LagDrive.fmu", "sha256": sha, "source": str(tmp_path / "LagDrive.fmu")}}
+    assert row["task"]["fmus"] == named
+    ran = json.loads((tmp_path / "sw" / row["run_dir"] / "summary.json").read_text())["fmus"]["Drive"]
+    assert ran.endswith(f"/user/{sha[:16]}/LagDrive.fmu")
+    with ResultStore(tmp_path / "store") as st:
+        _, ((info,),) = st.query("SELECT run_info FROM results")
+    assert json.loads(info) == {"fmus": named}
+    ours = tmp_path / "ours.toml"
+    ours.write_text(runs)
+    (t_user,), (t_ours,) = tasks_from_suite_file(suite), tasks_from_suite_file(ours)
+    assert "fmus" not in t_ours and task_key(t_user, "v") != task_key(t_ours, "v")
+
+    assert cli(["ci", "--suite", str(suite), "--baseline", str(tmp_path / "baseline.json"), "--out",
+                str(tmp_path / "ci"), "--workers", "0", "--store", str(tmp_path / "store"), "--update-baseline"]) == 0
+    from harness.sweep import flatten
+    entry = json.loads((tmp_path / "baseline.json").read_text())["entries"]["keops/line/scurve/seed0/none/base"]
+    assert {k: entry[k] for k in flatten(want)} == flatten(want)
+    with ResultStore(tmp_path / "store") as st:
+        _, ((info,),) = st.query("SELECT run_info FROM results WHERE kind = 'ci'")
+    assert json.loads(info)["fmus"] == named
+
+
+@pytest.mark.parametrize("command", ["sweep", "ci"])
+def test_sweep_and_ci_refuse_a_wrong_fmu_before_any_task(fmus, tmp_path, capsys, command):
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'[[run]]\nmachine = "keops"\npath = "{fmus["line"]}"\nplanners = ["scurve"]\n'
+                     f'[fmus]\nDrive = "{fmus["good"]}"\n')
+    argv = ([command, str(suite)] if command == "sweep" else [command, "--suite", str(suite), "--baseline",
+                                                               str(tmp_path / "b.json"), "--update-baseline"])
+    assert cli(argv + ["--out", str(tmp_path / "o"), "--store", str(tmp_path / "st"), "--fmu",
+                       f"Drive={fmus['bad']}"]) == 2            # --fmu wins over the suite's [fmus]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"pkmbench {command}: error: Drive FMU BadDrive.fmu: variable 'position' is input Real, "
+                       f"expected output Real")
+    assert not (tmp_path / "o").exists() and not (tmp_path / "st").exists()

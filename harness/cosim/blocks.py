@@ -56,6 +56,16 @@ def parse_fmu_args(specs) -> dict[str, Path]:
     return out
 
 
+def command_fmus(specs=(), suite: dict | None = None, suite_file=None) -> dict[str, Path]:
+    """The user FMUs of a command: a suite's ``[fmus]`` table (paths relative to the suite file)
+    and ``--fmu BLOCK=FILE`` specs, which win; parsed, not yet checked (:func:`check_user_fmu`)."""
+    table = (suite or {}).get("fmus", {})
+    if not isinstance(table, dict) or not all(isinstance(f, str) for f in table.values()):
+        raise SystemError_(f"{suite_file}: [fmus] must map a block name to an .fmu file name")
+    base = Path(suite_file).parent if suite_file else Path()
+    return parse_fmu_args([f"{b}={base / f}" for b, f in table.items()]) | parse_fmu_args(specs)
+
+
 def check_blocks(fmus: dict) -> None:
     for block in fmus:
         if block not in INTERFACE:
