@@ -188,11 +188,10 @@ def with_user_fmus(tasks: list[dict], suite: dict | None, suite_file=None, specs
     with harness.cosim.blocks.check_user_fmu's message. A task names each FMU by its file name,
     the sha256 of its content (part of the task key) and its source file (which the client ships
     to the workers: harness.sweep.engine); tasks of our own chain are returned unchanged."""
-    from harness.cosim.blocks import check_engine, check_user_fmu, command_fmus
+    from harness.cosim.blocks import check_user_fmu, command_fmus
     from harness.cosim.system import SystemError_
     try:
         fmus = {b: check_user_fmu(b, f) for b, f in command_fmus(specs, suite, suite_file).items()}
-        check_engine(fmus, "native")        # the master of the sweeps' co-simulation task
     except SystemError_ as e:
         raise SuiteError(str(e)) from None
     if not fmus:
