@@ -208,3 +208,13 @@ def test_sweep_and_ci_refuse_a_wrong_fmu_before_any_task(fmus, tmp_path, capsys,
     assert err[-1] == (f"pkmbench {command}: error: Drive FMU BadDrive.fmu: variable 'position' is input Real, "
                        f"expected output Real")
     assert not (tmp_path / "o").exists() and not (tmp_path / "st").exists()
+
+
+@pytest.mark.parametrize("command", ["run", "sweep"])
+def test_a_malformed_fmus_table_is_refused_naming_the_suite(tmp_path, capsys, command):
+    suite = tmp_path / "s.toml"
+    suite.write_text('[[run]]\nmachine = "keops"\npath = "bird"\nplanners = ["scurve"]\n[fmus]\nDrive = 3\n')
+    assert cli([command, str(suite), "--out", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        f"pkmbench {command}: error: {suite}: [fmus] must map a block name to an .fmu file name")
+    assert not (tmp_path / "o").exists()
