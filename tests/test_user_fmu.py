@@ -94,9 +94,10 @@ def test_pythonfmu_drive_replaces_ours_and_matches_the_lag_recursion(fmus, tmp_p
     assert worst > 100          # a 2 ms lag at these speeds: far from our ideal drive's zero
 
 
-def test_fmi3_drive_replaces_ours_in_the_python_master(fmus, tmp_path, capsys):
-    """The FMI 3.0 Drive (pythonfmu3) through the whole chain: the same closed form; the native
-    master, which calls the FMI 2.0 C API, refuses it before anything runs."""
+def test_fmi3_drive_replaces_ours_in_both_masters(fmus, tmp_path):
+    """The FMI 3.0 Drive (pythonfmu3) through the whole chain, beside our FMI 2.0 blocks: the same
+    closed form in the Python master (fmpy's calls) and the native one (native_master.c calls
+    fmi3DoStep, fmi3GetFloat64, … itself), the two agreeing to 1e-12 on every recorded signal."""
     import planners
     from fmpy import read_model_description
     from harness.cosim.run import cosimulate
@@ -105,28 +106,30 @@ def test_fmi3_drive_replaces_ours_in_the_python_master(fmus, tmp_path, capsys):
     assert read_model_description(str(fmus["good3"])).fmiVersion == "3.0"
     m = load_machine("keops")
     prof = planners.plan("scurve", load_path(fmus["line"]), m)
-    res = cosimulate(m, prof, tmp_path, ideal=True, engine="python", fmus={"Drive": fmus["good3"]})
+    res = {}
+    for e in ("python", "native"):
+        (tmp_path / e).mkdir()
+        res[e] = cosimulate(m, prof, tmp_path / e, ideal=True, engine=e, fmus={"Drive": fmus["good3"]})
     worst = 0.0
     for k in (1, 2, 3):
-        tgt, p = res[f"ethercat.q{k}_target"], res[f"drive{k}.position"]
-        assert np.array_equal(tgt, res[f"kinematics.q{k}_cmd"])
+        tgt, p = res["python"][f"ethercat.q{k}_target"], res["python"][f"drive{k}.position"]
+        assert np.array_equal(tgt, res["python"][f"kinematics.q{k}_cmd"])
         assert np.max(np.abs(lag_recursion(tgt, m.servo_period_s) - p)) <= 1e-12
         worst = max(worst, np.max(np.abs(tgt - p)) * 1e3)
-    ssd = (tmp_path / "SystemStructure.ssd").read_text()
+    py, nat = res["python"], res["native"]
+    assert py.columns == nat.columns and py.data.shape == nat.data.shape and len(py.t) > 100
+    assert np.max(np.abs(py.data - nat.data)) <= 1e-12
+    assert np.any(nat["drive1.following_error"] != 0) and not np.any(nat["drive1.fault"])
+    ssd = (tmp_path / "native/SystemStructure.ssd").read_text()
     assert "resources/LagDrive3.fmu" in ssd and "Float64" not in ssd        # SSP's own types on the connectors
 
     argv = ["run", "--machine", "keops", "--path", str(fmus["line"]), "--planners", "scurve", "--ideal",
             "--no-recordings", "--fmu", f"Drive={fmus['good3']}"]
-    assert cli(argv + ["--engine", "python", "--out", str(tmp_path / "run")]) == 0
-    s = json.loads((tmp_path / "run/summary.json").read_text())
-    assert s["planners"]["scurve"]["max_following_error_um"] == pytest.approx(worst, rel=1e-12)
+    for engine in ("python", "native"):
+        assert cli(argv + ["--engine", engine, "--out", str(tmp_path / f"run-{engine}")]) == 0
+        s = json.loads((tmp_path / f"run-{engine}/summary.json").read_text())
+        assert s["planners"]["scurve"]["max_following_error_um"] == pytest.approx(worst, rel=1e-12)
     assert worst > 100
-    capsys.readouterr()
-    assert cli(argv + ["--out", str(tmp_path / "native")]) == 2
-    assert capsys.readouterr().err.strip().splitlines()[-1] == (
-        "pkmbench run: error: Drive FMU LagDrive3.fmu is FMI 3.0: the native master calls the FMI 2.0 C API; "
-        "run it with --engine python")
-    assert not (tmp_path / "native/summary.json").exists()
 
 
 @pytest.mark.parametrize("block, which, message", [
@@ -146,3 +149,72 @@ def test_wrong_fmu_is_refused_naming_the_variable(fmus, tmp_path, capsys, block,
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1] == f"pkmbench run: error: {message}" and "Traceback" not in "".join(err)
     assert not (tmp_path / "run/summary.json").exists()
+
+
+def test_sweep_and_ci_run_a_suites_user_fmu_as_run_does(fmus, tmp_path):
+    """A suite's [fmus] Drive (a path relative to the suite file) in `sweep` (on a Dask worker
+    process, which gets the FMU as bytes) and `ci`: the metrics of `run` with that Drive, bit
+    for bit; the rows name the FMU by file, content hash and source."""
+    import hashlib
+
+    from harness.store import ResultStore
+    from harness.sweep import SweepStore, task_key, tasks_from_suite_file
+    shutil.copy(fmus["good"], tmp_path / "LagDrive.fmu")
+    runs = f'[[run]]\nmachine = "keops"\npath = "{fmus["line"]}"\nplanners = ["scurve"]\n'
+    suite = tmp_path / "s.toml"
+    suite.write_text(runs + '[fmus]\nDrive = "LagDrive.fmu"\n')
+    assert cli(["run", str(suite), "--jitter", "none", "--no-recordings", "--out", str(tmp_path / "run")]) == 0
+    want = json.loads((tmp_path / "run/summary.json").read_text())["planners"]["scurve"]
+    assert want["max_following_error_um"] > 100          # the 2 ms lag's, not our drive's
+
+    assert cli(["sweep", str(suite), "--workers", "1", "--out", str(tmp_path / "sw"),
+                "--store", str(tmp_path / "store"), "--no-progress"]) == 0
+    row, = SweepStore(tmp_path / "sw/results.sqlite").to_rows()
+    assert row["worker"].rsplit(":", 1)[1] != str(__import__("os").getpid())   # another process
+    assert {k: v for k, v in row["metrics"].items() if k != "planning_time_s"} == want
+    sha = hashlib.sha256(fmus["good"].read_bytes()).hexdigest()
+    named = {"Drive": {"file": "LagDrive.fmu", "sha256": sha, "source": str(tmp_path / "LagDrive.fmu")}}
+    assert row["task"]["fmus"] == named
+    ran = json.loads((tmp_path / "sw" / row["run_dir"] / "summary.json").read_text())["fmus"]["Drive"]
+    assert ran.endswith(f"/user/{sha[:16]}/LagDrive.fmu")
+    with ResultStore(tmp_path / "store") as st:
+        _, ((info,),) = st.query("SELECT run_info FROM results")
+    assert json.loads(info) == {"fmus": named}
+    ours = tmp_path / "ours.toml"
+    ours.write_text(runs)
+    (t_user,), (t_ours,) = tasks_from_suite_file(suite), tasks_from_suite_file(ours)
+    assert "fmus" not in t_ours and task_key(t_user, "v") != task_key(t_ours, "v")
+
+    assert cli(["ci", "--suite", str(suite), "--baseline", str(tmp_path / "baseline.json"), "--out",
+                str(tmp_path / "ci"), "--workers", "0", "--store", str(tmp_path / "store"), "--update-baseline"]) == 0
+    from harness.sweep import flatten
+    entry = json.loads((tmp_path / "baseline.json").read_text())["entries"]["keops/line/scurve/seed0/none/base"]
+    assert {k: entry[k] for k in flatten(want)} == flatten(want)
+    with ResultStore(tmp_path / "store") as st:
+        _, ((info,),) = st.query("SELECT run_info FROM results WHERE kind = 'ci'")
+    assert json.loads(info)["fmus"] == named
+
+
+@pytest.mark.parametrize("command", ["sweep", "ci"])
+def test_sweep_and_ci_refuse_a_wrong_fmu_before_any_task(fmus, tmp_path, capsys, command):
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'[[run]]\nmachine = "keops"\npath = "{fmus["line"]}"\nplanners = ["scurve"]\n'
+                     f'[fmus]\nDrive = "{fmus["good"]}"\n')
+    argv = ([command, str(suite)] if command == "sweep" else [command, "--suite", str(suite), "--baseline",
+                                                               str(tmp_path / "b.json"), "--update-baseline"])
+    assert cli(argv + ["--out", str(tmp_path / "o"), "--store", str(tmp_path / "st"), "--fmu",
+                       f"Drive={fmus['bad']}"]) == 2            # --fmu wins over the suite's [fmus]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"pkmbench {command}: error: Drive FMU BadDrive.fmu: variable 'position' is input Real, "
+                       f"expected output Real")
+    assert not (tmp_path / "o").exists() and not (tmp_path / "st").exists()
+
+
+@pytest.mark.parametrize("command", ["run", "sweep"])
+def test_a_malformed_fmus_table_is_refused_naming_the_suite(tmp_path, capsys, command):
+    suite = tmp_path / "s.toml"
+    suite.write_text('[[run]]\nmachine = "keops"\npath = "bird"\nplanners = ["scurve"]\n[fmus]\nDrive = 3\n')
+    assert cli([command, str(suite), "--out", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        f"pkmbench {command}: error: {suite}: [fmus] must map a block name to an .fmu file name")
+    assert not (tmp_path / "o").exists()

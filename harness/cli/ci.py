@@ -40,6 +40,8 @@ def add_arguments(p) -> None:
                    help="local worker processes (0 = serial, no Dask)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing dask cluster")
     p.add_argument("--task", default=None, metavar="MODULE:FUNCTION", help="task function (see sweep)")
+    p.add_argument("--fmu", action="append", metavar="BLOCK=FILE.fmu",
+                   help="a user FMU in place of ours, as for run (repeatable; wins over the suite's [fmus])")
 
 
 def _load_baseline(file: Path) -> dict:
@@ -83,6 +85,8 @@ def main(args) -> int:
     info = {"mode": "update-baseline" if args.update_baseline else "check", "passed": passed,
             "reference_s": reference_s, "wall_s": wall_s, "baseline": str(baseline_file),
             "checks": len(checks), "task_fn": task_fn}
+    from harness.cli.sweep import user_fmus_info
+    info |= user_fmus_info(tasks) or {}         # only with user FMUs: the other runs' info as it was
     try:
         with ResultStore(args.store) as st:
             run_id = st.append(rows, kind="ci", suite=args.suite, code_version=version, run_info=info)
@@ -112,13 +116,14 @@ def _load_tasks(args, suite_file: Path, task_fn: str):
     """The suite's tasks and its tolerances (without planning time under --no-timing)."""
     from harness.ci import baseline as ci
     from harness.sweep import SuiteError, SweepError, expand, load_suite, resolve_task_fn
+    from harness.sweep.suite import with_user_fmus
     try:
         resolve_task_fn(task_fn)
     except SweepError as e:
         raise CliError(str(e)) from None
     try:
         suite = load_suite(suite_file)
-        tasks = expand(suite, src=args.suite, base=Path.cwd())
+        tasks = with_user_fmus(expand(suite, src=args.suite, base=Path.cwd()), suite, suite_file, args.fmu)
         tolerances = ci.tolerances_from_suite(suite)
         if args.no_timing:
             tolerances = ci.without_timing(tolerances)

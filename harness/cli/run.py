@@ -95,15 +95,11 @@ def main(args) -> int:
         check_seed(args.seed, "--seed")
     except SeedError as e:
         raise CliError(str(e)) from None
-    from harness.cosim.blocks import parse_fmu_args
+    from harness.cosim.blocks import command_fmus
     from harness.cosim.system import SystemError_
-    from harness.sweep.suite import SuiteError
+    from harness.sweep.suite import SuiteError, load_suite
     try:
-        fmus = parse_fmu_args(args.fmu)
-        if args.suite:      # the suite's [fmus], relative to the suite file; --fmu wins
-            from harness.sweep.suite import load_suite
-            suite_fmus = {b: Path(args.suite).parent / f for b, f in load_suite(args.suite).get("fmus", {}).items()}
-            fmus = parse_fmu_args([f"{b}={f}" for b, f in suite_fmus.items()]) | fmus
+        fmus = command_fmus(args.fmu, load_suite(args.suite) if args.suite else None, args.suite)
     except (SystemError_, SuiteError) as e:
         raise CliError(str(e)) from None
     start = parse_start(args.start)

@@ -3,6 +3,7 @@
     pkmbench sweep benchmarks/suites/nightly.toml                  # in-process cluster, 2 workers
     pkmbench sweep S.toml --workers 4 --out results/sweeps/mine
     pkmbench sweep S.toml --scheduler tcp://10.0.0.5:8786          # an existing cluster
+    pkmbench sweep S.toml --fmu Drive=mydrive.fmu                  # a user FMU (or the suite's [fmus])
 
 Exit 0 when every task succeeded, 1 when some failed (they are listed), 2 on a user error.
 """
@@ -25,11 +26,20 @@ def add_arguments(p) -> None:
                    help="local workers as threads of this process instead of processes")
     p.add_argument("--task", default=None, metavar="MODULE:FUNCTION",
                    help="task function (default: harness.sweep.tasks:default_task, the full co-simulation)")
+    p.add_argument("--fmu", action="append", metavar="BLOCK=FILE.fmu",
+                   help="a user FMU in place of ours, as for run (repeatable; wins over the suite's [fmus])")
     p.add_argument("--force", action="store_true", help="re-run tasks that are already done")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--store", default=None,
                    help="results store folder the finished tasks are appended to (default: $PKMBENCH_STORE "
                         "or results/store; 'none' = do not append)")
+
+
+def user_fmus_info(tasks) -> dict | None:
+    """{"fmus": the user FMUs (file, sha256, source) by block} for the results store's run_info,
+    None on our own chain (its rows stay as they were)."""
+    named = tasks[0].get("fmus") if tasks else None
+    return {"fmus": named} if named else None
 
 
 def main(args) -> int:
@@ -38,7 +48,7 @@ def main(args) -> int:
     if args.workers < 0:
         raise CliError(f"--workers {args.workers}: must be ≥ 0")
     try:
-        tasks = tasks_from_suite_file(args.suite)
+        tasks = tasks_from_suite_file(args.suite, args.fmu)
     except SuiteError as e:
         raise CliError(str(e)) from None
     out = output_dir(args.out or sweep_dir(args.suite), "sweep folder")
@@ -52,7 +62,7 @@ def main(args) -> int:
         from harness.store import StoreError, append_sweep
         try:
             append_sweep(out / "results.sqlite", res.keys, kind="sweep", suite=str(args.suite),
-                         store=args.store, code_version=res.code_version)
+                         store=args.store, code_version=res.code_version, run_info=user_fmus_info(tasks))
         except StoreError as e:
             raise CliError(f"{e} (the sweep's results are in {out}/results.sqlite)") from None
     print(f"sweep {args.suite}: {res.total} tasks — {res.ok} run, {res.skipped} already done, "

@@ -12,8 +12,8 @@ before anything runs, in one line naming the FMU, the variable and what was expe
     # or in a suite:   [fmus]
     #                  Drive = "models/mydrive.fmu"
 
-An FMI 3.0 FMU runs in the Python master (``--engine python``); the native one (native_master.c)
-calls the FMI 2.0 C API and says so.
+Both masters run FMI 3.0 FMUs beside our FMI 2.0 ones: the Python one through fmpy, the native
+one (native_master.c) through each FMU's own C API (fmi3DoStep, fmi3GetFloat64, …).
 """
 from __future__ import annotations
 
@@ -56,6 +56,16 @@ def parse_fmu_args(specs) -> dict[str, Path]:
     return out
 
 
+def command_fmus(specs=(), suite: dict | None = None, suite_file=None) -> dict[str, Path]:
+    """The user FMUs of a command: a suite's ``[fmus]`` table (paths relative to the suite file)
+    and ``--fmu BLOCK=FILE`` specs, which win; parsed, not yet checked (:func:`check_user_fmu`)."""
+    table = (suite or {}).get("fmus", {})
+    if not isinstance(table, dict) or not all(isinstance(f, str) for f in table.values()):
+        raise SystemError_(f"{suite_file}: [fmus] must map a block name to an .fmu file name")
+    base = Path(suite_file).parent if suite_file else Path()
+    return parse_fmu_args([f"{b}={base / f}" for b, f in table.items()]) | parse_fmu_args(specs)
+
+
 def check_blocks(fmus: dict) -> None:
     for block in fmus:
         if block not in INTERFACE:
@@ -92,15 +102,6 @@ def check_user_fmu(block: str, fmu) -> Path:
             raise SystemError_(f"{block} FMU {fmu.name}: variable '{name}' is {v.causality} {v.type}, "
                                f"expected {want}")
     return fmu
-
-
-def check_engine(fmus: dict, engine: str) -> None:
-    """SystemError_ when an FMI 3.0 user FMU would go to the native master (FMI 2.0 C API only)."""
-    from fmpy import read_model_description
-    for block, fmu in fmus.items():
-        if engine == "native" and str(read_model_description(str(fmu), validate=False).fmiVersion).startswith("3."):
-            raise SystemError_(f"{block} FMU {Path(fmu).name} is FMI 3.0: the native master calls the FMI 2.0 "
-                               f"C API; run it with --engine python")
 
 
 def user_start(fmu: Path, start: dict) -> dict:

@@ -187,11 +187,6 @@ def _instantiate(system: System) -> tuple[list[_Instance], dict[str, list[str]]]
     return insts, logs
 
 
-def _fmi_version(fmu: Path) -> str:
-    from fmpy import read_model_description
-    return str(read_model_description(str(fmu), validate=False).fmiVersion)
-
-
 def _free(insts) -> None:
     for inst in insts:
         try:
@@ -268,7 +263,13 @@ def simulate_python(system: System, record: list[str], jacobi: bool = False) -> 
 class _Comp(ctypes.Structure):
     _fields_ = [("c", ctypes.c_void_p), ("do_step", ctypes.c_void_p), ("get_real", ctypes.c_void_p),
                 ("set_real", ctypes.c_void_p), ("get_int", ctypes.c_void_p), ("get_bool", ctypes.c_void_p),
-                ("set_int", ctypes.c_void_p), ("set_bool", ctypes.c_void_p), ("period", ctypes.c_int)]
+                ("set_int", ctypes.c_void_p), ("set_bool", ctypes.c_void_p), ("period", ctypes.c_int),
+                ("fmi3", ctypes.c_int)]
+# the C functions native_master.c calls, in _Comp's order, by FMI version
+_C_API = {False: ("fmi2DoStep", "fmi2GetReal", "fmi2SetReal", "fmi2GetInteger", "fmi2GetBoolean",
+                  "fmi2SetInteger", "fmi2SetBoolean"),
+          True: ("fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3GetInt32", "fmi3GetBoolean",
+                 "fmi3SetInt32", "fmi3SetBoolean")}
 
 
 _native = None
@@ -302,12 +303,9 @@ def native_library() -> ctypes.CDLL:
 
 
 def simulate_native(system: System, record: list[str], jacobi: bool = False) -> Result:
-    """Default master: fmpy instantiates, native_master.c steps, routes and records."""
+    """Default master: fmpy instantiates, native_master.c steps, routes and records (through the
+    FMI 2.0 or 3.0 C API of each FMU)."""
     lib = native_library()
-    fmi3 = [c.name for c in system.components if _fmi_version(c.fmu).startswith("3.")]
-    if fmi3:
-        raise SystemError_(f"component {fmi3[0]} is an FMI 3.0 FMU: the native master calls the FMI 2.0 C API; "
-                           f"run it with the Python master (--engine python)")
     insts, logs = _instantiate(system)
     try:
         conn, rec = _plan(system, insts, record)
@@ -315,11 +313,8 @@ def simulate_native(system: System, record: list[str], jacobi: bool = False) -> 
         n = int(round(system.stop_time / h))
         comps = (_Comp * len(insts))()
         for k, inst in enumerate(insts):
-            addr = lambda f: ctypes.cast(f, ctypes.c_void_p).value  # noqa: E731
-            d = inst.fmu.dll
-            comps[k] = _Comp(inst.fmu.component, addr(d.fmi2DoStep), addr(d.fmi2GetReal), addr(d.fmi2SetReal),
-                             addr(d.fmi2GetInteger), addr(d.fmi2GetBoolean), addr(d.fmi2SetInteger),
-                             addr(d.fmi2SetBoolean), system.components[k].period_steps)
+            fns = [ctypes.cast(getattr(inst.fmu.dll, f), ctypes.c_void_p).value for f in _C_API[inst.fmi3]]
+            comps[k] = _Comp(inst.fmu.component, *fns, system.components[k].period_steps, int(inst.fmi3))
         c_conn = (ctypes.c_int * max(1, 5 * len(conn)))(*[x for c in conn for x in c])
         c_rec = (ctypes.c_int * max(1, 3 * len(rec)))(*[x for r in rec for x in r])
         out = np.empty((n + 1, len(rec)))

@@ -6,7 +6,9 @@ The task-function interface (any ``module:function`` can be one)::
         task     machine, machine_file, path, path_file, planner, planner_options, seed,
                  preset, variation {"name", "set"}, files {"machine.toml": text,
                  "path.json"|"path.ngc": text}, and fmu_dir (a local folder holding the
-                 built .fmu files) when the sweep shipped FMUs
+                 built .fmu files) when the sweep shipped FMUs; with user FMUs (a suite's
+                 [fmus], --fmu) fmus {block: {"file", "sha256", "source"}} and fmu_paths
+                 {block: the local copy of that FMU}
         out_dir  an empty folder; whatever the task writes there becomes the run's files
         returns  the metrics dict of DESIGN.md (execution_time_s, joint_peak_ratio {…}, …);
                  raising marks the task failed, with the message, and the others go on
@@ -36,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.sweep.store import SweepStore
-from harness.sweep.suite import code_version, expand, load_suite, task_key, task_label
+from harness.sweep.suite import code_version, expand, load_suite, task_key, task_label, with_user_fmus
 from kins.resources import FMU_DIR, REPO
 
 DEFAULT_TASK = "harness.sweep.tasks:default_task"
@@ -60,9 +62,11 @@ class SweepResult:
     code_version: str = ""
 
 
-def tasks_from_suite_file(file: str | Path) -> list[dict]:
+def tasks_from_suite_file(file: str | Path, fmu_specs=()) -> list[dict]:
+    """The suite's tasks, with its [fmus] and the ``BLOCK=FILE`` ``fmu_specs`` (checked)."""
     file = Path(file)
-    return expand(load_suite(file), src=str(file), base=Path.cwd())
+    suite = load_suite(file)
+    return with_user_fmus(expand(suite, src=str(file), base=Path.cwd()), suite, file, fmu_specs)
 
 
 # -- worker side ---------------------------------------------------------------------------
@@ -95,13 +99,35 @@ def _materialise_fmus(fmus: dict[str, bytes]) -> Path:
     return folder
 
 
-def execute_task(task_fn: str, task: dict, fmus: dict[str, bytes] | None = None) -> dict:
-    """Run one task on this process; never raises. Returns status, metrics or error, files."""
+def _materialise_user_fmus(named: dict, shipped: dict[str, bytes] | None) -> dict[str, str]:
+    """{block: local file} of a task's user FMUs, written once per host into a folder named by
+    the content's hash (under the FMU's own file name: the SSP names it)."""
+    out = {}
+    for block, d in named.items():
+        data = (shipped or {}).get(d["sha256"])
+        if data is None:
+            raise SweepError(f"{block} FMU {d['source']} was not shipped to this worker")
+        f = Path(tempfile.gettempdir()) / "pkmbench-fmus" / "user" / d["sha256"][:16] / d["file"]
+        if not f.exists():
+            f.parent.mkdir(parents=True, exist_ok=True)
+            tmp = f.with_name(f".{f.name}.{os.getpid()}.part")
+            tmp.write_bytes(data)
+            os.replace(tmp, f)                      # atomic: workers on one host may race
+        out[block] = str(f)
+    return out
+
+
+def execute_task(task_fn: str, task: dict, fmus: dict[str, bytes] | None = None,
+                 user_fmus: dict[str, bytes] | None = None) -> dict:
+    """Run one task on this process; never raises. Returns status, metrics or error, files.
+    ``fmus``: our built FMUs by file name; ``user_fmus``: the tasks' user FMUs by sha256."""
     t0 = time.perf_counter()
     tmp = Path(tempfile.mkdtemp(prefix="pkmbench-task-"))
     try:
         if fmus:
             task = task | {"fmu_dir": str(_materialise_fmus(fmus))}
+        if task.get("fmus"):
+            task = task | {"fmu_paths": _materialise_user_fmus(task["fmus"], user_fmus)}
         metrics = resolve_task_fn(task_fn)(task, tmp)
         if not isinstance(metrics, dict):
             raise TypeError(f"task function {task_fn} returned {type(metrics).__name__}, not a metrics dict")
@@ -177,6 +203,20 @@ def _fmu_payload() -> dict[str, bytes]:
     return {f.name: f.read_bytes() for f in sorted(FMU_DIR.glob("*.fmu"))} if FMU_DIR.exists() else {}
 
 
+def _user_fmu_payload(tasks) -> dict[str, bytes]:
+    """The user FMUs the tasks name, by content hash: each file read once, and refused if it
+    changed since the tasks were made (their keys hold the old hash)."""
+    out = {}
+    for task in tasks:
+        for block, d in (task.get("fmus") or {}).items():
+            if d["sha256"] not in out:
+                data = Path(d["source"]).read_bytes()
+                if hashlib.sha256(data).hexdigest() != d["sha256"]:
+                    raise SweepError(f"{block} FMU {d['source']} changed while the sweep was set up; run it again")
+                out[d["sha256"]] = data
+    return out
+
+
 def _connect(scheduler: str | None, workers: int, processes: bool):
     from distributed import Client, LocalCluster
     if scheduler:
@@ -222,12 +262,13 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
             log(f"sweep: {res.skipped} of {len(keyed)} tasks already done, skipped")
         bar = Progress(len(todo), progress)
         record = functools.partial(_record, store, res, bar, out_dir, version)
+        user = _user_fmu_payload(t for _, t in todo)
         if todo and workers == 0 and not scheduler:
             fmus = _fmu_payload()
             for key, task in todo:
-                record(key, task, execute_task(task_fn, task, fmus or None))
+                record(key, task, execute_task(task_fn, task, fmus or None, user or None))
         elif todo:
-            _run_on_dask(todo, task_fn, scheduler, workers, processes, log, record)
+            _run_on_dask(todo, task_fn, scheduler, workers, processes, log, record, user)
     res.wall_s = time.perf_counter() - t0
     return res
 
@@ -253,7 +294,8 @@ def _record(store, res: SweepResult, bar: Progress, out_dir: Path, version: str,
     bar.update(store.status(key) == "ok")
 
 
-def _run_on_dask(todo, task_fn: str, scheduler: str | None, workers: int, processes: bool, log, record) -> None:
+def _run_on_dask(todo, task_fn: str, scheduler: str | None, workers: int, processes: bool, log, record,
+                 user: dict[str, bytes]) -> None:
     """The tasks on a local cluster or the scheduler's workers, recorded as they complete."""
     client, cluster = _connect(scheduler, workers, processes)
     try:
@@ -261,12 +303,13 @@ def _run_on_dask(todo, task_fn: str, scheduler: str | None, workers: int, proces
             _check_workers(client, scheduler)
         fmus = _fmu_payload()
         fmus_ref = client.scatter([fmus], broadcast=True)[0] if fmus else None
+        user_ref = client.scatter([user], broadcast=True)[0] if user else None
         futures, labels = {}, {}
         # dask re-runs the tasks of a worker that died without telling the client:
         # the scheduler's remove-worker event names them, so the user hears of it
         client.subscribe_topic("all", lambda event: _worker_lost(event[1], labels, log))
         for key, task in todo:
-            f = client.submit(execute_task, task_fn, task, fmus_ref, pure=False,
+            f = client.submit(execute_task, task_fn, task, fmus_ref, user_ref, pure=False,
                               key=f"pkmbench-{key[:16]}-{uuid.uuid4().hex[:8]}")
             futures[f] = (key, task)
             labels[f.key] = task_label(task)

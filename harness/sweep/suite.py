@@ -182,6 +182,25 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     return tasks
 
 
+def with_user_fmus(tasks: list[dict], suite: dict | None, suite_file=None, specs=()) -> list[dict]:
+    """The tasks with the command's user FMUs (the suite's [fmus], ``--fmu BLOCK=FILE`` specs),
+    each checked against its block's interface before any task runs: a wrong one is a SuiteError
+    with harness.cosim.blocks.check_user_fmu's message. A task names each FMU by its file name,
+    the sha256 of its content (part of the task key) and its source file (which the client ships
+    to the workers: harness.sweep.engine); tasks of our own chain are returned unchanged."""
+    from harness.cosim.blocks import check_user_fmu, command_fmus
+    from harness.cosim.system import SystemError_
+    try:
+        fmus = {b: check_user_fmu(b, f) for b, f in command_fmus(specs, suite, suite_file).items()}
+    except SystemError_ as e:
+        raise SuiteError(str(e)) from None
+    if not fmus:
+        return tasks
+    named = {b: {"file": f.name, "sha256": hashlib.sha256(f.read_bytes()).hexdigest(), "source": str(f)}
+             for b, f in sorted(fmus.items())}
+    return [t | {"fmus": {b: dict(d) for b, d in named.items()}} for t in tasks]
+
+
 def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
               preset: str = "none", variation: dict | None = None,
               planner_options: dict | None = None) -> dict:
@@ -223,6 +242,8 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     """sha256 of everything that determines a task's result."""
     ident = {k: task[k] for k in ("planner", "planner_options", "seed", "preset", "variation", "files")}
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
+    if task.get("fmus"):    # only then: the keys of tasks on our own chain stay as they were
+        ident["fmus"] = {b: [d["file"], d["sha256"]] for b, d in task["fmus"].items()}
     from planners.registry import plugin_version
     plugin = plugin_version(task["planner"])
     if plugin:   # a plug-in's code is not in code_version: its installed version stands for it

@@ -171,7 +171,8 @@ def cosim_task(task: dict, out_dir: Path) -> dict:
 
     The task's preset is the EtherCAT jitter preset ("none" = an ideal bus clock; "machine" or
     empty = the machine file's). Run files (summary.json, command.csv, the SSP system) land in
-    out_dir; recordings (mcap, rrd) are skipped in sweeps to keep them light.
+    out_dir; recordings (mcap, rrd) are skipped in sweeps to keep them light. The task's user
+    FMUs (``fmu_paths``, the engine's local copies) take the place of our blocks.
     """
     from harness.cosim.run import run_case
 
@@ -181,7 +182,8 @@ def cosim_task(task: dict, out_dir: Path) -> dict:
     summary = run_case(str(mfile), str(pfile), [planner], out_dir, seed=int(task.get("seed", 0)),
                        jitter=None if preset == "machine" else preset,
                        planner_options={planner: dict(task.get("planner_options") or {})},
-                       recordings=False, max_feed=bool(task.get("max_feed", False)))
+                       recordings=False, max_feed=bool(task.get("max_feed", False)),
+                       fmus=task.get("fmu_paths"))
     m = summary["planners"][planner]
     if "error" in m:
         raise TaskError(m["error"])
