@@ -6,7 +6,10 @@ workspace, seed 1, generated at run time, not committed). Each case runs in its 
 process so that its peak RSS (os.wait4's ru_maxrss) is its own, not the largest so far.
 
     .venv/bin/python benchmarks/perf/bench_check.py [--lines 1000 10000 100000]
-                                                    [--planners trapezoid scurve] [--timeout 900]
+                                                    [--planners trapezoid scurve] [--timeout 900] [--q0]
+
+The program says G64 P0.01: LinuxCNC (and the reader) join runs of moves within 0.01 mm of a
+line (Q = P); --q0 turns that off to time the planners on every move.
 """
 from __future__ import annotations
 
@@ -74,12 +77,15 @@ def run_case(program: Path, planner: str, timeout: float) -> dict:
     return res
 
 
-def main(lines=LINES, planners=PLANNERS, timeout: float = 900.0) -> dict:
+def main(lines=LINES, planners=PLANNERS, timeout: float = 900.0, q0: bool = False) -> dict:
     results = {}
     with tempfile.TemporaryDirectory() as d:
         for n in lines:
             f = Path(d) / f"cam_{n}.ngc"
-            make_cam_program(n, seed=1, file=f)
+            text = make_cam_program(n, seed=1)
+            if q0:      # G64 P without Q joins short moves (Q = P): Q0 keeps every move
+                text = text.replace("G64 P0.01", "G64 P0.01 Q0", 1)
+            f.write_text(text)
             for planner in planners:
                 r = run_case(f, planner, timeout)
                 results[f"{planner}@{n}"] = r
@@ -95,5 +101,7 @@ if __name__ == "__main__":
     ap.add_argument("--lines", type=int, nargs="+", default=list(LINES))
     ap.add_argument("--planners", nargs="+", default=list(PLANNERS))
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per case (default %(default)s)")
+    ap.add_argument("--q0", action="store_true",
+                    help="G64 P0.01 Q0: no naive-CAM joining, every one of the program's moves is planned")
     a = ap.parse_args()
-    main(a.lines, a.planners, a.timeout)
+    main(a.lines, a.planners, a.timeout, a.q0)
