@@ -244,11 +244,14 @@ def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
     line's largest factor, over all its samples (not only those over the limit)."""
     ok = speed > 1e-9 * max(float(speed.max()), 1e-300)
     ln, f = lines[ok], values[ok] / speed[ok]
-    order = np.argsort(ln, kind="stable")
-    ln, f = ln[order], f[order]
+    if not len(ln):
+        return [None] * len(lns)
+    # the samples run along the path: a line's samples are runs, maxed per run, then per line
     starts = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
-    gmax = dict(zip(ln[starts].tolist(), np.maximum.reduceat(f, starts).tolist()))
-    return [limit / gmax[x] if gmax.get(x) else None for x in lns]
+    run_line, run_max = ln[starts], np.maximum.reduceat(f, starts)
+    gmax = np.zeros(int(run_line.max()) + 2)
+    np.maximum.at(gmax, run_line + 1, run_max)          # + 1: line −1 (no line) at index 0
+    return [limit / gmax[x + 1] if 0 <= x + 1 < len(gmax) and gmax[x + 1] > 0 else None for x in lns]
 
 
 def _feed_note(speed: float, programmed, keep) -> str:
