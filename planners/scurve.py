@@ -227,10 +227,14 @@ class _Planner:
             if b not in pts:
                 pts[b] = f
         s = np.array(sorted(pts))
-        # merge points closer than 1 µm (a knot that is also an FLF minimum), keeping the lower feed
+        # merge points closer than 1 µm (a knot that is also an FLF minimum), keeping the lower
+        # feed; but never two joins: a piece shorter than 1 µm (a G64 blend of radius 0.2 µm at
+        # a reversal) inside a segment let it accelerate there, where the jerk κ²ṡ³ broke the
+        # limit at any feed the FLF allows, and the repair could only slow the whole segment
+        joins = set(self.table.edges.tolist())
         keep = [0]
         for k in range(1, len(s)):
-            if s[k] - s[keep[-1]] < 1e-3:
+            if s[k] - s[keep[-1]] < 1e-3 and not (s[k] in joins and s[keep[-1]] in joins):
                 pts[s[keep[-1]]] = min(pts[s[keep[-1]]], pts[s[k]])
                 if k == len(s) - 1:
                     keep[-1] = k
