@@ -91,23 +91,47 @@ def cartesian_derivs(path, s):
 def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
     """(q, q′, q″, q‴) at arc lengths s, each (N, 3): joint positions and their derivatives
     with respect to arc length.  Raises PlanningError naming the first point that leaves the
-    workspace (the kins message names the point and the joint)."""
+    workspace (the kins message names the point and the joint).
+
+    The stencil step is h, but at most a tenth of the curve's own length scale
+    min(1/|P″|, 1/√|P‴|) there: on a sub-µm G64 blend (radius 0.06 µm) the cubic X(±2h) at
+    h = 0.02 mm lay kilometres off the path (out of reach) and differenced nothing of q(s).
+    A row whose stencil still leaves the reach (a path at the reach's edge) retries at h/4."""
     s = np.asarray(s, float)
     P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
     Q0 = ik_along(machine, s, P)
-    Q = {0: Q0}
+    with np.errstate(divide="ignore"):
+        scale = np.minimum(1 / np.linalg.norm(P2, axis=1), 1 / np.sqrt(np.linalg.norm(P3, axis=1)))
+    hs = np.minimum(h, 0.1 * scale)
+    q1, q2, q3 = (np.empty_like(Q0) for _ in range(3))
+    todo = np.arange(len(s))
+    for _ in range(4):
+        Q, ok = _stencil(machine, P[todo], P1[todo], P2[todo], P3[todo], hs[todo])
+        hh = hs[todo][ok, None]
+        Qm2, Qm1, Qp1, Qp2 = (Q[k][ok] for k in (-2, -1, 1, 2))
+        Qc = Q0[todo][ok]
+        rows = todo[ok]
+        q1[rows] = (-Qp2 + 8 * Qp1 - 8 * Qm1 + Qm2) / (12 * hh)
+        q2[rows] = (-Qp2 + 16 * Qp1 - 30 * Qc + 16 * Qm1 - Qm2) / (12 * hh * hh)
+        q3[rows] = (Qp2 - 2 * Qp1 + 2 * Qm1 - Qm2) / (2 * hh ** 3)
+        todo = todo[~ok]
+        if len(todo) == 0:
+            return Q0, q1, q2, q3
+        hs[todo] /= 4
+    i = int(todo[0])
+    raise PlanningError(f"path point at s = {s[i]:.6g} mm {P[i]} is at the edge of reach "
+                        f"(a joint-derivative stencil of ±{2 * hs[i]:.3g} mm leaves it)")
+
+
+def _stencil(machine, P, P1, P2, P3, hs):
+    """IK of the local cubic X(kh), k = ±1, ±2, per row with its own h: ({k: q}, rows in reach)."""
+    Q, ok = {}, np.ones(len(P), bool)
     for k in (-2, -1, 1, 2):
-        d = k * h
+        d = (k * hs)[:, None]
         X = P + P1 * d + P2 * (d * d / 2) + P3 * (d * d * d / 6)
-        Qk, reach = machine._ik(X)  # stencil points are ≤ 2h off the path: no stroke check
-        if (reach < 0).any():
-            i = int(np.argmax((reach < 0).any(axis=1)))
-            raise PlanningError(f"path point at s = {s[i]:.6g} mm {P[i]} is at the edge of reach")
-        Q[k] = Qk
-    q1 = (-Q[2] + 8 * Q[1] - 8 * Q[-1] + Q[-2]) / (12 * h)
-    q2 = (-Q[2] + 16 * Q[1] - 30 * Q[0] + 16 * Q[-1] - Q[-2]) / (12 * h * h)
-    q3 = (Q[2] - 2 * Q[1] + 2 * Q[-1] - Q[-2]) / (2 * h ** 3)
-    return Q0, q1, q2, q3
+        Q[k], reach = machine._ik(X)  # stencil points are ≤ 2h off the path: no stroke check
+        ok &= ~(reach < 0).any(axis=1)
+    return Q, ok
 
 
 def time_derivs(D1, D2, D3, sd, sdd, sddd):
