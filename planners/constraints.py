@@ -88,46 +88,51 @@ def cartesian_derivs(path, s):
     return np.asarray(P, float), np.asarray(P1, float), np.asarray(P2, float), np.asarray(P3, float)
 
 
-def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
+def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None, fit_scale: bool = False):
     """(q, q′, q″, q‴) at arc lengths s, each (N, 3): joint positions and their derivatives
     with respect to arc length.  Raises PlanningError naming the first point that leaves the
     workspace (the kins message names the point and the joint).
 
-    The stencil step is h, but at most a tenth of the curve's own length scale
-    min(1/|P″|, 1/√|P‴|) there: on a sub-µm G64 blend (radius 0.06 µm) the cubic X(±2h) at
-    h = 0.02 mm lay kilometres off the path (out of reach) and differenced nothing of q(s).
-    A row whose stencil still leaves the reach (a path at the reach's edge) retries at h/4."""
+    On a curve tighter than the stencil the cubic X(±2h) leaves the path (a G64 blend of
+    radius 0.06 µm put it kilometres off, out of reach) and q‴'s truncation error ~(h/ℓ)²/4
+    grows with the curve's length scale ℓ = min(1/|P″|, 1/√|P‴|).  A row whose stencil leaves
+    the reach retries at h ≤ ℓ/10, then at a quarter of its step; ``fit_scale`` bounds h by
+    ℓ/10 everywhere (the s-curve's tables; not the default: optimal's IPOPT on kossel/
+    bird_kossel fails on tables that differ from today's in the last bit, a defect of its own)."""
     s = np.asarray(s, float)
     P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
     Q0 = ik_along(machine, s, P)
     with np.errstate(divide="ignore"):
-        scale = np.minimum(1 / np.linalg.norm(P2, axis=1), 1 / np.sqrt(np.linalg.norm(P3, axis=1)))
-    hs = np.minimum(h, 0.1 * scale)
+        ell = 0.1 * np.minimum(1 / np.linalg.norm(P2, axis=1), 1 / np.sqrt(np.linalg.norm(P3, axis=1)))
+    # one step for all rows unless a row needs its own: the float h keeps the default results
+    # bit-identical to a scalar stencil (numpy's h ** 3 of an array rounds differently)
+    hs = np.minimum(h, ell) if fit_scale else np.full(len(s), float(h))
     q1, q2, q3 = (np.empty_like(Q0) for _ in range(3))
     todo = np.arange(len(s))
-    for _ in range(4):
-        Q, ok = _stencil(machine, P[todo], P1[todo], P2[todo], P3[todo], hs[todo])
-        hh = hs[todo][ok, None]
-        Qm2, Qm1, Qp1, Qp2 = (Q[k][ok] for k in (-2, -1, 1, 2))
-        Qc = Q0[todo][ok]
+    for _ in range(5):
+        step = float(h) if (hs[todo] == h).all() else hs[todo][:, None]
+        Q, ok = _stencil(machine, P[todo], P1[todo], P2[todo], P3[todo], step)
         rows = todo[ok]
+        hh = step if isinstance(step, float) else step[ok]
+        Qm2, Qm1, Qp1, Qp2 = (Q[k][ok] for k in (-2, -1, 1, 2))
         q1[rows] = (-Qp2 + 8 * Qp1 - 8 * Qm1 + Qm2) / (12 * hh)
-        q2[rows] = (-Qp2 + 16 * Qp1 - 30 * Qc + 16 * Qm1 - Qm2) / (12 * hh * hh)
+        q2[rows] = (-Qp2 + 16 * Qp1 - 30 * Q0[rows] + 16 * Qm1 - Qm2) / (12 * hh * hh)
         q3[rows] = (Qp2 - 2 * Qp1 + 2 * Qm1 - Qm2) / (2 * hh ** 3)
         todo = todo[~ok]
         if len(todo) == 0:
             return Q0, q1, q2, q3
-        hs[todo] /= 4
+        hs[todo] = np.where(ell[todo] < hs[todo], ell[todo], hs[todo] / 4)
     i = int(todo[0])
     raise PlanningError(f"path point at s = {s[i]:.6g} mm {P[i]} is at the edge of reach "
                         f"(a joint-derivative stencil of ±{2 * hs[i]:.3g} mm leaves it)")
 
 
-def _stencil(machine, P, P1, P2, P3, hs):
-    """IK of the local cubic X(kh), k = ±1, ±2, per row with its own h: ({k: q}, rows in reach)."""
+def _stencil(machine, P, P1, P2, P3, h):
+    """IK of the local cubic X(kh), k = ±1, ±2 (h a float or one per row, (n, 1)):
+    ({k: q}, rows whose four points are in reach)."""
     Q, ok = {}, np.ones(len(P), bool)
     for k in (-2, -1, 1, 2):
-        d = (k * hs)[:, None]
+        d = k * h
         X = P + P1 * d + P2 * (d * d / 2) + P3 * (d * d * d / 6)
         Q[k], reach = machine._ik(X)  # stencil points are ≤ 2h off the path: no stroke check
         ok &= ~(reach < 0).any(axis=1)
@@ -194,12 +199,14 @@ class PathTable:
     twice (its value from the left and from the right), so no interpolation blends the two
     sides of a corner.  x′ and x″ are interpolated by cubic Hermite with the next derivative
     as slope (O(h⁴)), x‴ linearly (O(h²)), for the Cartesian axes and, with a machine, the
-    joints (`joint` is None without one).
+    joints (`joint` is None without one).  ``fit_scale``: the joint stencil bounded by the
+    curve's length scale (:func:`joint_derivs`), here and in the join jumps read with this table.
     """
 
-    def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001):
+    def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001,
+                 fit_scale: bool = False):
         L = float(path.length)
-        self.length = L
+        self.length, self.fit_scale = L, fit_scale
         # pieces between the path's joins (segment ends of a line/arc path, corners): a
         # derivative that jumps at a join is never blended, and a segment shorter than ds
         # still gets points of its own (a 0.04 mm G64 blend arc)
@@ -221,7 +228,8 @@ class PathTable:
         inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
                                 zip(grids, self.edges[:-1], self.edges[1:])])
         self.cart = cartesian_derivs(path, inner)
-        self.joint = joint_derivs(machine, path, inner, cart=self.cart) if machine is not None else None
+        self.joint = (joint_derivs(machine, path, inner, cart=self.cart, fit_scale=fit_scale)
+                      if machine is not None else None)
 
     @staticmethod
     def _interp(tab, i, w, h):
@@ -315,7 +323,8 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
         cand = np.arange(len(cand))
     pairs = np.column_stack([lo - 1e-7, hi + 1e-7]).ravel()
     cart = cartesian_derivs(path, pairs)
-    D = joint_derivs(machine, path, pairs, cart=cart) if machine is not None else cart
+    D = (joint_derivs(machine, path, pairs, cart=cart, fit_scale=table.fit_scale)
+         if machine is not None else cart)
     cjump = np.linalg.norm(cart[2][1::2] - cart[2][0::2], axis=1)
     jump = np.abs(D[2][1::2] - D[2][0::2]).max(axis=1)
     # keep real jumps (a smooth stretch's change over 2e-7 mm is tiny; a C² knot has none)
