@@ -169,7 +169,8 @@ class _Planner:
         # plan the check against slightly tightened limits: the metrics read jerk as a third
         # difference at T, which can exceed the continuous peak by a fraction of a percent
         self.check = type(lim)(lim.v * (1 - margin), lim.a * (1 - margin), lim.j * (1 - margin))
-        self.table = PathTable(path, machine if joint else None, ds=grid_mm, fit_scale=True)
+        self.table = PathTable(path, machine if joint else None, ds=grid_mm, fit_scale=True,
+                               refine=True)
         if not joint:      # the Cartesian planner does not need the IK, but the path must be reachable
             ik_along(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s

@@ -240,15 +240,14 @@ def test_joint_derivatives_where_the_stencil_leaves_the_reach():
     assert np.isfinite(q3).all()
 
 
-@pytest.mark.xfail(strict=True, reason="the PathTable refinement at lobe tips (cells ≤ 0.1 curvature "
-                   "radius) was reverted: it made optimal on keops/bird run > 10 min (was 6 s); open defect")
 def test_table_resolves_the_butterfly_lobe_tip():
     # kossel's butterfly: a lobe tip of ρ ≈ 0.02 mm at s ≈ 84.5 mm, narrower than the 0.05 mm
-    # base grid; the tables' peak q″, q‴ per joint must be the exact ones (the check reads peaks;
-    # pointwise, q‴ jumps at the cubic's knots and a straddling cell blends the two sides)
+    # base grid; the s-curve's refined tables' peak q″, q‴ per joint must be the exact ones (the
+    # check reads peaks; pointwise, q‴ jumps at the cubic's knots and a straddling cell blends
+    # the two sides). The default tables stay unrefined: optimal on keops/bird ran > 10 min on them
     m = load_machine("kossel")
     path = load_path(CORPUS_DIR / "butterfly_kossel.json")
-    tab = PathTable(path, m, ds=0.05)
+    tab = PathTable(path, m, ds=0.05, fit_scale=True, refine=True)
     s = np.linspace(84.40, 84.65, 2001)
     _, q2_tab, q3_tab = tab.joints(s)
     _, _, q2, q3 = joint_derivs(m, path, s)
@@ -256,8 +255,6 @@ def test_table_resolves_the_butterfly_lobe_tip():
         assert np.abs(a).max(axis=0) == pytest.approx(np.abs(b).max(axis=0), rel=0.005)
 
 
-@pytest.mark.xfail(strict=True, reason="the PathTable refinement at lobe tips (cells ≤ 0.1 curvature "
-                   "radius) was reverted: it made optimal on keops/bird run > 10 min (was 6 s); open defect")
 def test_scurve_joint_is_joint_feasible_on_the_kossel_butterfly():
     # issue 19: joint jerk 1.08 × its limit at the lobe tip where the feed drops to ~2 mm/s
     m = load_machine("kossel")
