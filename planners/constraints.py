@@ -18,6 +18,10 @@ an exact-stop corner): at each s we take the path's own one-sided derivatives
 and difference q(X(h)) on a 5-point stencil in h.  X(h) agrees with the path to third order,
 so these are the derivatives of q(s) at s, with O(h²) truncation (h = 0.02 mm → ~1e-4
 relative on q‴ at 1 mm radius, round-off ~1e-8).
+
+Size: ~420 lines: the constraint set, the derivatives it is read from and their tables belong
+together (every planner imports them as one); the table's refinement is the part to split off
+if it grows.
 """
 from __future__ import annotations
 
