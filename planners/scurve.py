@@ -130,15 +130,21 @@ class Segment:
         inp.target_position = [self.L]
         inp.target_velocity = [self.v1]
         inp.target_acceleration = [0.0]
-        inp.max_velocity = [max(self.vpeak, self.v0, self.v1)]
         inp.min_velocity = [0.0]
         inp.max_acceleration = [self.A]
         inp.max_jerk = [self.J]
-        try:
-            res = otg.calculate(inp, traj)
-        except Exception:  # ruckig.RuckigError: no profile for these inputs
-            return False
-        if res not in (Result.Working, Result.Finished):
+        # a segment that needs all its length to reach v1 = its peak (the consistency pass
+        # allows it to within 1e-9 of L) has no profile in ruckig with the peak at exactly v1
+        # (rand_edge_keops); 1e-9 above it has one, whose peak is v1
+        for widen in (1.0, 1.0 + 1e-9):
+            inp.max_velocity = [max(self.vpeak, self.v0, self.v1) * widen]
+            try:
+                res = otg.calculate(inp, traj)
+            except Exception:  # ruckig.RuckigError: no profile for these inputs
+                continue
+            if res in (Result.Working, Result.Finished):
+                break
+        else:
             return False
         prof = traj.profiles[0][0]
         self.tcum = np.concatenate([[0.0], np.cumsum(prof.t)])

@@ -250,3 +250,39 @@ def test_consistent_equals_the_plain_two_passes():
         for i in range(n):
             ref[i + 1] = min(ref[i + 1], scurve.reachable(ref[i], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i + 1]))
         assert np.array_equal(pl.consistent(v_c, Ls, A, J), ref)
+
+
+def test_a_segment_that_needs_its_whole_length_to_reach_its_end_feed_has_a_profile():
+    """rand_edge_keops: the consistency pass leaves L = d(v0, v1)(1 + 1e-9); ruckig found no
+    profile with its peak at exactly v1. The time is the closed form Δv/A + A/J (Δv > A²/J)."""
+    v0, v1, A, J = 20.72508930578312, 255.555002407372, 9950.0, 497500.0
+    L = scurve.min_distance(v0, v1, A, J) * (1 + 1e-9)
+    seg = scurve.Segment(0.0, L, v0, v1, A, J, v1)
+    from ruckig import InputParameter, Ruckig, Trajectory
+    assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
+    assert seg.duration == pytest.approx((v1 - v0) / A + A / J, rel=1e-6)
+    assert seg.at(np.linspace(0, seg.duration, 101))[1].max() <= v1 * (1 + 1e-9)
+
+
+def test_a_reversal_blend_then_a_full_circle_costs_no_more_than_stopping_at_every_join():
+    """pocket_keops: a G64 P0.01 reversal leaves a 0.6 µm blend (radius 0.2 µm), then a line
+    into a full circle of radius 1 mm. The blend's ends were merged into one critical point,
+    the next 59 mm segment accelerated inside the blend (jerk κ²ṡ³ at any feed the FLF
+    allows) and the repair slowed the whole segment to 0.24 mm/s: 244.6 s. Stopping at every
+    join costs the sum of the rest-to-rest closed forms L/v + v/A + A/J (v the feed, the
+    circle's ∛(J/κ²) = 79 mm/s): 0.52 s; the s-curve is within 20 % of that."""
+    from planners.paths.gcode import parse_gcode, program_path
+    prog = ("G21 G90 G17 G64 P0.01\nG1 X46.3708 Y28.4877 Z-402 F60000\nG1 X-46.3708 Y-35.5123\n"
+            "G1 X1 Y0\nG3 X1 Y0 I-1 J0\nM2\n")
+    path = program_path(parse_gcode(prog))
+    c = KEOPS.limits.cartesian
+    A, J = 0.995 * c.a, 0.995 * c.j                 # the default margin
+    lines = [g.length for g in path.segments if g.kind == "line"]
+    bound = sum(L / 1000 + 1000 / A + A / J for L in lines)
+    vc = min(math.sqrt(A), J ** (1 / 3))            # κ = 1: √(A/κ), ∛(J/κ²)
+    bound += 2 * math.pi / vc + vc / A + A / J
+    for name, key in (("scurve", "cartesian_peak_ratio"), ("scurve_joint", "joint_peak_ratio")):
+        p = plan(name, path, KEOPS)
+        assert p.execution_time_s < 1.2 * bound, name
+        r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)
+        assert max(v for k, v in r[key].items() if k != "feed") <= 1 + 1e-6, name
