@@ -36,7 +36,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
-from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
+from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
                           chord_feed_cap, corner_list, ik_along, joint_derivs, peak_ratios,
                           second_derivative_jumps, time_derivs)
 from .feed import feed_ceiling
@@ -181,6 +181,13 @@ class _Planner:
             ik_along(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s
         self.F = self.F_at(self.grid)
+        # |Δx″| per checked axis at each join of the path's pieces (the table holds a join twice,
+        # one-sided): a feed v there jumps the acceleration by Δx″v², which the check at T reads
+        # as a jerk of up to JUMP_READ_FACTOR·Δx″v²/T on top of the continuous one
+        first = self.table.offset[1:]
+        X2 = (self.table.joint if joint else self.table.cart)[2]
+        self.joins = self.table.edges[1:-1]
+        self.join_d2 = X2[first] - X2[first - 1]
         self._reachable = {}            # memo of reachable() across the repair rounds
 
     def F_at(self, s):
@@ -320,8 +327,19 @@ class _Planner:
         seg.vpeak = good
         return seg.compute(self.otg, self.inp, self.traj)
 
-    def ratios(self, seg: Segment) -> np.ndarray:
-        """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits)."""
+    def ratios(self, seg: Segment, reads: bool = True) -> np.ndarray:
+        """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits),
+        with the reads at T of the joins at its ends (:meth:`join_reads`) unless ``reads`` is off."""
+        tt, xv, xa, xj = self.sampled(seg)
+        if reads:
+            hi, lo = xj, xj
+            for _, near, read in self.join_reads(seg, tt):
+                hi, lo = hi + np.outer(near, np.maximum(read, 0)), lo + np.outer(near, np.minimum(read, 0))
+            xj = np.maximum(np.abs(hi), np.abs(lo))
+        return peak_ratios(xv, xa, xj, self.check)
+
+    def sampled(self, seg: Segment):
+        """(times, velocity, acceleration, jerk) of the checked axes over the segment."""
         # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
         # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
         tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
@@ -330,7 +348,41 @@ class _Planner:
         s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
         D = (None,) + (self.table.joints(s) if self.joint else self.table.cartesian(s))
         xv, xa, xj = time_derivs(D[1], D[2], D[3], v, a, j)
-        return peak_ratios(xv, xa, xj, self.check)
+        return tt, xv, xa, xj
+
+    def join_reads(self, seg, tt):
+        """[(end 0 or 1, samples within 3T of it, signed read per axis)] for the segment's ends
+        at a join. A third difference at T is the jerk averaged by a quadratic B-spline kernel
+        (support 3T, peak 0.75/T), so the jump Δx″v² of the acceleration at the join adds up to
+        JUMP_READ_FACTOR·Δx″v²/T, with its sign, to an average of the continuous jerk next to
+        it (the rand_*/cam_* paths read 1.003–1.06 × the limit without this term)."""
+        out = []
+        for end, s_end, v_end in ((0, seg.s0, seg.v0), (1, seg.s0 + seg.L, seg.v1)):
+            k = int(np.searchsorted(self.joins, s_end))
+            for n in (k - 1, k):          # a join within 1 µm (merged critical points)
+                if 0 <= n < len(self.joins) and abs(self.joins[n] - s_end) < 1e-3 and v_end > 0:
+                    near = tt <= 3 * self.T if end == 0 else tt >= seg.duration - 3 * self.T
+                    out.append((end, near, JUMP_READ_FACTOR * self.join_d2[n] * v_end ** 2 / self.T))
+        return out
+
+    def join_feed_factors(self, seg) -> list[float]:
+        """Per end, the factor on its feed that brings the join's read plus the continuous jerk
+        next to it within the limit (the read scales as v²; the continuous jerk is kept, which
+        errs low), in [0.49, 0.98]: for a segment that violates only through its joins' reads.
+        None where that would take more than halving the feed (the continuous jerk next to the
+        join leaves no room: the segment's J has to come down, as for any other violation)."""
+        tt, _, _, xj = self.sampled(seg)
+        f = [1.0, 1.0]
+        for end, near, read in self.join_reads(seg, tt):
+            # the continuous jerk of the read's sign next to the join leaves this much room
+            same = np.where(read > 0, xj[near].max(axis=0), -xj[near].min(axis=0))
+            room = np.maximum(self.check.j - same, 0.0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                need = float(np.nanmin(np.sqrt(room / np.abs(read))))
+            if need < 0.5:            # the continuous jerk fills the limit: lower J instead
+                return None
+            f[end] = min(f[end], min(0.98 * need, 0.98))
+        return f
 
     def seg_ok(self, seg, vcap) -> bool:
         return self.fit_peak(seg, vcap) and bool(np.all(self.ratios(seg) <= 1.0))
@@ -376,6 +428,12 @@ class _Planner:
             for i, r in bad:
                 repairs += 1
                 seg = segs[i]
+                f = self.join_feed_factors(seg) if np.all(self.ratios(seg, reads=False) <= 1.0) else None
+                if f is not None:
+                    # only the joins' reads at T break the limit: lower the feed at those joins
+                    v_c[i] = min(v_c[i], v[i] * f[0])
+                    v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f[1])
+                    continue
                 # TII 2022 axis repair: lower J, then A, to the largest value without violation
                 for attr in ("J", "A"):
                     full = getattr(seg, attr)
