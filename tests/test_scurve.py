@@ -286,3 +286,39 @@ def test_a_reversal_blend_then_a_full_circle_costs_no_more_than_stopping_at_ever
         assert p.execution_time_s < 1.2 * bound, name
         r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)
         assert max(v for k, v in r[key].items() if k != "feed") <= 1 + 1e-6, name
+
+
+def test_the_read_at_T_of_a_line_arc_join_is_the_closed_form():
+    """A line into a tangent arc of radius R: x″ jumps by 1/R normal to the line, so a feed v
+    there jumps the acceleration by v²/R, which a third difference at T reads as up to
+    0.75·v²/(R·T); the planner's own check adds it next to the join."""
+    R, v = 2.0, 40.0
+    a = Line([-30.0, 0, -400], [0.0, 0, -400])
+    path = SegmentPath([a, Arc(a.end, np.array([0.0, R, -400]), [0, 0, 1], math.pi / 2)], "line-arc")
+    pl = scurve._Planner(path, KEOPS, KEOPS.limits, False, 0.005, 0.05)
+    assert pl.joins.tolist() == [30.0]
+    assert pl.join_d2[0] == pytest.approx([0.0, 1 / R, 0.0], abs=1e-6)
+    from ruckig import InputParameter, Ruckig, Trajectory
+    seg = scurve.Segment(0.0, 30.0, 0.0, v, 9950.0, 497500.0, v)
+    assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
+    tt = np.linspace(0, seg.duration, 2001)
+    [(end, near, read)] = pl.join_reads(seg, tt)
+    T = KEOPS.servo_period_s
+    assert end == 1 and near.sum() == np.count_nonzero(tt >= seg.duration - 3 * T)
+    # (the arc side is read 1e-9 mm inside it: x″ has turned by 1e-9/R there, 1e-3 of 2.4e6)
+    assert read == pytest.approx([0.0, 0.75 * v * v / (R * T), 0.0], rel=1e-8, abs=1e-2)
+    # 0.75·1600/(2·2.5e-4) = 2.4e6 > J: the join alone breaks the limit, the segment does not
+    assert scurve._Planner.ratios(pl, seg)[2] > 1 >= scurve._Planner.ratios(pl, seg, reads=False)[2]
+
+
+def test_scurve_keeps_the_cartesian_limits_at_T_on_contour_lcnc():
+    """corpus contour_lcnc: arcs and G64 blends; the check at T read Cartesian jerk 1.0027
+    (the joins' acceleration jumps) while the planner's own check passed."""
+    from pathlib import Path
+    from planners.paths import resolve_path
+    m = load_machine("linuxcnc_delta")
+    corpus = Path(__file__).resolve().parents[1] / "benchmarks" / "paths" / "corpus"
+    path = resolve_path(str(corpus / "contour_lcnc.ngc"), home=m.home)
+    p = plan("scurve", path, m)
+    r = command_metrics(m, path.point(p.s), p.T, p.s)
+    assert max(v for k, v in r["cartesian_peak_ratio"].items() if k != "feed") <= 1 + 1e-6
