@@ -187,6 +187,11 @@ class _Planner:
         first = self.table.offset[1:]
         X2 = (self.table.joint if joint else self.table.cart)[2]
         self.joins = self.table.edges[1:-1]
+        # rows of the table's refined cells (lobe tips, knots): a q‴ peak there can be narrower
+        # than a period's travel, so the segment checks sample these rows too
+        g, piece = self.table.s, np.repeat(np.arange(len(self.table.counts)), self.table.counts)
+        fine = (np.diff(g) < 0.999 * self.table.hs[piece[:-1]]) & (piece[1:] == piece[:-1])
+        self.fine_s = np.unique(np.concatenate([g[:-1][fine], g[1:][fine]]))
         self.join_d2 = X2[first] - X2[first - 1]
         self._reachable = {}            # memo of reachable() across the repair rounds
 
@@ -344,6 +349,12 @@ class _Planner:
         # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
         tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
         p, v, a, j = seg.at(tt)
+        lo, hi = np.searchsorted(self.fine_s, [seg.s0, seg.s0 + seg.L])
+        if hi > lo:
+            # the times of the refined rows inside the segment (p(t) is monotone): rand_hairpin_
+            # keops's joint jerk peaked at 1.16 between samples ≤ T apart and read 1.01 at T
+            tt = np.unique(np.concatenate([tt, np.interp(self.fine_s[lo:hi] - seg.s0, p, tt)]))
+            p, v, a, j = seg.at(tt)
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
         D = (None,) + (self.table.joints(s) if self.joint else self.table.cartesian(s))
