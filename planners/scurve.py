@@ -348,6 +348,11 @@ class _Planner:
         # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
         # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
         tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
+        # at a phase's end at() reads the next phase's jerk: a time just inside it gives the
+        # left limit (rand_edge_lcnc: the jerk flips −J → +J at the peak deceleration, where
+        # the joint jerk is 1.18 × its limit from the left and 0.90 from the right)
+        d = np.diff(seg.tcum)
+        tt = np.unique(np.concatenate([tt, (seg.tcum[1:] - 1e-9 * d)[d > 0]]))
         p, v, a, j = seg.at(tt)
         lo, hi = np.searchsorted(self.fine_s, [seg.s0, seg.s0 + seg.L])
         if hi > lo:

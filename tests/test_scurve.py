@@ -322,3 +322,20 @@ def test_scurve_keeps_the_cartesian_limits_at_T_on_contour_lcnc():
     p = plan("scurve", path, m)
     r = command_metrics(m, path.point(p.s), p.T, p.s)
     assert max(v for k, v in r["cartesian_peak_ratio"].items() if k != "feed") <= 1 + 1e-6
+
+
+
+@pytest.mark.parametrize("name, machine", [("rand_edge_lcnc", "linuxcnc_delta"), ("rand_hairpin_keops", "keops")])
+def test_scurve_joint_is_joint_feasible_where_the_joint_jerk_peaks_between_samples(name, machine):
+    """Corpus paths where the segment check missed the joint jerk's peak: rand_edge_lcnc at
+    a jerk switch (−J → +J at the peak deceleration: 1.18 × the limit from the left, the
+    right limit 0.90 was read; 1.013 at T), rand_hairpin_keops at a lobe tip narrower than a
+    period's travel (1.16 between samples ≤ T apart; 1.010 at T)."""
+    from pathlib import Path
+    from planners.paths import resolve_path
+    m = load_machine(machine)
+    corpus = Path(__file__).resolve().parents[1] / "benchmarks" / "paths" / "corpus"
+    path = resolve_path(str(corpus / f"{name}.json"), home=m.home)
+    p = plan("scurve_joint", path, m)
+    r = command_metrics(m, path.point(p.s), p.T, p.s)
+    assert r["feasible"], r["joint_peak_ratio"]
