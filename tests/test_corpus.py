@@ -139,9 +139,6 @@ def test_corpus_quick_command(tmp_path, capsys):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19 item 5, open: on contour_lcnc trapezoid reads Cartesian "
-                   "v 1.0023 and scurve Cartesian j 1.0027 at T (planners/trapezoid.py, scurve.py are "
-                   "being reworked on i17-h5)")
 def test_scurve_and_trapezoid_keep_their_cartesian_limits_on_the_quick_paths():
     e = {x["name"]: x for x in load_manifest()}
     rows = run_corpus([(e[p], ["trapezoid", "scurve"]) for p in QUICK_PATHS])
