@@ -245,43 +245,56 @@ class PathTable:
                       if machine is not None else None)
 
     def _refine(self, path):
-        """Add rows 1e-7 mm either side of a NURBS's knots (P‴ jumps there) and split every
-        cell wider than REFINE_RADII curvature radii at its ends until none is: a lobe tip of
-        ρ = 0.02 mm is a curvature peak narrower than the base spacing, which the interpolated
-        tables missed (rand_hairpin_kossel: κ 117/mm read as 17, the s-curve's jerk 17 × its
-        limit). Sets s, offset, counts, cart; returns the rows' one-sided evaluation points."""
+        """Add rows 1e-7 mm either side of a NURBS's knots (P‴ jumps there; q‴ 0.5 % low at the
+        kossel butterfly's tip without them) and split every cell wider than REFINE_RADII
+        curvature radii at its ends until none is (a lobe tip of ρ = 0.02 mm is a curvature
+        peak narrower than the base spacing, which the interpolated tables missed:
+        rand_hairpin_kossel's κ 117/mm read as 17, the s-curve's jerk 17 × its limit).
+        A path with no cell to split keeps the uniform grid bit for bit (optimal, warm-started
+        from scurve_joint, fails on kossel/bird_kossel when its start moves by 1e-8 mm).
+        Sets s, offset, counts, cart, refined; returns the rows' one-sided evaluation points."""
         S, piece = self.s, np.repeat(np.arange(len(self.counts)), self.counts)
+        inner = lambda S, piece: np.clip(S, self.edges[piece] + 1e-9, self.edges[piece + 1] - 1e-9)
+        cart = cartesian_derivs(path, inner(S, piece))
+        self.refined, self.cart = len(self._cells_to_split(S, piece, cart)[0]) > 0, cart
+        if not self.refined:
+            return inner(S, piece)
         U = getattr(path, "knots", None)
         if U is not None and hasattr(path, "s_of_u") and len(np.unique(U)) > 2:
             sk = np.asarray(path.s_of_u(np.unique(np.asarray(U, float))[1:-1]), float)
             sk = np.concatenate([sk - 1e-7, sk + 1e-7])
             pk = np.clip(np.searchsorted(self.edges, sk, side="right") - 1, 0, len(self.counts) - 1)
             keep = (sk > self.edges[pk] + 1e-9) & (sk < self.edges[pk + 1] - 1e-9)
-            S, piece = np.concatenate([S, sk[keep]]), np.concatenate([piece, pk[keep]])
-            order = np.lexsort((S, piece))
-            S, piece = S[order], piece[order]
-        inner = lambda S, piece: np.clip(S, self.edges[piece] + 1e-9, self.edges[piece + 1] - 1e-9)
-        cart = cartesian_derivs(path, inner(S, piece))
+            S, piece, cart = self._add_rows(path, S, piece, cart, sk[keep], pk[keep], inner)
         for _ in range(12):
-            kap = np.linalg.norm(np.cross(cart[1], cart[2]), axis=1)
-            h = np.diff(S)
-            k = np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII)
-            need = np.nonzero((piece[1:] == piece[:-1]) & (k > 1) & (h > REFINE_MIN_MM))[0]
+            need, k, h = self._cells_to_split(S, piece, cart)
             if len(need) == 0:
                 break
-            k = np.minimum(k[need], 64).astype(np.int64)
             cell = np.repeat(need, k - 1)           # k − 1 new rows per cell at fractions i/k
             frac = (np.arange(len(cell)) - np.repeat(np.cumsum(k - 1) - (k - 1), k - 1) + 1) / np.repeat(k, k - 1)
-            s_new, p_new = S[cell] + h[cell] * frac, piece[cell]
-            c_new = cartesian_derivs(path, inner(s_new, p_new))
-            S, piece = np.concatenate([S, s_new]), np.concatenate([piece, p_new])
-            order = np.lexsort((S, piece))
-            S, piece = S[order], piece[order]
-            cart = tuple(np.concatenate([a, b])[order] for a, b in zip(cart, c_new))
+            S, piece, cart = self._add_rows(path, S, piece, cart, S[cell] + h[cell] * frac, piece[cell], inner)
         self.s, self.cart = S, cart
         self.counts = np.bincount(piece, minlength=len(self.counts))
         self.offset = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
         return inner(S, piece)
+
+    @staticmethod
+    def _cells_to_split(S, piece, cart):
+        """(cells wider than REFINE_RADII curvature radii at their ends, the parts to split
+        each into (≤ 64), all cell widths)."""
+        kap = np.linalg.norm(np.cross(cart[1], cart[2]), axis=1)
+        h = np.diff(S)
+        k = np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII)
+        need = np.nonzero((piece[1:] == piece[:-1]) & (k > 1) & (h > REFINE_MIN_MM))[0]
+        return need, np.minimum(k[need], 64).astype(np.int64), h
+
+    @staticmethod
+    def _add_rows(path, S, piece, cart, s_new, p_new, inner):
+        """The grid with rows s_new (of pieces p_new) added, sorted within their pieces."""
+        c_new = cartesian_derivs(path, inner(s_new, p_new))
+        S, piece = np.concatenate([S, s_new]), np.concatenate([piece, p_new])
+        order = np.lexsort((S, piece))
+        return S[order], piece[order], tuple(np.concatenate([a, b])[order] for a, b in zip(cart, c_new))
 
     @staticmethod
     def _interp(tab, i, w, h):
