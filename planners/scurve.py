@@ -17,15 +17,18 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
    (a one-dimensional search for the largest value without violation, as TII 2022's golden
    section; stop at a relative width of 1 %); if lowering A and J cannot fix it (a violation
    caused by the feed itself, e.g. v or centripetal terms), its end and peak feeds are scaled
-   down.  `scurve` checks the Cartesian axes — the paper's method, which lets the joints of
+   down.  Added for feasibility at T (issue 19): the check reads the jerk a G1 join's
+   acceleration jump shows at T next to the join (a segment broken by that alone gets its
+   join feeds lowered), both one-sided values at every jerk switch, and the table rows of
+   refined cells (lobe tips); the tables are refined at curvature peaks and NURBS knots.  `scurve` checks the Cartesian axes — the paper's method, which lets the joints of
    a delta break their limits; `scurve_joint` checks the joints through the IK and adds the
    joint-velocity cap V_joint / max|q′(s)| to the FLF: the conservative fix a user would try.
 
 The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
 lands on s = L at rest.
 
-Size: ~415 lines, the FLF, the 1-D pieces and the repair loop of one method (TII 2022) kept
-together; another branch is speeding it up, so issue 18 left it whole.
+Size: ~530 lines, the FLF, the 1-D pieces, the segment check and the repair loop of one
+method (TII 2022) kept together; issue 18 left it whole (split the segment check off next).
 """
 from __future__ import annotations
 
@@ -181,18 +184,18 @@ class _Planner:
             ik_along(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s
         self.F = self.F_at(self.grid)
-        # |Δx″| per checked axis at each join of the path's pieces (the table holds a join twice,
+        # Δx″ per checked axis at each join of the path's pieces (the table holds a join twice,
         # one-sided): a feed v there jumps the acceleration by Δx″v², which the check at T reads
         # as a jerk of up to JUMP_READ_FACTOR·Δx″v²/T on top of the continuous one
         first = self.table.offset[1:]
         X2 = (self.table.joint if joint else self.table.cart)[2]
         self.joins = self.table.edges[1:-1]
+        self.join_d2 = X2[first] - X2[first - 1]
         # rows of the table's refined cells (lobe tips, knots): a q‴ peak there can be narrower
         # than a period's travel, so the segment checks sample these rows too
         g, piece = self.table.s, np.repeat(np.arange(len(self.table.counts)), self.table.counts)
         fine = (np.diff(g) < 0.999 * self.table.hs[piece[:-1]]) & (piece[1:] == piece[:-1])
         self.fine_s = np.unique(np.concatenate([g[:-1][fine], g[1:][fine]]))
-        self.join_d2 = X2[first] - X2[first - 1]
         self._reachable = {}            # memo of reachable() across the repair rounds
 
     def F_at(self, s):
@@ -403,6 +406,46 @@ class _Planner:
     def seg_ok(self, seg, vcap) -> bool:
         return self.fit_peak(seg, vcap) and bool(np.all(self.ratios(seg) <= 1.0))
 
+    def repair(self, i, seg, v, v_c, A, J, vcap):
+        """One round's repair of segment i that broke a limit: its join feeds (a violation
+        through the joins' reads only), else TII 2022's J, then A, then its feeds; updates the
+        arrays in place."""
+        f = self.join_feed_factors(seg) if np.all(self.ratios(seg, reads=False) <= 1.0) else None
+        if f is not None:
+            # only the joins' reads at T break the limit: lower the feed at those joins
+            v_c[i] = min(v_c[i], v[i] * f[0])
+            v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f[1])
+            return
+        # TII 2022 axis repair: lower J, then A, to the largest value without violation
+        for attr in ("J", "A"):
+            full = getattr(seg, attr)
+
+            def ok(f, attr=attr, full=full):
+                setattr(seg, attr, full * f)
+                return self.seg_ok(seg, vcap[i])
+
+            if ok(0.05):
+                lo, hi = 0.05, 1.0
+                while hi - lo > 0.01:
+                    mid = 0.5 * (lo + hi)
+                    lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+                setattr(seg, attr, full * lo)
+                break
+            setattr(seg, attr, full)
+        A[i], J[i] = seg.A, seg.J
+        seg.A, seg.J = A[i], J[i]
+        if not self.seg_ok(seg, vcap[i]):
+            # a violation of the feed itself: scale the segment's feeds down
+            r = self.ratios(seg)
+            # a cruise at constant feed has zero a and j ratios: they bound nothing (the
+            # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
+            bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
+                      r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
+            f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
+            vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
+            v_c[i] = min(v_c[i], v[i] * f)
+            v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
+
     def run(self, max_rounds: int = 60):
         s_c, v_c = self.critical_points()
         Ls = np.diff(s_c)
@@ -441,44 +484,9 @@ class _Planner:
             if not bad:
                 return segs, {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
                               "critical_points_mm": s_c.tolist()}
-            for i, r in bad:
+            for i, _ in bad:
                 repairs += 1
-                seg = segs[i]
-                f = self.join_feed_factors(seg) if np.all(self.ratios(seg, reads=False) <= 1.0) else None
-                if f is not None:
-                    # only the joins' reads at T break the limit: lower the feed at those joins
-                    v_c[i] = min(v_c[i], v[i] * f[0])
-                    v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f[1])
-                    continue
-                # TII 2022 axis repair: lower J, then A, to the largest value without violation
-                for attr in ("J", "A"):
-                    full = getattr(seg, attr)
-
-                    def ok(f, attr=attr, full=full):
-                        setattr(seg, attr, full * f)
-                        return self.seg_ok(seg, vcap[i])
-
-                    if ok(0.05):
-                        lo, hi = 0.05, 1.0
-                        while hi - lo > 0.01:
-                            mid = 0.5 * (lo + hi)
-                            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-                        setattr(seg, attr, full * lo)
-                        break
-                    setattr(seg, attr, full)
-                A[i], J[i] = seg.A, seg.J
-                seg.A, seg.J = A[i], J[i]
-                if not self.seg_ok(seg, vcap[i]):
-                    # a violation of the feed itself: scale the segment's feeds down
-                    r = self.ratios(seg)
-                    # a cruise at constant feed has zero a and j ratios: they bound nothing (the
-                    # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
-                    bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
-                              r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
-                    f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
-                    vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
-                    v_c[i] = min(v_c[i], v[i] * f)
-                    v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
+                self.repair(i, segs[i], v, v_c, A, J, vcap)
         raise PlanningError(f"scurve: axis-limit repair did not converge in {max_rounds} rounds "
                             f"({len(bad)} segment(s) still violate)")
 
