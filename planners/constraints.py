@@ -18,6 +18,10 @@ an exact-stop corner): at each s we take the path's own one-sided derivatives
 and difference q(X(h)) on a 5-point stencil in h.  X(h) agrees with the path to third order,
 so these are the derivatives of q(s) at s, with O(h²) truncation (h = 0.02 mm → ~1e-4
 relative on q‴ at 1 mm radius, round-off ~1e-8).
+
+Size: ~430 lines: the constraint set, the derivatives it is read from and their tables belong
+together (every planner imports them as one); the table's refinement is the part to split off
+if it grows.
 """
 from __future__ import annotations
 
@@ -34,6 +38,10 @@ STENCIL_H_MM = 0.02
 # most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
 # difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
 JUMP_READ_FACTOR = 0.75
+# PathTable(refine=True): a cell is at most this many curvature radii wide (q‴ is interpolated
+# linearly, its relative error ~ (h/ρ)²/8 = 0.1 %), and never split below REFINE_MIN_MM
+REFINE_RADII = 0.1
+REFINE_MIN_MM = 1e-5
 
 
 def check_limits(limits, planner: str = "planner") -> None:
@@ -88,26 +96,55 @@ def cartesian_derivs(path, s):
     return np.asarray(P, float), np.asarray(P1, float), np.asarray(P2, float), np.asarray(P3, float)
 
 
-def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None):
+def joint_derivs(machine, path, s, h: float = STENCIL_H_MM, cart=None, fit_scale: bool = False):
     """(q, q′, q″, q‴) at arc lengths s, each (N, 3): joint positions and their derivatives
     with respect to arc length.  Raises PlanningError naming the first point that leaves the
-    workspace (the kins message names the point and the joint)."""
+    workspace (the kins message names the point and the joint).
+
+    On a curve tighter than the stencil the cubic X(±2h) leaves the path (a G64 blend of
+    radius 0.06 µm put it kilometres off, out of reach) and q‴'s truncation error ~(h/ℓ)²/4
+    grows with the curve's length scale ℓ = min(1/|P″|, 1/√|P‴|).  A row whose stencil leaves
+    the reach retries at h ≤ ℓ/10, then at a quarter of its step; ``fit_scale`` bounds h by
+    ℓ/10 everywhere (the s-curve's tables; not the default: optimal's IPOPT on kossel/
+    bird_kossel fails on tables that differ from today's in the last bit, a defect of its own)."""
     s = np.asarray(s, float)
     P, P1, P2, P3 = cart if cart is not None else cartesian_derivs(path, s)
     Q0 = ik_along(machine, s, P)
-    Q = {0: Q0}
+    with np.errstate(divide="ignore"):
+        ell = 0.1 * np.minimum(1 / np.linalg.norm(P2, axis=1), 1 / np.sqrt(np.linalg.norm(P3, axis=1)))
+    # one step for all rows unless a row needs its own: the float h keeps the default results
+    # bit-identical to a scalar stencil (numpy's h ** 3 of an array rounds differently)
+    hs = np.minimum(h, ell) if fit_scale else np.full(len(s), float(h))
+    q1, q2, q3 = (np.empty_like(Q0) for _ in range(3))
+    todo = np.arange(len(s))
+    for _ in range(5):
+        step = float(h) if (hs[todo] == h).all() else hs[todo][:, None]
+        Q, ok = _stencil(machine, P[todo], P1[todo], P2[todo], P3[todo], step)
+        rows = todo[ok]
+        hh = step if isinstance(step, float) else step[ok]
+        Qm2, Qm1, Qp1, Qp2 = (Q[k][ok] for k in (-2, -1, 1, 2))
+        q1[rows] = (-Qp2 + 8 * Qp1 - 8 * Qm1 + Qm2) / (12 * hh)
+        q2[rows] = (-Qp2 + 16 * Qp1 - 30 * Q0[rows] + 16 * Qm1 - Qm2) / (12 * hh * hh)
+        q3[rows] = (Qp2 - 2 * Qp1 + 2 * Qm1 - Qm2) / (2 * hh ** 3)
+        todo = todo[~ok]
+        if len(todo) == 0:
+            return Q0, q1, q2, q3
+        hs[todo] = np.where(ell[todo] < hs[todo], ell[todo], hs[todo] / 4)
+    i = int(todo[0])
+    raise PlanningError(f"path point at s = {s[i]:.6g} mm {P[i]} is at the edge of reach "
+                        f"(a joint-derivative stencil of ±{2 * hs[i]:.3g} mm leaves it)")
+
+
+def _stencil(machine, P, P1, P2, P3, h):
+    """IK of the local cubic X(kh), k = ±1, ±2 (h a float or one per row, (n, 1)):
+    ({k: q}, rows whose four points are in reach)."""
+    Q, ok = {}, np.ones(len(P), bool)
     for k in (-2, -1, 1, 2):
         d = k * h
         X = P + P1 * d + P2 * (d * d / 2) + P3 * (d * d * d / 6)
-        Qk, reach = machine._ik(X)  # stencil points are ≤ 2h off the path: no stroke check
-        if (reach < 0).any():
-            i = int(np.argmax((reach < 0).any(axis=1)))
-            raise PlanningError(f"path point at s = {s[i]:.6g} mm {P[i]} is at the edge of reach")
-        Q[k] = Qk
-    q1 = (-Q[2] + 8 * Q[1] - 8 * Q[-1] + Q[-2]) / (12 * h)
-    q2 = (-Q[2] + 16 * Q[1] - 30 * Q[0] + 16 * Q[-1] - Q[-2]) / (12 * h * h)
-    q3 = (Q[2] - 2 * Q[1] + 2 * Q[-1] - Q[-2]) / (2 * h ** 3)
-    return Q0, q1, q2, q3
+        Q[k], reach = machine._ik(X)  # stencil points are ≤ 2h off the path: no stroke check
+        ok &= ~(reach < 0).any(axis=1)
+    return Q, ok
 
 
 def time_derivs(D1, D2, D3, sd, sdd, sddd):
@@ -170,12 +207,16 @@ class PathTable:
     twice (its value from the left and from the right), so no interpolation blends the two
     sides of a corner.  x′ and x″ are interpolated by cubic Hermite with the next derivative
     as slope (O(h⁴)), x‴ linearly (O(h²)), for the Cartesian axes and, with a machine, the
-    joints (`joint` is None without one).
+    joints (`joint` is None without one).  ``fit_scale``: the joint stencil bounded by the
+    curve's length scale (:func:`joint_derivs`), here and in the join jumps read with this table.
+    ``refine`` (the s-curve's tables): cells split to ≤ REFINE_RADII curvature radii and rows
+    either side of a NURBS's knots (not the default: optimal on keops/bird ran > 10 min on it).
     """
 
-    def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001):
+    def __init__(self, path, machine=None, ds: float = 0.05, min_points: int = 2001,
+                 fit_scale: bool = False, refine: bool = False):
         L = float(path.length)
-        self.length = L
+        self.length, self.fit_scale, self.refined = L, fit_scale, refine
         # pieces between the path's joins (segment ends of a line/arc path, corners): a
         # derivative that jumps at a join is never blended, and a segment shorter than ds
         # still gets points of its own (a 0.04 mm G64 blend arc)
@@ -193,11 +234,67 @@ class PathTable:
         self.offset, self.hs = np.array(self.offset), np.array(self.hs)
         self.counts = np.array([len(g) for g in grids])
         self.s = np.concatenate(grids)
-        # evaluate one-sidedly: the end points of each piece a hair inside it
-        inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
-                                zip(grids, self.edges[:-1], self.edges[1:])])
-        self.cart = cartesian_derivs(path, inner)
-        self.joint = joint_derivs(machine, path, inner, cart=self.cart) if machine is not None else None
+        if refine:
+            inner = self._refine(path)
+        else:
+            # evaluate one-sidedly: the end points of each piece a hair inside it
+            inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
+                                    zip(grids, self.edges[:-1], self.edges[1:])])
+            self.cart = cartesian_derivs(path, inner)
+        self.joint = (joint_derivs(machine, path, inner, cart=self.cart, fit_scale=fit_scale)
+                      if machine is not None else None)
+
+    def _refine(self, path):
+        """Add rows 1e-7 mm either side of a NURBS's knots (P‴ jumps there; q‴ 0.5 % low at the
+        kossel butterfly's tip without them) and split every cell wider than REFINE_RADII
+        curvature radii at its ends until none is (a lobe tip of ρ = 0.02 mm is a curvature
+        peak narrower than the base spacing, which the interpolated tables missed:
+        rand_hairpin_kossel's κ 117/mm read as 17, the s-curve's jerk 17 × its limit).
+        A path with no cell to split keeps the uniform grid bit for bit (optimal, warm-started
+        from scurve_joint, fails on kossel/bird_kossel when its start moves by 1e-8 mm).
+        Sets s, offset, counts, cart, refined; returns the rows' one-sided evaluation points."""
+        S, piece = self.s, np.repeat(np.arange(len(self.counts)), self.counts)
+        inner = lambda S, piece: np.clip(S, self.edges[piece] + 1e-9, self.edges[piece + 1] - 1e-9)
+        cart = cartesian_derivs(path, inner(S, piece))
+        self.refined, self.cart = len(self._cells_to_split(S, piece, cart)[0]) > 0, cart
+        if not self.refined:
+            return inner(S, piece)
+        U = getattr(path, "knots", None)
+        if U is not None and hasattr(path, "s_of_u") and len(np.unique(U)) > 2:
+            sk = np.asarray(path.s_of_u(np.unique(np.asarray(U, float))[1:-1]), float)
+            sk = np.concatenate([sk - 1e-7, sk + 1e-7])
+            pk = np.clip(np.searchsorted(self.edges, sk, side="right") - 1, 0, len(self.counts) - 1)
+            keep = (sk > self.edges[pk] + 1e-9) & (sk < self.edges[pk + 1] - 1e-9)
+            S, piece, cart = self._add_rows(path, S, piece, cart, sk[keep], pk[keep], inner)
+        for _ in range(12):
+            need, k, h = self._cells_to_split(S, piece, cart)
+            if len(need) == 0:
+                break
+            cell = np.repeat(need, k - 1)           # k − 1 new rows per cell at fractions i/k
+            frac = (np.arange(len(cell)) - np.repeat(np.cumsum(k - 1) - (k - 1), k - 1) + 1) / np.repeat(k, k - 1)
+            S, piece, cart = self._add_rows(path, S, piece, cart, S[cell] + h[cell] * frac, piece[cell], inner)
+        self.s, self.cart = S, cart
+        self.counts = np.bincount(piece, minlength=len(self.counts))
+        self.offset = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
+        return inner(S, piece)
+
+    @staticmethod
+    def _cells_to_split(S, piece, cart):
+        """(cells wider than REFINE_RADII curvature radii at their ends, the parts to split
+        each into (≤ 64), all cell widths)."""
+        kap = np.linalg.norm(np.cross(cart[1], cart[2]), axis=1)
+        h = np.diff(S)
+        k = np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII)
+        need = np.nonzero((piece[1:] == piece[:-1]) & (k > 1) & (h > REFINE_MIN_MM))[0]
+        return need, np.minimum(k[need], 64).astype(np.int64), h
+
+    @staticmethod
+    def _add_rows(path, S, piece, cart, s_new, p_new, inner):
+        """The grid with rows s_new (of pieces p_new) added, sorted within their pieces."""
+        c_new = cartesian_derivs(path, inner(s_new, p_new))
+        S, piece = np.concatenate([S, s_new]), np.concatenate([piece, p_new])
+        order = np.lexsort((S, piece))
+        return S[order], piece[order], tuple(np.concatenate([a, b])[order] for a, b in zip(cart, c_new))
 
     @staticmethod
     def _interp(tab, i, w, h):
@@ -221,6 +318,12 @@ class PathTable:
         A corner itself counts to the piece after it (callers stay inside pieces)."""
         s = np.clip(np.asarray(s, float), 0.0, self.length)
         p = np.clip(np.searchsorted(self.edges, s, side="right") - 1, 0, len(self.hs) - 1)
+        if self.refined:
+            # the sorted grid holds each join twice: the last row ≤ s, kept inside s's piece
+            i = np.clip(np.searchsorted(self.s, s, side="right") - 1, self.offset[p],
+                        self.offset[p] + self.counts[p] - 2)
+            h = self.s[i + 1] - self.s[i]
+            return i, (s - self.s[i]) / h, h
         h = self.hs[p]
         x = (s - self.edges[p]) / h
         k = np.clip(x.astype(np.int64), 0, self.counts[p] - 2)
@@ -291,7 +394,8 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
         cand = np.arange(len(cand))
     pairs = np.column_stack([lo - 1e-7, hi + 1e-7]).ravel()
     cart = cartesian_derivs(path, pairs)
-    D = joint_derivs(machine, path, pairs, cart=cart) if machine is not None else cart
+    D = (joint_derivs(machine, path, pairs, cart=cart, fit_scale=table.fit_scale)
+         if machine is not None else cart)
     cjump = np.linalg.norm(cart[2][1::2] - cart[2][0::2], axis=1)
     jump = np.abs(D[2][1::2] - D[2][0::2]).max(axis=1)
     # keep real jumps (a smooth stretch's change over 2e-7 mm is tiny; a C² knot has none)

@@ -17,15 +17,18 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
    (a one-dimensional search for the largest value without violation, as TII 2022's golden
    section; stop at a relative width of 1 %); if lowering A and J cannot fix it (a violation
    caused by the feed itself, e.g. v or centripetal terms), its end and peak feeds are scaled
-   down.  `scurve` checks the Cartesian axes — the paper's method, which lets the joints of
+   down.  Added for feasibility at T (issue 19): the check reads the jerk a G1 join's
+   acceleration jump shows at T next to the join (a segment broken by that alone gets its
+   join feeds lowered), both one-sided values at every jerk switch, and the table rows of
+   refined cells (lobe tips); the tables are refined at curvature peaks and NURBS knots.  `scurve` checks the Cartesian axes — the paper's method, which lets the joints of
    a delta break their limits; `scurve_joint` checks the joints through the IK and adds the
    joint-velocity cap V_joint / max|q′(s)| to the FLF: the conservative fix a user would try.
 
 The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
 lands on s = L at rest.
 
-Size: ~415 lines, the FLF, the 1-D pieces and the repair loop of one method (TII 2022) kept
-together; another branch is speeding it up, so issue 18 left it whole.
+Size: ~530 lines, the FLF, the 1-D pieces, the segment check and the repair loop of one
+method (TII 2022) kept together; issue 18 left it whole (split the segment check off next).
 """
 from __future__ import annotations
 
@@ -36,7 +39,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
-from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
+from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
                           chord_feed_cap, corner_list, ik_along, joint_derivs, peak_ratios,
                           second_derivative_jumps, time_derivs)
 from .feed import feed_ceiling
@@ -130,15 +133,21 @@ class Segment:
         inp.target_position = [self.L]
         inp.target_velocity = [self.v1]
         inp.target_acceleration = [0.0]
-        inp.max_velocity = [max(self.vpeak, self.v0, self.v1)]
         inp.min_velocity = [0.0]
         inp.max_acceleration = [self.A]
         inp.max_jerk = [self.J]
-        try:
-            res = otg.calculate(inp, traj)
-        except Exception:  # ruckig.RuckigError: no profile for these inputs
-            return False
-        if res not in (Result.Working, Result.Finished):
+        # a segment that needs all its length to reach v1 = its peak (the consistency pass
+        # allows it to within 1e-9 of L) has no profile in ruckig with the peak at exactly v1
+        # (rand_edge_keops); 1e-9 above it has one, whose peak is v1
+        for widen in (1.0, 1.0 + 1e-9):
+            inp.max_velocity = [max(self.vpeak, self.v0, self.v1) * widen]
+            try:
+                res = otg.calculate(inp, traj)
+            except Exception:  # ruckig.RuckigError: no profile for these inputs
+                continue
+            if res in (Result.Working, Result.Finished):
+                break
+        else:
             return False
         prof = traj.profiles[0][0]
         self.tcum = np.concatenate([[0.0], np.cumsum(prof.t)])
@@ -169,11 +178,24 @@ class _Planner:
         # plan the check against slightly tightened limits: the metrics read jerk as a third
         # difference at T, which can exceed the continuous peak by a fraction of a percent
         self.check = type(lim)(lim.v * (1 - margin), lim.a * (1 - margin), lim.j * (1 - margin))
-        self.table = PathTable(path, machine if joint else None, ds=grid_mm)
+        self.table = PathTable(path, machine if joint else None, ds=grid_mm, fit_scale=True,
+                               refine=True)
         if not joint:      # the Cartesian planner does not need the IK, but the path must be reachable
             ik_along(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s
         self.F = self.F_at(self.grid)
+        # Δx″ per checked axis at each join of the path's pieces (the table holds a join twice,
+        # one-sided): a feed v there jumps the acceleration by Δx″v², which the check at T reads
+        # as a jerk of up to JUMP_READ_FACTOR·Δx″v²/T on top of the continuous one
+        first = self.table.offset[1:]
+        X2 = (self.table.joint if joint else self.table.cart)[2]
+        self.joins = self.table.edges[1:-1]
+        self.join_d2 = X2[first] - X2[first - 1]
+        # rows of the table's refined cells (lobe tips, knots): a q‴ peak there can be narrower
+        # than a period's travel, so the segment checks sample these rows too
+        g, piece = self.table.s, np.repeat(np.arange(len(self.table.counts)), self.table.counts)
+        fine = (np.diff(g) < 0.999 * self.table.hs[piece[:-1]]) & (piece[1:] == piece[:-1])
+        self.fine_s = np.unique(np.concatenate([g[:-1][fine], g[1:][fine]]))
         self._reachable = {}            # memo of reachable() across the repair rounds
 
     def F_at(self, s):
@@ -227,10 +249,14 @@ class _Planner:
             if b not in pts:
                 pts[b] = f
         s = np.array(sorted(pts))
-        # merge points closer than 1 µm (a knot that is also an FLF minimum), keeping the lower feed
+        # merge points closer than 1 µm (a knot that is also an FLF minimum), keeping the lower
+        # feed; but never two joins: a piece shorter than 1 µm (a G64 blend of radius 0.2 µm at
+        # a reversal) inside a segment let it accelerate there, where the jerk κ²ṡ³ broke the
+        # limit at any feed the FLF allows, and the repair could only slow the whole segment
+        joins = set(self.table.edges.tolist())
         keep = [0]
         for k in range(1, len(s)):
-            if s[k] - s[keep[-1]] < 1e-3:
+            if s[k] - s[keep[-1]] < 1e-3 and not (s[k] in joins and s[keep[-1]] in joins):
                 pts[s[keep[-1]]] = min(pts[s[keep[-1]]], pts[s[k]])
                 if k == len(s) - 1:
                     keep[-1] = k
@@ -309,20 +335,116 @@ class _Planner:
         seg.vpeak = good
         return seg.compute(self.otg, self.inp, self.traj)
 
-    def ratios(self, seg: Segment) -> np.ndarray:
-        """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits)."""
+    def ratios(self, seg: Segment, reads: bool = True) -> np.ndarray:
+        """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits),
+        with the reads at T of the joins at its ends (:meth:`join_reads`) unless ``reads`` is off."""
+        tt, xv, xa, xj = self.sampled(seg)
+        if reads:
+            hi, lo = xj, xj
+            for _, near, read in self.join_reads(seg, tt):
+                hi, lo = hi + np.outer(near, np.maximum(read, 0)), lo + np.outer(near, np.minimum(read, 0))
+            xj = np.maximum(np.abs(hi), np.abs(lo))
+        return peak_ratios(xv, xa, xj, self.check)
+
+    def sampled(self, seg: Segment):
+        """(times, velocity, acceleration, jerk) of the checked axes over the segment."""
         # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
         # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
         tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
+        # at a phase's end at() reads the next phase's jerk: a time just inside it gives the
+        # left limit (rand_edge_lcnc: the jerk flips −J → +J at the peak deceleration, where
+        # the joint jerk is 1.18 × its limit from the left and 0.90 from the right)
+        d = np.diff(seg.tcum)
+        tt = np.unique(np.concatenate([tt, (seg.tcum[1:] - 1e-9 * d)[d > 0]]))
         p, v, a, j = seg.at(tt)
+        lo, hi = np.searchsorted(self.fine_s, [seg.s0, seg.s0 + seg.L])
+        if hi > lo:
+            # the times of the refined rows inside the segment (p(t) is monotone): rand_hairpin_
+            # keops's joint jerk peaked at 1.16 between samples ≤ T apart and read 1.01 at T
+            tt = np.unique(np.concatenate([tt, np.interp(self.fine_s[lo:hi] - seg.s0, p, tt)]))
+            p, v, a, j = seg.at(tt)
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
         D = (None,) + (self.table.joints(s) if self.joint else self.table.cartesian(s))
         xv, xa, xj = time_derivs(D[1], D[2], D[3], v, a, j)
-        return peak_ratios(xv, xa, xj, self.check)
+        return tt, xv, xa, xj
+
+    def join_reads(self, seg, tt):
+        """[(end 0 or 1, samples within 3T of it, signed read per axis)] for the segment's ends
+        at a join. A third difference at T is the jerk averaged by a quadratic B-spline kernel
+        (support 3T, peak 0.75/T), so the jump Δx″v² of the acceleration at the join adds up to
+        JUMP_READ_FACTOR·Δx″v²/T, with its sign, to an average of the continuous jerk next to
+        it (the rand_*/cam_* paths read 1.003–1.06 × the limit without this term)."""
+        out = []
+        for end, s_end, v_end in ((0, seg.s0, seg.v0), (1, seg.s0 + seg.L, seg.v1)):
+            k = int(np.searchsorted(self.joins, s_end))
+            for n in (k - 1, k):          # a join within 1 µm (merged critical points)
+                if 0 <= n < len(self.joins) and abs(self.joins[n] - s_end) < 1e-3 and v_end > 0:
+                    near = tt <= 3 * self.T if end == 0 else tt >= seg.duration - 3 * self.T
+                    out.append((end, near, JUMP_READ_FACTOR * self.join_d2[n] * v_end ** 2 / self.T))
+        return out
+
+    def join_feed_factors(self, seg) -> list[float]:
+        """Per end, the factor on its feed that brings the join's read plus the continuous jerk
+        next to it within the limit (the read scales as v²; the continuous jerk is kept, which
+        errs low), in [0.49, 0.98]: for a segment that violates only through its joins' reads.
+        None where that would take more than halving the feed (the continuous jerk next to the
+        join leaves no room: the segment's J has to come down, as for any other violation)."""
+        tt, _, _, xj = self.sampled(seg)
+        f = [1.0, 1.0]
+        for end, near, read in self.join_reads(seg, tt):
+            # the continuous jerk of the read's sign next to the join leaves this much room
+            same = np.where(read > 0, xj[near].max(axis=0), -xj[near].min(axis=0))
+            room = np.maximum(self.check.j - same, 0.0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                need = float(np.nanmin(np.sqrt(room / np.abs(read))))
+            if need < 0.5:            # the continuous jerk fills the limit: lower J instead
+                return None
+            f[end] = min(f[end], min(0.98 * need, 0.98))
+        return f
 
     def seg_ok(self, seg, vcap) -> bool:
         return self.fit_peak(seg, vcap) and bool(np.all(self.ratios(seg) <= 1.0))
+
+    def repair(self, i, seg, v, v_c, A, J, vcap):
+        """One round's repair of segment i that broke a limit: its join feeds (a violation
+        through the joins' reads only), else TII 2022's J, then A, then its feeds; updates the
+        arrays in place."""
+        f = self.join_feed_factors(seg) if np.all(self.ratios(seg, reads=False) <= 1.0) else None
+        if f is not None:
+            # only the joins' reads at T break the limit: lower the feed at those joins
+            v_c[i] = min(v_c[i], v[i] * f[0])
+            v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f[1])
+            return
+        # TII 2022 axis repair: lower J, then A, to the largest value without violation
+        for attr in ("J", "A"):
+            full = getattr(seg, attr)
+
+            def ok(f, attr=attr, full=full):
+                setattr(seg, attr, full * f)
+                return self.seg_ok(seg, vcap[i])
+
+            if ok(0.05):
+                lo, hi = 0.05, 1.0
+                while hi - lo > 0.01:
+                    mid = 0.5 * (lo + hi)
+                    lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+                setattr(seg, attr, full * lo)
+                break
+            setattr(seg, attr, full)
+        A[i], J[i] = seg.A, seg.J
+        seg.A, seg.J = A[i], J[i]
+        if not self.seg_ok(seg, vcap[i]):
+            # a violation of the feed itself: scale the segment's feeds down
+            r = self.ratios(seg)
+            # a cruise at constant feed has zero a and j ratios: they bound nothing (the
+            # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
+            bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
+                      r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
+            f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
+            vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
+            v_c[i] = min(v_c[i], v[i] * f)
+            v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
 
     def run(self, max_rounds: int = 60):
         s_c, v_c = self.critical_points()
@@ -362,38 +484,9 @@ class _Planner:
             if not bad:
                 return segs, {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
                               "critical_points_mm": s_c.tolist()}
-            for i, r in bad:
+            for i, _ in bad:
                 repairs += 1
-                seg = segs[i]
-                # TII 2022 axis repair: lower J, then A, to the largest value without violation
-                for attr in ("J", "A"):
-                    full = getattr(seg, attr)
-
-                    def ok(f, attr=attr, full=full):
-                        setattr(seg, attr, full * f)
-                        return self.seg_ok(seg, vcap[i])
-
-                    if ok(0.05):
-                        lo, hi = 0.05, 1.0
-                        while hi - lo > 0.01:
-                            mid = 0.5 * (lo + hi)
-                            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-                        setattr(seg, attr, full * lo)
-                        break
-                    setattr(seg, attr, full)
-                A[i], J[i] = seg.A, seg.J
-                seg.A, seg.J = A[i], J[i]
-                if not self.seg_ok(seg, vcap[i]):
-                    # a violation of the feed itself: scale the segment's feeds down
-                    r = self.ratios(seg)
-                    # a cruise at constant feed has zero a and j ratios: they bound nothing (the
-                    # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
-                    bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
-                              r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
-                    f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
-                    vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
-                    v_c[i] = min(v_c[i], v[i] * f)
-                    v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
+                self.repair(i, segs[i], v, v_c, A, J, vcap)
         raise PlanningError(f"scurve: axis-limit repair did not converge in {max_rounds} rounds "
                             f"({len(bad)} segment(s) still violate)")
 

@@ -139,9 +139,6 @@ def test_corpus_quick_command(tmp_path, capsys):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-@pytest.mark.xfail(strict=True, reason="issue 19 item 5, open: on contour_lcnc trapezoid reads Cartesian "
-                   "v 1.0023 and scurve Cartesian j 1.0027 at T (planners/trapezoid.py, scurve.py are "
-                   "being reworked on i17-h5)")
 def test_scurve_and_trapezoid_keep_their_cartesian_limits_on_the_quick_paths():
     e = {x["name"]: x for x in load_manifest()}
     rows = run_corpus([(e[p], ["trapezoid", "scurve"]) for p in QUICK_PATHS])
@@ -202,33 +199,52 @@ def test_blend_of_a_nearly_straight_corner_is_contiguous():
     SegmentPath(segs, "blend")                              # contiguous within 1e-9 mm
 
 
-@pytest.mark.xfail(strict=True, reason="the stencil bound h ≤ ρ/20 was reverted: it made IPOPT fail on "
-                   "kossel/bird_kossel (Error_In_Step_Computation); open defect")
-def test_joint_derivatives_on_a_micron_blend_arc():
-    # a G64 blend of radius 2 µm: the 0.02 mm stencil of the local cubic left the path by mm
-    m = load_machine("kossel")
+def _hairpin(radius):
+    """Two lines joined by a half circle of the given radius in kossel's work plane z = -252."""
     c = np.array([-13.0, -10.0, -252.0])
-    a = Line(c + [-5.0, 0.002, 0.0], c + [0.0, 0.002, 0.0])
+    a = Line(c + [-5.0, radius, 0.0], c + [0.0, radius, 0.0])
     arc = Arc(a.end, c, [0.0, 0.0, 1.0], math.pi)
-    b = Line(arc.end, arc.end + [-5.0, 0.0, 0.0])
-    path = SegmentPath([a, arc, b], "hairpin")
-    s = np.array([5.0 + 0.5 * arc.length])
-    q, q1, q2, q3 = joint_derivs(m, path, s)
-    h = 1e-5
-    fd = (m.ik(path.point(s + h)) - m.ik(path.point(s - h))) / (2 * h)
-    assert q1[0] == pytest.approx(fd[0], rel=1e-5, abs=1e-8)
+    return SegmentPath([a, arc, Line(arc.end, arc.end + [-5.0, 0.0, 0.0])], "hairpin"), 5.0 + 0.5 * arc.length
+
+
+def _central_q1(m, path, s, h):
+    return (m.ik(path.point(s + h)) - m.ik(path.point(s - h))) / (2 * h)
+
+
+def test_joint_derivatives_on_a_micron_blend_arc():
+    # a G64 blend of radius 2 µm: the 0.02 mm stencil of the local cubic left the path by
+    # h³/6ρ² ≈ 2.7 mm (in reach, but nothing of q(s)); the s-curve's stencil fits the curve
+    m = load_machine("kossel")
+    path, s = _hairpin(0.002)
+    s = np.array([s])
+    q, q1, q2, q3 = joint_derivs(m, path, s, fit_scale=True)
+    assert q1[0] == pytest.approx(_central_q1(m, path, s, 1e-5)[0], rel=1e-5, abs=1e-8)
+    # q″ by a second method: central second difference of the exact IK along the arc
+    h = 2e-6
+    fd2 = (m.ik(path.point(s + h)) - 2 * q + m.ik(path.point(s - h))) / h ** 2
+    assert q2[0] == pytest.approx(fd2[0], rel=1e-3)
     assert np.isfinite(q3).all()
 
 
-@pytest.mark.xfail(strict=True, reason="the PathTable refinement at lobe tips (cells ≤ 0.1 curvature "
-                   "radius) was reverted: it made optimal on keops/bird run > 10 min (was 6 s); open defect")
+def test_joint_derivatives_where_the_stencil_leaves_the_reach():
+    # pocket_kossel's reversal blend has a radius of 0.06 µm: the cubic at ±0.04 mm lies
+    # h³/6ρ² ≈ 3 m off the path; this raised "at the edge of reach" (scurve_joint failed)
+    m = load_machine("kossel")
+    path, s = _hairpin(6e-5)
+    s = np.array([s])
+    _, q1, _, q3 = joint_derivs(m, path, s)
+    assert q1[0] == pytest.approx(_central_q1(m, path, s, 1e-7)[0], rel=1e-4, abs=1e-7)
+    assert np.isfinite(q3).all()
+
+
 def test_table_resolves_the_butterfly_lobe_tip():
     # kossel's butterfly: a lobe tip of ρ ≈ 0.02 mm at s ≈ 84.5 mm, narrower than the 0.05 mm
-    # base grid; the tables' peak q″, q‴ per joint must be the exact ones (the check reads peaks;
-    # pointwise, q‴ jumps at the cubic's knots and a straddling cell blends the two sides)
+    # base grid; the s-curve's refined tables' peak q″, q‴ per joint must be the exact ones (the
+    # check reads peaks; pointwise, q‴ jumps at the cubic's knots and a straddling cell blends
+    # the two sides). The default tables stay unrefined: optimal on keops/bird ran > 10 min on them
     m = load_machine("kossel")
     path = load_path(CORPUS_DIR / "butterfly_kossel.json")
-    tab = PathTable(path, m, ds=0.05)
+    tab = PathTable(path, m, ds=0.05, fit_scale=True, refine=True)
     s = np.linspace(84.40, 84.65, 2001)
     _, q2_tab, q3_tab = tab.joints(s)
     _, _, q2, q3 = joint_derivs(m, path, s)
@@ -236,8 +252,6 @@ def test_table_resolves_the_butterfly_lobe_tip():
         assert np.abs(a).max(axis=0) == pytest.approx(np.abs(b).max(axis=0), rel=0.005)
 
 
-@pytest.mark.xfail(strict=True, reason="the PathTable refinement at lobe tips (cells ≤ 0.1 curvature "
-                   "radius) was reverted: it made optimal on keops/bird run > 10 min (was 6 s); open defect")
 def test_scurve_joint_is_joint_feasible_on_the_kossel_butterfly():
     # issue 19: joint jerk 1.08 × its limit at the lobe tip where the feed drops to ~2 mm/s
     m = load_machine("kossel")

@@ -250,3 +250,92 @@ def test_consistent_equals_the_plain_two_passes():
         for i in range(n):
             ref[i + 1] = min(ref[i + 1], scurve.reachable(ref[i], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i + 1]))
         assert np.array_equal(pl.consistent(v_c, Ls, A, J), ref)
+
+
+def test_a_segment_that_needs_its_whole_length_to_reach_its_end_feed_has_a_profile():
+    """rand_edge_keops: the consistency pass leaves L = d(v0, v1)(1 + 1e-9); ruckig found no
+    profile with its peak at exactly v1. The time is the closed form Δv/A + A/J (Δv > A²/J)."""
+    v0, v1, A, J = 20.72508930578312, 255.555002407372, 9950.0, 497500.0
+    L = scurve.min_distance(v0, v1, A, J) * (1 + 1e-9)
+    seg = scurve.Segment(0.0, L, v0, v1, A, J, v1)
+    from ruckig import InputParameter, Ruckig, Trajectory
+    assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
+    assert seg.duration == pytest.approx((v1 - v0) / A + A / J, rel=1e-6)
+    assert seg.at(np.linspace(0, seg.duration, 101))[1].max() <= v1 * (1 + 1e-9)
+
+
+def test_a_reversal_blend_then_a_full_circle_costs_no_more_than_stopping_at_every_join():
+    """pocket_keops: a G64 P0.01 reversal leaves a 0.6 µm blend (radius 0.2 µm), then a line
+    into a full circle of radius 1 mm. The blend's ends were merged into one critical point,
+    the next 59 mm segment accelerated inside the blend (jerk κ²ṡ³ at any feed the FLF
+    allows) and the repair slowed the whole segment to 0.24 mm/s: 244.6 s. Stopping at every
+    join costs the sum of the rest-to-rest closed forms L/v + v/A + A/J (v the feed, the
+    circle's ∛(J/κ²) = 79 mm/s): 0.52 s; the s-curve is within 20 % of that."""
+    from planners.paths.gcode import parse_gcode, program_path
+    prog = ("G21 G90 G17 G64 P0.01\nG1 X46.3708 Y28.4877 Z-402 F60000\nG1 X-46.3708 Y-35.5123\n"
+            "G1 X1 Y0\nG3 X1 Y0 I-1 J0\nM2\n")
+    path = program_path(parse_gcode(prog))
+    c = KEOPS.limits.cartesian
+    A, J = 0.995 * c.a, 0.995 * c.j                 # the default margin
+    lines = [g.length for g in path.segments if g.kind == "line"]
+    bound = sum(L / 1000 + 1000 / A + A / J for L in lines)
+    vc = min(math.sqrt(A), J ** (1 / 3))            # κ = 1: √(A/κ), ∛(J/κ²)
+    bound += 2 * math.pi / vc + vc / A + A / J
+    for name, key in (("scurve", "cartesian_peak_ratio"), ("scurve_joint", "joint_peak_ratio")):
+        p = plan(name, path, KEOPS)
+        assert p.execution_time_s < 1.2 * bound, name
+        r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)
+        assert max(v for k, v in r[key].items() if k != "feed") <= 1 + 1e-6, name
+
+
+def test_the_read_at_T_of_a_line_arc_join_is_the_closed_form():
+    """A line into a tangent arc of radius R: x″ jumps by 1/R normal to the line, so a feed v
+    there jumps the acceleration by v²/R, which a third difference at T reads as up to
+    0.75·v²/(R·T); the planner's own check adds it next to the join."""
+    R, v = 2.0, 40.0
+    a = Line([-30.0, 0, -400], [0.0, 0, -400])
+    path = SegmentPath([a, Arc(a.end, np.array([0.0, R, -400]), [0, 0, 1], math.pi / 2)], "line-arc")
+    pl = scurve._Planner(path, KEOPS, KEOPS.limits, False, 0.005, 0.05)
+    assert pl.joins.tolist() == [30.0]
+    assert pl.join_d2[0] == pytest.approx([0.0, 1 / R, 0.0], abs=1e-6)
+    from ruckig import InputParameter, Ruckig, Trajectory
+    seg = scurve.Segment(0.0, 30.0, 0.0, v, 9950.0, 497500.0, v)
+    assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
+    tt = np.linspace(0, seg.duration, 2001)
+    [(end, near, read)] = pl.join_reads(seg, tt)
+    T = KEOPS.servo_period_s
+    assert end == 1 and near.sum() == np.count_nonzero(tt >= seg.duration - 3 * T)
+    # (the arc side is read 1e-9 mm inside it: x″ has turned by 1e-9/R there, 1e-3 of 2.4e6)
+    assert read == pytest.approx([0.0, 0.75 * v * v / (R * T), 0.0], rel=1e-8, abs=1e-2)
+    # 0.75·1600/(2·2.5e-4) = 2.4e6 > J: the join alone breaks the limit, the segment does not
+    assert scurve._Planner.ratios(pl, seg)[2] > 1 >= scurve._Planner.ratios(pl, seg, reads=False)[2]
+
+
+def test_scurve_keeps_the_cartesian_limits_at_T_on_contour_lcnc():
+    """corpus contour_lcnc: arcs and G64 blends; the check at T read Cartesian jerk 1.0027
+    (the joins' acceleration jumps) while the planner's own check passed."""
+    from pathlib import Path
+    from planners.paths import resolve_path
+    m = load_machine("linuxcnc_delta")
+    corpus = Path(__file__).resolve().parents[1] / "benchmarks" / "paths" / "corpus"
+    path = resolve_path(str(corpus / "contour_lcnc.ngc"), home=m.home)
+    p = plan("scurve", path, m)
+    r = command_metrics(m, path.point(p.s), p.T, p.s)
+    assert max(v for k, v in r["cartesian_peak_ratio"].items() if k != "feed") <= 1 + 1e-6
+
+
+
+@pytest.mark.parametrize("name, machine", [("rand_edge_lcnc", "linuxcnc_delta"), ("rand_hairpin_keops", "keops")])
+def test_scurve_joint_is_joint_feasible_where_the_joint_jerk_peaks_between_samples(name, machine):
+    """Corpus paths where the segment check missed the joint jerk's peak: rand_edge_lcnc at
+    a jerk switch (−J → +J at the peak deceleration: 1.18 × the limit from the left, the
+    right limit 0.90 was read; 1.013 at T), rand_hairpin_keops at a lobe tip narrower than a
+    period's travel (1.16 between samples ≤ T apart; 1.010 at T)."""
+    from pathlib import Path
+    from planners.paths import resolve_path
+    m = load_machine(machine)
+    corpus = Path(__file__).resolve().parents[1] / "benchmarks" / "paths" / "corpus"
+    path = resolve_path(str(corpus / f"{name}.json"), home=m.home)
+    p = plan("scurve_joint", path, m)
+    r = command_metrics(m, path.point(p.s), p.T, p.s)
+    assert r["feasible"], r["joint_peak_ratio"]
