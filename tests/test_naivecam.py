@@ -76,3 +76,12 @@ def test_an_f_or_g64_word_ends_the_chain_even_unchanged_but_a_comment_does_not(t
     assert len(program(tmp_path, line + "F1200\n" + more).moves) == 2
     assert len(program(tmp_path, line + "G64 P0.01 Q0.005\n" + more).moves) == 2
     assert len(program(tmp_path, line + "S1000\n" + more).moves) == 2
+
+
+def test_the_positioning_first_move_is_never_joined(tmp_path):
+    # without start=, a first absolute G1 only positions the tool (its start is unknown): the
+    # chain starts after it, so the first segment is the next move, not a join through it
+    f = tmp_path / "pos.ngc"
+    f.write_text("G21 G90 G64 P0.01\nG1 X-20 Y-20 Z-250 F1200\nX20\nY20\nM2\n")
+    p = read_gcode(f)
+    assert [m.segment.start[:2].tolist() for m in p.moves] == [[-20.0, -20.0], [20.0, -20.0]]

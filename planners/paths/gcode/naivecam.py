@@ -64,7 +64,10 @@ def join_moves(moves: list, events: list, stateless_m=frozenset(), flushes=()) -
 
 
 def _chain_points(m):
-    """The points a move adds to a chain, or None when it flushes and is sent as it is."""
+    """The points a move adds to a chain, or None when it flushes and is sent as it is (and
+    so does a move from an unknown point: the positioning first move, which is no segment)."""
+    if not all(map(math.isfinite, m.start)):
+        return None
     if m.kind == "feed":
         return [tuple(m.end)]
     if m.kind == "arc" and m.plane == 17 and m.path_mode[0] == "blend":
