@@ -7,7 +7,7 @@ import pytest
 from planners.verify import command_metrics
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
-from planners import scurve
+from planners import scurve, scurve_pieces
 from planners.paths import Arc, Line, SegmentPath
 
 KEOPS = load_machine("keops")
@@ -37,17 +37,17 @@ def test_short_line_never_reaches_the_feed_and_matches_min_distance():
     vpk = p.sd.max()
     assert vpk < 1000.0
     A, J = 1e4, 5e5
-    assert 2 * scurve.min_distance(0.0, vpk, A, J) == pytest.approx(L, rel=1e-6)
+    assert 2 * scurve_pieces.min_distance(0.0, vpk, A, J) == pytest.approx(L, rel=1e-6)
 
 
 def test_min_distance_and_reachable_closed_forms():
     A, J = 1e4, 5e5
     # no constant-acceleration phase: Δv ≤ A²/J = 200 → d = (v0 + v1)√(Δv/J)
-    assert scurve.min_distance(100, 250, A, J) == pytest.approx(350 * math.sqrt(150 / J))
+    assert scurve_pieces.min_distance(100, 250, A, J) == pytest.approx(350 * math.sqrt(150 / J))
     # with one: d = (v0 + v1)/2 · (Δv/A + A/J)
-    assert scurve.min_distance(0, 1000, A, J) == pytest.approx(500 * (0.1 + 0.02))
-    v1 = scurve.reachable(100.0, 30.0, A, J, 1e4)
-    assert scurve.min_distance(100.0, v1, A, J) == pytest.approx(30.0, rel=1e-9)
+    assert scurve_pieces.min_distance(0, 1000, A, J) == pytest.approx(500 * (0.1 + 0.02))
+    v1 = scurve_pieces.reachable(100.0, 30.0, A, J, 1e4)
+    assert scurve_pieces.min_distance(100.0, v1, A, J) == pytest.approx(30.0, rel=1e-9)
 
 
 def test_flf_on_a_circle_is_the_published_formula():
@@ -205,7 +205,7 @@ def test_cruise_over_an_axis_velocity_limit_is_repaired_without_a_numpy_warning(
 
 def test_phase_samples_equal_numpy_linspace_per_phase():
     """The limit check's sample times: the per-phase np.linspace of the first version, bit for bit."""
-    from planners.scurve import phase_samples
+    from planners.scurve_pieces import phase_samples
     rng = np.random.default_rng(5)
     T = 1e-3
     for _ in range(300):
@@ -246,9 +246,9 @@ def test_consistent_equals_the_plain_two_passes():
         v_c[0] = v_c[-1] = 0.0
         ref = v_c.copy()
         for i in range(n - 1, -1, -1):
-            ref[i] = min(ref[i], scurve.reachable(ref[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i]))
+            ref[i] = min(ref[i], scurve_pieces.reachable(ref[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i]))
         for i in range(n):
-            ref[i + 1] = min(ref[i + 1], scurve.reachable(ref[i], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i + 1]))
+            ref[i + 1] = min(ref[i + 1], scurve_pieces.reachable(ref[i], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i + 1]))
         assert np.array_equal(pl.consistent(v_c, Ls, A, J), ref)
 
 
@@ -256,8 +256,8 @@ def test_a_segment_that_needs_its_whole_length_to_reach_its_end_feed_has_a_profi
     """rand_edge_keops: the consistency pass leaves L = d(v0, v1)(1 + 1e-9); ruckig found no
     profile with its peak at exactly v1. The time is the closed form Δv/A + A/J (Δv > A²/J)."""
     v0, v1, A, J = 20.72508930578312, 255.555002407372, 9950.0, 497500.0
-    L = scurve.min_distance(v0, v1, A, J) * (1 + 1e-9)
-    seg = scurve.Segment(0.0, L, v0, v1, A, J, v1)
+    L = scurve_pieces.min_distance(v0, v1, A, J) * (1 + 1e-9)
+    seg = scurve_pieces.Segment(0.0, L, v0, v1, A, J, v1)
     from ruckig import InputParameter, Ruckig, Trajectory
     assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
     assert seg.duration == pytest.approx((v1 - v0) / A + A / J, rel=1e-6)
@@ -299,7 +299,7 @@ def test_the_read_at_T_of_a_line_arc_join_is_the_closed_form():
     assert pl.joins.tolist() == [30.0]
     assert pl.join_d2[0] == pytest.approx([0.0, 1 / R, 0.0], abs=1e-6)
     from ruckig import InputParameter, Ruckig, Trajectory
-    seg = scurve.Segment(0.0, 30.0, 0.0, v, 9950.0, 497500.0, v)
+    seg = scurve_pieces.Segment(0.0, 30.0, 0.0, v, 9950.0, 497500.0, v)
     assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
     tt = np.linspace(0, seg.duration, 2001)
     [(end, near, read)] = pl.join_reads(seg, tt)
