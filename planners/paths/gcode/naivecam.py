@@ -42,6 +42,8 @@ def join_moves(moves: list, events: list, stateless_m=frozenset(), flushes=()) -
             chain.clear()
 
     for k, m in enumerate(moves):
+        # a feed or mode change comes with an F or G64 word (a flush) except where M72 restores
+        # the modal state: LinuxCNC's canon sees SET_FEED_RATE / SET_MOTION_CONTROL_MODE there too
         if k in flush_at or (chain and (m.feed_mm_min != chain[-1][1].feed_mm_min
                                         or m.path_mode != chain[-1][1].path_mode)):
             flush()
