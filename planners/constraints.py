@@ -245,13 +245,11 @@ class PathTable:
                       if machine is not None else None)
 
     def _refine(self, path):
-        """Add rows 1e-7 mm either side of a NURBS's knots (P‴ jumps there; q‴ 0.5 % low at the
-        kossel butterfly's tip without them) and split every cell wider than REFINE_RADII
-        curvature radii at its ends until none is (a lobe tip of ρ = 0.02 mm is a curvature
-        peak narrower than the base spacing, which the interpolated tables missed:
-        rand_hairpin_kossel's κ 117/mm read as 17, the s-curve's jerk 17 × its limit).
-        A path with no cell to split keeps the uniform grid bit for bit (optimal, warm-started
-        from scurve_joint, fails on kossel/bird_kossel when its start moves by 1e-8 mm).
+        """Add rows 1e-7 mm either side of a NURBS's knots (P‴ jumps there, which interpolation
+        across a knot smears) and split every cell wider than REFINE_RADII curvature radii at its
+        ends until none is (a lobe tip narrower than the base spacing is a curvature peak the
+        interpolated tables would miss). A path with no cell to split keeps the uniform grid bit
+        for bit (optimal warm-starts from scurve_joint, and its IPOPT run is sensitive to that start).
         Sets s, offset, counts, cart, refined; returns the rows' one-sided evaluation points."""
         S, piece = self.s, np.repeat(np.arange(len(self.counts)), self.counts)
         inner = lambda S, piece: np.clip(S, self.edges[piece] + 1e-9, self.edges[piece + 1] - 1e-9)

@@ -261,15 +261,14 @@ class _Planner:
         # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
         tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
         # at a phase's end at() reads the next phase's jerk: a time just inside it gives the
-        # left limit (rand_edge_lcnc: the jerk flips −J → +J at the peak deceleration, where
-        # the joint jerk is 1.18 × its limit from the left and 0.90 from the right)
+        # left limit (where the jerk flips sign, the two sides of a joint jerk differ)
         d = np.diff(seg.tcum)
         tt = np.unique(np.concatenate([tt, (seg.tcum[1:] - 1e-9 * d)[d > 0]]))
         p, v, a, j = seg.at(tt)
         lo, hi = np.searchsorted(self.fine_s, [seg.s0, seg.s0 + seg.L])
         if hi > lo:
-            # the times of the refined rows inside the segment (p(t) is monotone): rand_hairpin_
-            # keops's joint jerk peaked at 1.16 between samples ≤ T apart and read 1.01 at T
+            # the times of the refined rows inside the segment (p(t) is monotone): a jerk peak
+            # narrower than a period's travel falls between samples ≤ T apart
             tt = np.unique(np.concatenate([tt, np.interp(self.fine_s[lo:hi] - seg.s0, p, tt)]))
             p, v, a, j = seg.at(tt)
         # evaluate just inside the segment: at a corner the derivatives are one-sided
@@ -283,7 +282,7 @@ class _Planner:
         at a join. A third difference at T is the jerk averaged by a quadratic B-spline kernel
         (support 3T, peak 0.75/T), so the jump Δx″v² of the acceleration at the join adds up to
         JUMP_READ_FACTOR·Δx″v²/T, with its sign, to an average of the continuous jerk next to
-        it (the rand_*/cam_* paths read 1.003–1.06 × the limit without this term)."""
+        it (without this term a segment next to a join passes its own check and not the one at T)."""
         out = []
         for end, s_end, v_end in ((0, seg.s0, seg.v0), (1, seg.s0 + seg.L, seg.v1)):
             k = int(np.searchsorted(self.joins, s_end))

@@ -70,7 +70,7 @@ class Segment:
         inp.max_jerk = [self.J]
         # a segment that needs all its length to reach v1 = its peak (the consistency pass
         # allows it to within 1e-9 of L) has no profile in ruckig with the peak at exactly v1
-        # (rand_edge_keops); 1e-9 above it has one, whose peak is v1
+        # 1e-9 above it has one, whose peak is v1
         for widen in (1.0, 1.0 + 1e-9):
             inp.max_velocity = [max(self.vpeak, self.v0, self.v1) * widen]
             try:

@@ -2,6 +2,7 @@
 Python that has LinuxCNC's ``gcode`` module): the tests' reference, and ``--reader linuxcnc``."""
 from __future__ import annotations
 
+import functools
 import json
 import re
 import math
@@ -14,8 +15,10 @@ HERE = Path(__file__).resolve().parent
 SYSTEM_PYTHON = "/usr/bin/python3"
 
 
+@functools.lru_cache(maxsize=1)
 def available() -> str | None:
-    """None when LinuxCNC's interpreter can run here, else why not."""
+    """None when LinuxCNC's interpreter can run here, else why not (asked once per process:
+    --reader linuxcnc asks on every program)."""
     if shutil.which("rs274") is None:
         return "LinuxCNC's rs274 is not on PATH (make linuxcnc installs linuxcnc-uspace)"
     try:
