@@ -24,6 +24,8 @@ import math
 
 import numpy as np
 
+from planners.paths.base import cross3
+
 PANEL_RAD = 0.5
 # 8-point Gauss–Legendre nodes on [−1, 1] and weights (numpy.polynomial.legendre.leggauss(8)),
 # written out so that the FMU's C code uses the same digits
@@ -110,3 +112,36 @@ def spiral_derivs(phi: np.ndarray, r0: float, k: float, m: float, frame, order: 
             out.append(d3 * (p1 * p1 * p1) + 3.0 * d2 * (p1 * p2) + d1 * p3)
     return out
 
+
+def approximating_circle(arc, at_end: bool):
+    """(centre, radius) of LinuxCNC's circle for a spiral at its start or end, the corner point P
+    (blendmath.c findSpiralApproximation): the centre moved along the unit tangent at P by
+    spiral/θ, the radius its distance to P. LinuxCNC sizes a line↔arc blend on it."""
+    P = arc.end if at_end else arc.start
+    T = arc.tangent_out() if at_end else arc.tangent_in()
+    C = arc.center + (arc.spiral / arc.angle) * T
+    d = P - C
+    return C, math.sqrt(float(d @ d))
+
+
+def tangent_blend_on_spiral(arc, P, n, bn, R: float, trim0: float, from_end: bool):
+    """(trim angle, centre) of the circle of radius R tangent to the spiral ``arc`` and to the
+    line through P with in-plane normal n (the centre at P + x·u + R·n), or None. LinuxCNC
+    places its blend with the approximating circle and joins the gap it leaves to the spiral
+    with a slightly spiral blend arc (spherical_arc.c arcInitFromPoints); here the blend is the
+    exact tangent circle of the same radius, found by Newton from LinuxCNC's trim ``trim0``
+    (measured from the end when ``from_end``), so the path stays tangent-continuous."""
+    phi, sign = trim0, (-1.0 if from_end else 1.0)
+    tol = 1e-13 * max(1.0, R)
+    for _ in range(NEWTON_MAX):
+        sweep = arc.angle - phi if from_end else phi
+        Q, T, K = (v[0] for v in arc.at_angle(np.array([sweep]), 2))
+        centre = Q + R * cross3(bn, T)          # the circle about bn through Q, tangent there
+        g = float((centre - P) @ n) - R
+        if abs(g) <= tol:
+            return (phi, centre) if 0.0 < phi < arc.angle else None
+        dg = float((T + R * cross3(bn, K)) @ n) * arc.ds_dphi(sweep) * sign
+        if not dg:
+            return None
+        phi -= g / dg
+    return None
