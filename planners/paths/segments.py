@@ -85,6 +85,8 @@ class Arc:
             raise PathError(f"{where}: arc rise h = {rise!r} is not finite")
         if not np.isfinite(self.spiral):
             raise PathError(f"{where}: arc spiral = {spiral!r} is not finite")
+        if self.spiral and self.angle > 1e6:      # its arc-length table has a panel per 0.5 rad
+            raise PathError(f"{where}: a spiral arc's angle θ = {self.angle:.6g} rad exceeds 1e6")
         self.line = line
         off = self._derive()
         if abs(off) > END_TOL:
