@@ -170,3 +170,15 @@ def test_line_spiral_blends_are_tangent_circles_within_the_tolerance():
         assert abs(float((q - g.center) @ t)) <= 1e-9 * g.radius
         off = g.center - line.start
         assert abs(np.linalg.norm(off - (off @ line.direction) * line.direction) - g.radius) <= 1e-9
+
+
+def test_trapezoid_caps_a_spiral_by_its_radius_of_curvature_at_the_start():
+    # LinuxCNC's pmCircleEffectiveMinRadius: the spiral's own radius of curvature at the start
+    # radius, i.e. 1/κ(0) of the path; the arc's speed cap is √(a_n·ρ) below the machine's
+    from planners.trapezoid import ACC_RATIO_NORMAL, segment_limits
+    arc = Arc([0.5, 0, 0], [0, 0, 0], [0, 0, 1], 2.0, spiral=0.4)
+    path = SegmentPath([arc])
+    vmax, _ = segment_limits(path, 1000.0, 100.0, 1000.0)
+    rho = 1.0 / float(path.curvature([0.0])[0])
+    assert rho != pytest.approx(0.5, rel=1e-3)                 # not the circle's radius
+    assert vmax[0] == pytest.approx(math.sqrt(ACC_RATIO_NORMAL * 100.0 * rho), rel=1e-12)
