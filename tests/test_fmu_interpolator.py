@@ -172,7 +172,10 @@ def fuzz(n: int, tmp_path, seed: int = 0) -> dict:
         {"type": "line", "start": [0, 0, -400], "end": [1, 0, -400]},
         {"type": "arc", "start": [1, 0, -400], "center": [1, 1, -400], "normal": [0, 0, 1],
          "angle": 1.0, "rise": 0.0, "end": [1 + np.sin(1.0), 1 - np.cos(1.0), -400]}]})
-    seeds = [json.dumps(GOOD_NURBS), seg]
+    spiral = json.dumps({"type": "segments", "segments": [
+        {"type": "arc", "start": [1, 0, -400], "center": [0, 0, -400], "normal": [0, 0, 1], "angle": 1.0,
+         "spiral": 0.01, "end": [1.01 * np.cos(1.0), 1.01 * np.sin(1.0), -400]}]})
+    seeds = [json.dumps(GOOD_NURBS), seg, spiral]
     prof = "t,s,sd,sdd,sddd\n0,0,0,0,0\n0.00025,0.001,4,0,0\n0.0005,0.002,4,0,0\n"
     counts = {"ok": 0, "error": 0}
     for k in range(n):
