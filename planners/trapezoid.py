@@ -103,7 +103,15 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
         n = np.array([g.normal for g in A]) * (rise != 0)[:, None]
         scale = np.sqrt(u ** 2 + v ** 2 + n ** 2).max(axis=1)
         a_plane = a_axis / scale
-        rho = r + (rise / np.array([g.angle for g in A])) ** 2 / r     # helix radius of curvature
+        ang = np.array([g.angle for g in A])
+        rho = r + (rise / ang) ** 2 / r     # helix radius of curvature
+        k = np.array([g.spiral for g in A]) / ang
+        if k.any():
+            # a spiral: blendmath.c pmCircleEffectiveMinRadius, the Archimedean spiral's radius of
+            # curvature (r² + k²)^1.5 / (r² + 2k²) at the start radius r, k = dr/dφ
+            sp = k != 0
+            r_sp = (r[sp] ** 2 + k[sp] ** 2) ** 1.5 / (r[sp] ** 2 + 2 * k[sp] ** 2)
+            rho[sp] = r_sp + (rise[sp] / ang[sp]) ** 2 / r_sp
         # a speed-sized blend arc also has LinuxCNC's v_plan as its maxvel (tpCreateLineLineBlend)
         cap = np.array([getattr(g, "v_cap", None) or math.inf for g in A])
         blend = np.isfinite(cap)

@@ -76,6 +76,21 @@ def test_lines_and_arcs_exact(tmp_path):
     assert np.abs(out[:, :3] - path.point(prof.s)).max() <= 1e-12
 
 
+def test_spiral_arcs_as_the_python_path(tmp_path):
+    # LinuxCNC's spiral arcs (radius linear in the angle): out, and in while rising 3 turns
+    path = SegmentPath([Line([0, 0, -400], [10, 0, -400]),
+                        Arc([10, 0, -400], [15, 0, -400], [0, 0, -1], np.pi, spiral=0.014),
+                        Arc([20.014, 0, -400], [25, 0, -400], [0, 0, 1], 6 * np.pi, rise=-2.0, spiral=-0.02)])
+    prof = planners.plan("trapezoid", path, KEOPS)
+    out = replay(path, prof, tmp_path)
+    assert np.abs(out[:, :3] - path.point(prof.s)).max() <= 1e-9
+    # and on the spiral itself: the radius about (15, 0) at each point's angle is 5 + 0.014·φ/π
+    on = (prof.s > 10) & (prof.s < path.seg_start[2])
+    x, y = out[on, 0] - 15, out[on, 1]
+    phi = np.arctan2(y, -x) % (2 * np.pi)            # clockwise from the start at (10, 0)
+    assert np.abs(np.hypot(x, y) - (5 + 0.014 * phi / np.pi)).max() <= 1e-9
+
+
 GOOD_NURBS = {"type": "nurbs", "units": "mm", "degree": 2, "knots": [0, 0, 0, 1, 1, 1],
               "control_points": [[0, 0, -400], [10, 10, -400], [20, 0, -400]], "weights": [1, 1, 1]}
 
@@ -103,6 +118,18 @@ def _init_with(tmp_path, path_text, profile_text=None):
 def test_bad_path_files(tmp_path, change, message):
     ok, log = _init_with(tmp_path, json.dumps({**GOOD_NURBS, **change}))
     assert not ok and "p.json" in log and message in log
+
+
+@pytest.mark.parametrize("spiral, message", [
+    ('"x"', "segments[0].spiral must be a number (mm)"),
+    ("-1.5", "segments[0]: end radius 1 + spiral -1.5 mm must be > 0"),
+    ("0.1", "segments[0]: end disagrees with start/center/angle/rise/spiral"),
+])
+def test_bad_spiral_fields(tmp_path, spiral, message):
+    arc = ('{"type": "segments", "segments": [{"type": "arc", "start": [1, 0, -400], "center": [0, 0, -400], '
+           '"normal": [0, 0, 1], "angle": 1.0, "spiral": %s, "end": [0.5403023058681398, 0.8414709848078965, -400]}]}')
+    ok, log = _init_with(tmp_path, arc % spiral)
+    assert not ok and "p.json" in log and message in log, log
 
 
 def test_bad_profile_and_missing_files(tmp_path):
@@ -145,7 +172,10 @@ def fuzz(n: int, tmp_path, seed: int = 0) -> dict:
         {"type": "line", "start": [0, 0, -400], "end": [1, 0, -400]},
         {"type": "arc", "start": [1, 0, -400], "center": [1, 1, -400], "normal": [0, 0, 1],
          "angle": 1.0, "rise": 0.0, "end": [1 + np.sin(1.0), 1 - np.cos(1.0), -400]}]})
-    seeds = [json.dumps(GOOD_NURBS), seg]
+    spiral = json.dumps({"type": "segments", "segments": [
+        {"type": "arc", "start": [1, 0, -400], "center": [0, 0, -400], "normal": [0, 0, 1], "angle": 1.0,
+         "spiral": 0.01, "end": [1.01 * np.cos(1.0), 1.01 * np.sin(1.0), -400]}]})
+    seeds = [json.dumps(GOOD_NURBS), seg, spiral]
     prof = "t,s,sd,sdd,sddd\n0,0,0,0,0\n0.00025,0.001,4,0,0\n0.0005,0.002,4,0,0\n"
     counts = {"ok": 0, "error": 0}
     for k in range(n):

@@ -89,10 +89,12 @@ def test_planes(plane, words, normal, center):
     assert np.allclose(mid, [r, 0, -r] if plane == "G18" else [0, r, r])
 
 
-def test_small_radius_mismatch_is_absorbed_exactly():
+def test_small_radius_mismatch_is_a_spiral_about_the_programmed_centre():
+    # as LinuxCNC: the centre stays at I/J, the radius goes 10 → 10.001 (tests/test_spiral.py)
     p = prog("G1 X10 F600\nG3 X0 Y10.001 I-10 J0\n")
     a = p.moves[1].segment
-    assert np.allclose(a.end, [0, 10.001, 0], atol=1e-9)
+    assert a.center.tolist() == [0, 0, 0] and a.spiral == pytest.approx(0.001, abs=1e-12)
+    assert np.allclose(a.end, [0, 10.001, 0], atol=1e-12)
 
 
 def test_blending_modes():

@@ -196,3 +196,29 @@ def test_trapezoid_joins_g64_q_runs_as_linuxcnc(kossel):
     f = Path(__file__).resolve().parents[1] / "benchmarks/oracle/programs/lcnc_naive_cam_corner2.ngc"
     tz = _trapezoid_within_the_acceptance_of_linuxcnc(resolve_path(str(f)), kossel)
     assert len(tz.path.program.moves) == 13         # 16 moves with Q0: three joined away
+
+
+SPIRAL_G61 = """G21 G90 G17 G61
+G0 X-10 Y0 Z-250
+G2 X0.014 Y0 I5 J0 F600
+M2
+"""
+
+
+@needs_linuxcnc
+def test_linuxcnc_runs_a_spiral_arc_on_the_path(tmp_path, kossel):
+    # an I/J arc whose end radius is 14 µm longer (r 5 → 5.014): the real tp's command at every
+    # period lies on the path's spiral, radius 5 + 0.014·φ/π about the programmed centre
+    # (measured 1.8e-15 mm; with the centre moved onto the chord's bisector, as before this
+    # path had spirals, the same samples were 1.48 µm off the path)
+    path = gcode_path(tmp_path, "spiral.ngc", SPIRAL_G61)
+    arc = path.segments[0]
+    assert arc.center.tolist() == [-5.0, 0.0, -250.0] and arc.spiral == pytest.approx(0.014, abs=1e-12)
+    lc = plan("linuxcnc", path, kossel)
+    P = np.array([g.start for g in lc.path.segments] + [lc.path.segments[-1].end])
+    assert len(P) > 1000 and np.abs(P[-1] - [0.014, 0, -250]).max() <= 1e-9
+    x, y = P[:, 0] + 5.0, P[:, 1]
+    phi = np.arctan2(y, -x) % (2 * np.pi)                 # clockwise from the start at (−10, 0)
+    phi[-1] = math.pi                                     # the end, where atan2 may wrap to 0
+    assert np.abs(np.hypot(x, y) - (5.0 + 0.014 * phi / math.pi)).max() <= 1e-9
+    assert np.abs(P[:, 2] + 250).max() <= 1e-9

@@ -2,6 +2,7 @@
 The two readers must give the same program, move for move: the geometry to 1e-9 mm (LinuxCNC's
 module reports inches), the same lines, feeds, blend tolerances, G64 Q joins, stops and events.
 Skips where LinuxCNC is not installed (make linuxcnc)."""
+import math
 from pathlib import Path
 
 import numpy as np
@@ -55,3 +56,33 @@ def test_a_program_linuxcnc_refuses_names_its_line(tmp_path):
     with pytest.raises(GCodeError) as e:
         read_gcode(f, reader="linuxcnc")
     assert e.value.line == 3 and "LinuxCNC" in e.value.message
+
+
+SPIRALS = ("G21 G90 G17 G61\nG0 X10 Y0 Z-200\nG2 X20.014 Y0 I5 J0 F600\n"          # r 5 → 5.014
+           "G3 X30 Y0 I5 J0.3\nG20 G1 X1.3\nG2 X1.4 Y-.1 I.0503535 J-.05\nM2\n")    # inches, as arc-with-spiral.ngc
+
+
+def test_spiral_arcs_keep_linuxcncs_centre_in_both_readers(tmp_path):
+    """An I/J arc whose end radius differs: LinuxCNC's gcode module gives its centre and end
+    (ARC_FEED); both readers keep that centre, and the segment's radius is r0 + (r1 − r0)·φ/θ at
+    each point's angle φ, to 1e-9 mm."""
+    from planners.rs274.reference import linuxcnc_moves
+    f = tmp_path / "spirals.ngc"
+    f.write_text(SPIRALS)
+    ref = [m for m in linuxcnc_moves(f)[0] if m["kind"] == "arc"]
+    ours, theirs = read_gcode(f, home=HOME), read_gcode(f, home=HOME, reader="linuxcnc")
+    same_program(ours, theirs)
+    arcs = [[m.segment for m in p.moves if m.segment.kind == "arc"] for p in (ours, theirs)]
+    assert len(ref) == len(arcs[0]) == len(arcs[1]) == 3
+    for r, a, b in zip(ref, *arcs):
+        assert np.abs(a.center[:2] - r["center"][:2]).max() <= 1e-9
+        assert abs(a.spiral - b.spiral) <= 1e-9 and np.abs(a.center - b.center).max() <= 1e-9
+        r0 = float(np.hypot(*(a.start - a.center)[:2]))
+        r1 = float(np.hypot(*(np.asarray(r["end"]) - a.center)[:2]))
+        assert abs(r1 - r0) > 1e-3 and a.spiral == pytest.approx(r1 - r0, abs=1e-12)
+        P = a.eval(np.linspace(0, a.length, 1001), 0)[0] - a.center
+        turn = float(a.normal[2])                      # +1: G3, −1: G2
+        a0 = math.atan2(*(a.start - a.center)[1::-1])
+        phi = turn * np.unwrap(np.arctan2(P[:, 1], P[:, 0]) - a0)
+        assert np.abs(np.hypot(P[:, 0], P[:, 1]) - (r0 + (r1 - r0) * phi / a.angle)).max() <= 1e-9
+        assert np.abs(a.end - r["end"]).max() <= 1e-9

@@ -9,6 +9,7 @@
  * by Newton on the same integral from the table node below s, so the travelled arc length
  * matches the profile to ~1e-12 mm (DESIGN.md asks ≤ 1 nm: joint jerk is a third difference). */
 #include "interp_path.h"
+#include "spiral.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -344,7 +345,11 @@ static void cross(const double a[3], const double b[3], double o[3]) {
     o[0] = a[1] * b[2] - a[2] * b[1], o[1] = a[2] * b[0] - a[0] * b[2], o[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-static void seg_point(const Segment *g, double f, double p[3]) {   /* f ∈ [0, 1] */
+static void seg_point(const Segment *g, double f, double p[3]) {   /* f ∈ [0, 1] of the length */
+    if (g->spiral != 0.0) {
+        spiral_point(g, f >= 1.0 ? g->angle : spiral_phi(g, f * g->length), p);
+        return;
+    }
     if (!g->is_arc) {
         for (int k = 0; k < 3; k++) p[k] = g->start[k] + f * (g->end[k] - g->start[k]);
         return;
@@ -380,7 +385,7 @@ static int segments_build(Track *tr, const Json *root, const char *file, char *e
             double d[3] = {g->end[0] - g->start[0], g->end[1] - g->start[1], g->end[2] - g->start[2]};
             g->length = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         } else {
-            const Json *an = member(o, "angle"), *ri = member(o, "rise");
+            const Json *an = member(o, "angle"), *ri = member(o, "rise"), *sp = member(o, "spiral");
             snprintf(what, sizeof what, "segments[%d].center", i);
             if (numbers(member(o, "center"), g->center, 3, file, what, err, nerr)) return -1;
             snprintf(what, sizeof what, "segments[%d].normal", i);
@@ -388,17 +393,26 @@ static int segments_build(Track *tr, const Json *root, const char *file, char *e
             if (!an || an->type != J_NUM || !(an->num > 0)) return fail(err, nerr, "%s: segments[%d].angle must be a number > 0", file, i);
             g->angle = an->num;
             g->rise = (ri && ri->type == J_NUM) ? ri->num : 0.0;
+            if (sp && sp->type != J_NUM) return fail(err, nerr, "%s: segments[%d].spiral must be a number (mm)", file, i);
+            g->spiral = sp ? sp->num : 0.0;
             double nn = sqrt(g->normal[0] * g->normal[0] + g->normal[1] * g->normal[1] + g->normal[2] * g->normal[2]);
             if (fabs(nn - 1.0) > 1e-9) return fail(err, nerr, "%s: segments[%d].normal is not a unit vector (|n| = %.12g)", file, i, nn);
             double v[3], r2 = 0, vn = 0;
             for (int k = 0; k < 3; k++) v[k] = g->start[k] - g->center[k], r2 += v[k] * v[k], vn += v[k] * g->normal[k];
             if (!(r2 > 0) || fabs(vn) > 1e-6 * (1 + sqrt(r2)))
                 return fail(err, nerr, "%s: segments[%d]: center is not in the plane of start perpendicular to normal", file, i);
+            if (g->spiral != 0.0) {
+                if (g->angle > 1e6)   /* its arc-length table has a panel per 0.5 rad */
+                    return fail(err, nerr, "%s: segments[%d]: a spiral arc's angle %.6g rad exceeds 1e6", file, i, g->angle);
+                if (!(sqrt(r2) + g->spiral > 0))
+                    return fail(err, nerr, "%s: segments[%d]: end radius %.9g + spiral %.9g mm must be > 0", file, i, sqrt(r2), g->spiral);
+                if (spiral_init(g)) return fail(err, nerr, "%s: out of memory", file);
+            }
             double e[3];
             seg_point(g, 1.0, e);
             double de = sqrt((e[0] - g->end[0]) * (e[0] - g->end[0]) + (e[1] - g->end[1]) * (e[1] - g->end[1]) + (e[2] - g->end[2]) * (e[2] - g->end[2]));
-            if (de > 1e-6) return fail(err, nerr, "%s: segments[%d]: end disagrees with start/center/angle/rise by %.3g mm", file, i, de);
-            g->length = sqrt(r2 * g->angle * g->angle + g->rise * g->rise);
+            if (de > 1e-6) return fail(err, nerr, "%s: segments[%d]: end disagrees with start/center/angle/rise/spiral by %.3g mm", file, i, de);
+            if (g->spiral == 0.0) g->length = sqrt(r2 * g->angle * g->angle + g->rise * g->rise);
         }
         if (!(g->length > 0)) return fail(err, nerr, "%s: segments[%d] has zero length", file, i);
         if (i > 0) {
@@ -490,6 +504,7 @@ static int profile_load(Track *tr, const char *file, double T, char *err, size_t
 /* ---- public --------------------------------------------------------------------------------- */
 void track_free(Track *tr) {
     if (!tr) return;
+    for (int i = 0; tr->seg && i < tr->nseg; i++) free(tr->seg[i].sp_S);
     free(tr->knots), free(tr->cw), free(tr->tab_u), free(tr->tab_s), free(tr->seg), free(tr->seg_s0);
     free(tr->ps), free(tr->psd);
     free(tr);
@@ -531,8 +546,10 @@ void track_point(const Track *tr, double s, double p[3], double *u, long *hint, 
         while (i > 0 && s < tr->seg_s0[i]) i--;
         while (i < tr->nseg - 1 && s > tr->seg_s0[i + 1]) i++;
         *hint = i;
-        double f = (s - tr->seg_s0[i]) / tr->seg[i].length;
-        seg_point(&tr->seg[i], f, p);
+        const Segment *g = &tr->seg[i];
+        double f = (s - tr->seg_s0[i]) / g->length;
+        if (g->spiral != 0.0) spiral_point(g, spiral_phi(g, s - tr->seg_s0[i]), p);
+        else seg_point(g, f, p);
         *u = i + f;
         *residual = 0.0;
         return;

@@ -8,7 +8,11 @@ typedef struct {
     int is_arc;
     double start[3], end[3];
     double center[3], normal[3], angle, rise;   /* arcs (DESIGN.md / planners/path.py contract) */
+    double spiral;                             /* r_end − r_start (mm); 0: a circle or helix */
     double length;
+    /* a spiral arc's arc-length table (spiral.c): start radius, dr/dφ, k² + (rise/θ)², panels */
+    double sp_r0, sp_k, sp_c2, *sp_S;
+    int sp_npanel;
 } Segment;
 
 typedef struct Track {

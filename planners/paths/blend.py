@@ -14,7 +14,12 @@ arc is sized to the speed as LinuxCNC 2.9's tp sizes it (blendmath.c
 ``tcFindBlendTolerance``; :func:`speed_blends`) instead of "as large as fits": at most a quarter of each line as
 tolerance, half of each line as room, and a radius only as large as the corner speed needs.
 Such an arc carries ``v_cap`` (LinuxCNC's blend maxvel v_plan). With ``speed``, line↔arc
-corners are blended too (:func:`line_arc_blend`; arc↔arc corners and helices stay exact stops).
+corners are blended too (:func:`line_arc_blend`; arc↔arc corners and helices stay exact stops); a
+spiral arc is sized on LinuxCNC's approximating circle, its blend being the exact tangent circle of
+that radius (planners.paths.spiral.tangent_blend_on_spiral).
+
+Size: ~420 lines: the line–line blends (column-wise over 10⁵ corners), LinuxCNC's line↔arc
+blends and the assembly of the trimmed segments share one set of trim tables.
 """
 from __future__ import annotations
 
@@ -24,6 +29,7 @@ import numpy as np
 
 from planners.paths.base import CORNER_ANGLE, PathError, cross3, norm3
 from planners.paths.segments import Arc, Line
+from planners.paths.spiral import approximating_circle, tangent_blend_on_spiral
 
 REVERSAL_ANGLE = math.pi - 1e-6
 
@@ -125,6 +131,8 @@ def _unit(v):
 
 def arc_tangent(g, at_end: bool):
     """Unit tangent of a planar arc at its start or end (direction of travel)."""
+    if g.spiral:
+        return g.tangent_out() if at_end else g.tangent_in()
     p = g.end if at_end else g.start
     return _unit(cross3(g.normal, p - g.center))
 
@@ -153,7 +161,8 @@ def line_arc_blend(line, arc, line_room: float, arc_angle: float, line_first: bo
     binormal = _unit(cross3(u1, u2))
     if abs(abs(float(np.dot(binormal, arc.normal))) - 1.0) > 1e-9:
         return None                                   # tp.c: not coplanar → no arc blend
-    C, r = arc.center, arc.radius
+    # a spiral is sized on LinuxCNC's circle through P (findSpiralApproximation)
+    C, r = approximating_circle(arc, not line_first) if arc.spiral else (arc.center, arc.radius)
     if line_first:   # arcConvexTest(center2, P, u_tan1, reverse), φ2_max = min(angle/3, …)
         convex = not (float(np.dot(P - C, u1)) < 0)
         phi_max = min(arc_angle / 3.0, theta_tan if convex else math.pi / 2)
@@ -183,10 +192,18 @@ def line_arc_blend(line, arc, line_room: float, arc_angle: float, line_first: bo
     if (x > 0) if line_first else (x < 0):
         return None                                   # the tangent point must lie on the line
     centre = P + x * u + R * n
+    trim = math.acos(max(-1.0, min(1.0, float(np.dot(_unit(P - C), _unit(centre - C))))))
+    if arc.spiral:
+        exact = tangent_blend_on_spiral(arc, P, n, binormal, R, trim, not line_first)
+        if exact is None:
+            return None
+        trim, centre = exact
+        x = float(np.dot(centre - P, u))
+        if (x > 0) if line_first else (x < 0):
+            return None
     dev = norm3(centre - P) - R
     if dev > T:
         return None
-    trim = math.acos(max(-1.0, min(1.0, float(np.dot(_unit(P - C), _unit(centre - C))))))
     if trim > phi_max or trim >= arc_angle or abs(x) >= L_line:
         return None
     return R, abs(x), trim, centre, binormal, v_plan, dev
@@ -389,7 +406,9 @@ def _assemble(segs, trim_start, trim_end, arcs, arc_trim, mixed_built):
                 out.append(Line.exact(st, en, u, g.line))
         elif i in arc_trim and (arc_trim[i][0] > 0 or arc_trim[i][1] > 0):
             t0, t1 = arc_trim[i]
-            out.append(Arc.exact(_arc_point(g, t0), g.center, g.normal, g.angle - t0 - t1, g.line))
+            left = g.angle - t0 - t1
+            out.append(Arc.exact(_arc_point(g, t0), g.center, g.normal, left, g.line,
+                                 spiral=g.spiral * (left / g.angle)))     # the same dr/dφ
         else:
             out.append(g)
         if i in built:
@@ -401,4 +420,4 @@ def _assemble(segs, trim_start, trim_end, arcs, arc_trim, mixed_built):
 
 def _arc_point(g, phi: float):
     """The point of a planar arc at angle φ from its start."""
-    return g.center + math.cos(phi) * g.a + math.sin(phi) * g.b
+    return g.planar_point(phi)

@@ -1,5 +1,6 @@
-"""Line/arc toolpaths: lines and circular/helical arcs (from G-code, from G64 corner
-blending, or a NURBS cut into G1 lines), with exact closed forms.
+"""Line/arc toolpaths: lines and circular/helical/spiral arcs (from G-code, from G64 corner
+blending, or a NURBS cut into G1 lines), with exact closed forms (a spiral's arc length by
+quadrature, planners.paths.spiral).
 """
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import math
 import numpy as np
 
 from planners.paths.base import CONTIG_TOL, CORNER_ANGLE, END_TOL, Path, PathError, cross3, norm3, vec3
+from planners.paths.spiral import SpiralMeasure, spiral_derivs
 
 _CHUNK = 65536          # arc lengths per block when a segment path evaluates many at once
 
@@ -54,12 +56,14 @@ class Line:
 
 
 class Arc:
-    """Circle or helix: c + Rot(n, φ)(start − c) + (φ/θ)·h·n, φ ∈ [0, θ] (contract)."""
+    """Circle or helix: c + Rot(n, φ)(start − c) + (φ/θ)·h·n, φ ∈ [0, θ] (contract); with a
+    ``spiral`` σ ≠ 0 (mm, LinuxCNC's r_end − r_start) the radius grows linearly in φ:
+    c + (1 + σφ/(θ·r0))·Rot(n, φ)(start − c) + (φ/θ)·h·n (planners.paths.spiral)."""
 
     kind = "arc"
 
     def __init__(self, start, center, normal, angle: float, rise: float = 0.0,
-                 line: int | None = None, where: str = "<segment>", end=None):
+                 line: int | None = None, where: str = "<segment>", end=None, spiral: float = 0.0):
         self.start = vec3(start, "arc start", where)
         self.center = vec3(center, "arc center", where)
         n = vec3(normal, "arc normal", where)
@@ -72,18 +76,26 @@ class Arc:
         try:
             self.angle = float(angle)
             self.rise = float(rise)
+            self.spiral = float(spiral)
         except (TypeError, ValueError):
-            raise PathError(f"{where}: arc angle and rise must be numbers") from None
+            raise PathError(f"{where}: arc angle, rise and spiral must be numbers") from None
         if not (np.isfinite(self.angle) and self.angle > 0):
             raise PathError(f"{where}: arc angle θ = {angle!r} must be > 0 (radians)")
         if not np.isfinite(self.rise):
             raise PathError(f"{where}: arc rise h = {rise!r} is not finite")
+        if not np.isfinite(self.spiral):
+            raise PathError(f"{where}: arc spiral = {spiral!r} is not finite")
+        if self.spiral and self.angle > 1e6:      # its arc-length table has a panel per 0.5 rad
+            raise PathError(f"{where}: a spiral arc's angle θ = {self.angle:.6g} rad exceeds 1e6")
         self.line = line
         off = self._derive()
         if abs(off) > END_TOL:
             raise PathError(f"{where}: arc center is {off:.6g} mm off the plane through start ⟂ normal")
         if not self.radius > CONTIG_TOL:
             raise PathError(f"{where}: arc radius is zero (center = start)")
+        if not self.radius + self.spiral > CONTIG_TOL:
+            raise PathError(f"{where}: arc end radius r0 + spiral = {self.radius:.9g} + {self.spiral:.9g} mm "
+                            "must be > 0")
         if end is not None:
             e = vec3(end, "arc end", where)
             if norm3(e - self.end) > END_TOL:
@@ -91,11 +103,12 @@ class Arc:
                                 f"(computed {self.end.tolist()}, off by {norm3(e - self.end):.3g} mm)")
 
     @classmethod
-    def exact(cls, start, center, normal, angle: float, line: int | None = None) -> "Arc":
-        """A circular arc from geometry a planner computed (a G64 blend): no re-validation,
-        which costs more than the arc itself when a program has 10⁵ corners."""
+    def exact(cls, start, center, normal, angle: float, line: int | None = None, spiral: float = 0.0) -> "Arc":
+        """A planar arc from geometry a planner computed (a G64 blend, a trimmed arc): no
+        re-validation, which costs more than the arc itself when a program has 10⁵ corners."""
         g = cls.__new__(cls)
         g.start, g.center, g.normal, g.angle, g.rise, g.line = start, center, normal, angle, 0.0, line
+        g.spiral = spiral
         g._derive()
         return g
 
@@ -106,7 +119,7 @@ class Arc:
         for many arcs at once (planners.paths.blend)."""
         g = cls.__new__(cls)
         g.start, g.center, g.normal, g.angle, g.rise, g.line = start, center, normal, angle, 0.0, line
-        g.a, g.b, g.radius, g.length, g.end = a, b, radius, length, end
+        g.a, g.b, g.radius, g.length, g.end, g.spiral = a, b, radius, length, end, 0.0
         return g
 
     def _derive(self) -> float:
@@ -117,13 +130,44 @@ class Arc:
         self.a = a - off * nv
         self.b = cross3(nv, self.a)
         self.radius = norm3(self.a)
+        if self.spiral:
+            th = self.angle
+            self._measure = SpiralMeasure(self.radius, self.spiral / th, self.rise / th, th)
+            self.length = self._measure.length
+            grow = 1.0 + self.spiral / self.radius      # end radius / start radius
+            self.end = self.center + grow * (math.cos(th) * self.a + math.sin(th) * self.b) + self.rise * nv
+            return off
         self.length = float(self.angle * math.hypot(self.radius, self.rise / self.angle))
         # eval() at φ = θ for one point, without arrays
         self.end = self.center + math.cos(self.angle) * self.a + math.sin(self.angle) * self.b + self.rise * nv
         return off
 
+    def _spiral_eval(self, phi: np.ndarray, order: int) -> list[np.ndarray]:
+        r0, th = self.radius, self.angle
+        frame = (self.center, self.a / r0, self.b / r0, self.normal)
+        return spiral_derivs(phi, r0, self.spiral / th, self.rise / th, frame, order)
+
+    def at_angle(self, phi: np.ndarray, order: int) -> list[np.ndarray]:
+        """Point and s-derivatives at sweep angles φ (N,) from the start."""
+        if self.spiral:
+            return self._spiral_eval(phi, order)
+        return self.eval(phi * (self.length / self.angle), order)
+
+    def ds_dphi(self, phi: float) -> float:
+        """Arc length per radian of sweep at φ."""
+        return float(self._measure.speed(phi)) if self.spiral else self.length / self.angle
+
+    def planar_point(self, phi: float) -> np.ndarray:
+        """The point at sweep φ without the rise (blends are planar)."""
+        if not self.spiral:
+            return self.center + math.cos(phi) * self.a + math.sin(phi) * self.b
+        grow = 1.0 + self.spiral * phi / (self.angle * self.radius)
+        return self.center + grow * (math.cos(phi) * self.a + math.sin(phi) * self.b)
+
     def eval(self, t: np.ndarray, order: int) -> list[np.ndarray]:
         """Point and s-derivatives at arc length t from the arc start."""
+        if self.spiral:
+            return self._spiral_eval(self._measure.phi_of(t), order)
         k = self.angle / self.length                # dφ/ds
         phi = (t * k)[:, None]
         c, s_ = np.cos(phi), np.sin(phi)
@@ -139,6 +183,8 @@ class Arc:
 
     def _tangent(self, phi: float) -> np.ndarray:
         """dP/ds at sweep φ: the first derivative of eval() for one point, without arrays."""
+        if self.spiral:
+            return self._spiral_eval(np.array([phi]), 1)[1][0]
         k = self.angle / self.length
         hn = (self.rise / self.angle) * self.normal
         return k * (-math.sin(phi) * self.a + math.cos(phi) * self.b + hn)
@@ -151,8 +197,10 @@ class Arc:
 
     def to_dict(self) -> dict:
         d = {"type": "arc", "start": self.start.tolist(), "center": self.center.tolist(),
-             "normal": self.normal.tolist(), "angle": self.angle, "rise": self.rise,
-             "end": self.end.tolist()}
+             "normal": self.normal.tolist(), "angle": self.angle, "rise": self.rise}
+        if self.spiral:
+            d["spiral"] = self.spiral            # absent: 0 (a circle or helix), as before
+        d["end"] = self.end.tolist()
         if self.line is not None:
             d["line"] = int(self.line)
         return d
@@ -167,7 +215,7 @@ def segment_from_dict(d: dict, where: str):
             return Line(d["start"], d["end"], line, where)
         if d["type"] == "arc":
             return Arc(d["start"], d["center"], d["normal"], d["angle"], d.get("rise", 0.0),
-                       line, where, end=d.get("end"))
+                       line, where, end=d.get("end"), spiral=d.get("spiral", 0.0))
     except KeyError as e:
         raise PathError(f"{where}: {d['type']} segment lacks {e}") from None
     raise PathError(f"{where}: unknown segment type {d['type']!r} (line | arc)")
@@ -216,6 +264,8 @@ class SegmentPath(Path):
             self._b[ia] = np.array([g.b for g in arcs])
             self._hn[ia] = np.array([(g.rise / g.angle) * g.normal for g in arcs])
             self._k[ia] = [g.angle / g.length for g in arcs]
+        # spiral arcs: the tables above hold their circle; _derivs overwrites their rows
+        self._spiral = np.array([g.kind == "arc" and bool(g.spiral) for g in segs])
         self._lens = lens
         assert len(self._k) == n
 
@@ -257,7 +307,18 @@ class SegmentPath(Path):
             out.append(np.where(arc, k**2 * (-c * a - sn * b), 0.0))
         if order >= 3:
             out.append(np.where(arc, k**3 * (sn * a - c * b), 0.0))
+        if self._spiral.any():
+            self._spiral_rows(out, i, t[:, 0], order)
         return out
+
+    def _spiral_rows(self, out, i: np.ndarray, t: np.ndarray, order: int) -> None:
+        """Overwrite the rows of ``out`` that fall on spiral arcs with their exact values."""
+        on = self._spiral[i]
+        for j in np.unique(i[on]).tolist():
+            rows = np.nonzero(i == j)[0]
+            vals = self.segments[j].eval(t[rows], order)
+            for d in range(order + 1):
+                out[d][rows] = vals[d]
 
     def corners(self) -> np.ndarray:
         # segments are immutable: the tangent breaks are computed once, all joins at a time
@@ -271,6 +332,8 @@ class SegmentPath(Path):
                 arc, k = self._is_arc[:, None], self._k[:, None]
                 t_in = np.where(arc, k * (self._b + self._hn), self._dir)
                 t_out = np.where(arc, k * (-np.sin(th) * self._a + np.cos(th) * self._b + self._hn), self._dir)
+                for j in np.nonzero(self._spiral)[0].tolist():
+                    t_in[j], t_out[j] = self.segments[j].tangent_in(), self.segments[j].tangent_out()
                 t0, t1 = t_out[:-1], t_in[1:]
                 c = np.einsum("ij,ij->i", t0, t1) / (np.linalg.norm(t0, axis=1) * np.linalg.norm(t1, axis=1))
                 sharp = np.arccos(np.clip(c, -1.0, 1.0)) > CORNER_ANGLE

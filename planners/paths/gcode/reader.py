@@ -261,9 +261,11 @@ def _stop(move: Move, why: str) -> None:
 
 
 def _arc(cm, pos, end) -> Arc:
-    """An ARC_FEED as a segment. LinuxCNC keeps the centre and, when the end radius differs
-    (within interp_arc.cc's tolerance), moves on a spiral; a segment here has one radius, so
-    the centre goes onto the chord's bisector (it moves by at most the radius difference)."""
+    """An ARC_FEED as a segment. LinuxCNC keeps the programmed centre and, when the radius to
+    the end differs from the radius to the start (within interp_arc.cc's tolerance), moves on a
+    spiral whose radius changes linearly with the angle (posemath pmCircleInit/pmCirclePoint):
+    so does the segment (Arc's ``spiral`` = r_end − r_start). A difference of 1e-12 mm or less
+    is rounding: a circle."""
     src, ln = cm.file, cm.line
     i1, i2, iax = _PLANES[cm.plane]
     axis = np.zeros(3)
@@ -272,14 +274,8 @@ def _arc(cm, pos, end) -> Arc:
     c = np.array(cm.center, float)
     st2, en2 = np.array([pos[i1], pos[i2]]), np.array([end[i1], end[i2]])
     c2 = np.array([c[i1], c[i2]])
-    chord = en2 - st2
-    d = float(np.linalg.norm(chord))
     r0, r1 = np.linalg.norm(st2 - c2), np.linalg.norm(en2 - c2)
-    if d > ZERO_MOVE_MM and abs(r1 - r0) > 1e-12:
-        u = chord / d
-        m = st2 + chord / 2
-        perp = np.array([-u[1], u[0]])
-        c2 = m + np.dot(c2 - m, perp) * perp
+    spiral = float(r1 - r0) if abs(r1 - r0) > 1e-12 else 0.0
     a2, b2 = st2 - c2, en2 - c2
     s = 1.0 if cm.turn > 0 else -1.0       # counter-clockwise angle about n
     cross = a2[0] * b2[1] - a2[1] * b2[0]
@@ -291,7 +287,7 @@ def _arc(cm, pos, end) -> Arc:
     center[i1], center[i2] = c2
     rise = float((end[iax] - pos[iax]) * n[iax])
     try:
-        return Arc(pos, center, n, theta, rise, ln, f"{src}:{ln}")
+        return Arc(pos, center, n, theta, rise, ln, f"{src}:{ln}", spiral=spiral)
     except PathError as e:
         raise GCodeError(src, ln, str(e)) from None
 
