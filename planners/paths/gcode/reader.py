@@ -58,6 +58,9 @@ class Move:
     # feed: tp.c handleModeChange never blends them) or "end"; None otherwise
     stop: str | None = None
     parabolic_end: bool = False    # G64 end with nothing to blend with (tc.c: half acceleration)
+    # the path-control mode in force (planners.rs274 CanonMove.path_mode), kept when
+    # ``blend_mm`` becomes None at a stop: LinuxCNC's term_cond and tolerance of the move
+    path_mode: tuple = ("exact", "stop")
 
 
 # M codes that only change the interpreter's state (M70–M73 save/restore modal state): no sync
@@ -227,7 +230,7 @@ def _segments(prog: GCodeProgram, canon: list, first: int) -> list[int]:
         if prog.moves and prog.moves[-1].rapid != (cm.kind == "rapid") and prog.moves[-1].stop is None:
             prog.moves[-1].stop = "mode"      # tp.c handleModeChange: exact stop, full acceleration
             prog.moves[-1].blend_mm = None
-        prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, _blend_of(cm.path_mode)))
+        prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, _blend_of(cm.path_mode), path_mode=cm.path_mode))
         # after an arc, the next segment starts where the arc's geometry ends (within ~1e-15
         # of the programmed end): segments chain exactly, and the standard paths plan as before
         pos = seg.end.copy() if cm.kind == "arc" else end
@@ -248,7 +251,8 @@ def _only_move_from_home(prog: GCodeProgram, m0, home) -> None:
     target, prog.start = prog.start, home.copy()
     prog.notes.append((m0.line, f"the only move: planned from home {home.tolist()}"))
     prog.moves.append(Move(Line(home, target, m0.line, f"{source}:{m0.line}"), m0.line, m0.kind == "rapid",
-                           None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, _blend_of(m0.path_mode)))
+                           None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, _blend_of(m0.path_mode),
+                           path_mode=m0.path_mode))
 
 
 def _stop(move: Move, why: str) -> None:
