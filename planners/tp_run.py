@@ -5,10 +5,18 @@ speed that can still stop at the segment's final speed, v = −a·dt/2 + √(v_f
 + (a·dt/2)²), capped at the segment's target speed, the acceleration clamped to ±a, the
 distance advanced by the trapezoidal rule. A cycle that passes a segment end is split
 (``tpHandleSplitCycle``): the time τ to the end is solved exactly and the rest of the period
-runs on the next segment. A parabolic junction (tp.c ``tpHandleRegularCycle``,
-``tcIsBlending``, ``tpDoParabolicBlending``): once the segment is on its final deceleration
-(to rest at its end) below its blend speed, the next segment starts moving too, both at
-their own (halved) accelerations; the tool is at the sum of both displacements.
+runs on the next segment.
+
+:func:`simulate`'s options, each LinuxCNC's: ``blends`` = {i: blend speed} for the parabolic
+junctions i → i+1 (tp.c ``tpHandleRegularCycle``, ``tcIsBlending``, ``tpDoParabolicBlending``):
+once segment i is on its final deceleration (to rest at its end) below its blend speed,
+i+1 starts moving too, both at their own (halved) accelerations; the tool is at the sum of
+both displacements (``trace`` = [(cycle k, i, x, x2, v, v2)] of those periods). ``stops``:
+the segments that end at rest (TC_TERM_COND_STOP / EXACT): the next one starts on the next
+period (tpCheckEndCondition removes a segment in the period it arrives). ``ramps``: per
+segment its look-ahead final speed if it may ramp (tangent, not a rapid), else None: one that
+would last less than 1/ARC_BLEND_RAMP_FREQ from its first full period on accelerates evenly
+to its final speed instead (``tpActivateSegment``, ``tpCalculateRampAccel``).
 """
 from __future__ import annotations
 
@@ -20,17 +28,11 @@ MAX_CYCLES = 20_000_000
 VEL_EPS = 1e-8               # tp_types.h TP_VEL_EPSILON
 
 
-def simulate(L, vmax, amax, vf, T: float, length: float, blends=None, stops=()):
+def simulate(L, vmax, amax, vf, T: float, length: float, blends=None, stops=(), ramps=None):
     """(s, sd, excess, trace) at every period; s = the segments' lengths before the current
     one plus its progress (clipped to ``length``); ``excess``: the largest clipped speed excess
-    at a segment end (mm/s, diagnostics).
-
-    ``blends`` = {i: blend speed} for the parabolic junctions i → i+1 (vf[i] = 0 there);
-    ``trace`` = [(cycle k, i, x, x2, v, v2)] for the periods where segment i (at x, speed v)
-    and i+1 (at x2, v2) both move. ``stops``: the segments that end at rest (an exact stop,
-    tp.c TC_TERM_COND_STOP / EXACT): the next one starts on the next period (the segment is
-    removed in the period it arrives, tpCheckEndCondition). Without blends and stops the loop
-    is the plain one."""
+    at a segment end (mm/s, diagnostics). blends, stops, ramps: see the module's doc; without
+    them the loop is the plain one."""
     # plain floats in the per-cycle loop: a 10⁵-line program runs ~2·10⁶ passes; the
     # segment's values are read once per segment, and min()/max() are written as conditionals
     # that return what the builtins return (first argument on a tie, so a zero's sign stays)
@@ -42,8 +44,11 @@ def simulate(L, vmax, amax, vf, T: float, length: float, blends=None, stops=()):
     vf2 = vfi ** 2
     end = Li - 1e-12
     vb, x2, v2, blending = blends.get(0), 0.0, 0.0, False
+    active, ramp = -1, False
     for k in range(MAX_CYCLES):
         t_left = T
+        if ramps is not None and active != i:
+            active, ramp = i, _ramps(ramps[i], Li - x, v, vmi)
         while t_left > 0.0:
             dx = Li - x
             half = 0.5 * a * t_left
@@ -54,6 +59,8 @@ def simulate(L, vmax, amax, vf, T: float, length: float, blends=None, stops=()):
             if vmi < v_new:                              # min(…, vmax[i])
                 v_new = vmi
             acc = (v_new - v) / t_left
+            if ramp and active == i and vfi >= VEL_EPS:
+                acc = _ramp_acc(v, vfi, dx)
             if -a > acc:                                 # min(max(acc, −a), a)
                 acc = -a
             if a < acc:
@@ -102,6 +109,24 @@ def simulate(L, vmax, amax, vf, T: float, length: float, blends=None, stops=()):
         if blending:
             trace.append((k + 1, i, x, x2, v, v2))
     raise PlanningError(f"trapezoid: no arrival after {MAX_CYCLES} cycles (a limit too small?)")
+
+
+RAMP_S = 1.0 / 100.0        # 1 / [TRAJ] ARC_BLEND_RAMP_FREQ default (initraj.cc)
+
+
+def _ramps(finalvel, dx: float, v: float, vmax: float) -> bool:
+    """tp.c tpActivateSegment: a tangent segment ramps if it would last less than RAMP_S."""
+    if finalvel is None or dx == 0:
+        return False
+    den = v + min(finalvel, vmax)
+    return den > 0 and 2.0 * dx / den < RAMP_S
+
+
+def _ramp_acc(v: float, vf: float, dx: float) -> float:
+    """tp.c tpCalculateRampAccel: the constant acceleration that reaches vf at the end."""
+    v_avg = (v + vf) / 2.0
+    dt = max(dx / v_avg, 1e-16) if v_avg > VEL_EPS else 1e-16
+    return (vf - v) / dt
 
 
 def _arrival(v: float, acc: float, dx: float, t_left: float) -> float:

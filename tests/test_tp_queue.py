@@ -207,3 +207,20 @@ def test_program_profiles_are_valid_on_their_contiguous_geometry(machine, text):
     chord = np.linalg.norm(np.diff(P, axis=0), axis=1)
     assert (chord <= np.diff(pr.s) + 1e-9).all()          # a chord is never longer than its arc
     assert np.abs(np.diff(pr.s) - 0.5 * (pr.sd[:-1] + pr.sd[1:]) * pr.T).max() < 0.05 * m.limits.feed_max * pr.T
+
+
+def test_a_short_tangent_segment_ramps_evenly_to_its_final_speed():
+    # tp.c tpActivateSegment / tpCalculateRampAccel: a tangent segment that lasts less than
+    # 1/ARC_BLEND_RAMP_FREQ (10 ms) from its first full period on accelerates at the constant
+    # (v_f² − v²)/(2·dx) that reaches its final speed at its end, not at the limit (500 mm/s²)
+    from planners.tp_run import simulate
+    L, T = [5.0, 0.05, 5.0], 1e-3
+    runs = [simulate(L, [19.0, 20.0, 20.0], [500.0] * 3, [19.0, 20.0, 0.0], T, sum(L), ramps=r)
+            for r in (None, [None, 20.0, None])]
+    for (s, sd, _, _), ramp in zip(runs, (False, True)):
+        s, sd = np.array(s), np.array(sd)
+        k = int(np.nonzero(s > 5.0)[0][0])              # the first sample on the short segment
+        v, dx = sd[k], 5.05 - s[k]
+        assert 2 * dx / (v + 20.0) < 0.01
+        expected = (20.0 ** 2 - v ** 2) / (2 * dx) if ramp else 500.0
+        assert (sd[k + 1] - sd[k]) / T == pytest.approx(expected, rel=1e-9)
