@@ -32,10 +32,7 @@ def segment_feeds(path, feed_max: float) -> np.ndarray | None:
         return None
     # a blend arc carries the line number of a move of the program, so it gets that F
     by_line = {m.line: (m.feed_mm_s if not m.rapid else None) for m in prog.moves}
-    # a speed-sized blend arc (planners.paths.blend) runs at its v_plan, which LinuxCNC bounds
-    # by the larger of both moves' feeds (blendParamKinematics v_goal), not the next move's
-    return np.array([min(feed_max, getattr(g, "v_cap", None) or by_line.get(g.line) or feed_max)
-                     for g in path.segments])
+    return np.array([min(feed_max, by_line.get(g.line) or feed_max) for g in path.segments])
 
 
 def feed_ceiling(path, s, feed_max: float) -> np.ndarray:

@@ -209,23 +209,22 @@ def test_dynamics_findings_read_the_metrics_differences(tmp_path):
 
 
 def test_trapezoid_check_builds_only_the_blends_it_runs(tmp_path, monkeypatch):
-    # trapezoid re-blends a program at its speeds (LinuxCNC's arcs): the check must not build
-    # the standard blends too, and its geometry is that of the path that ran
+    # trapezoid re-blends a program as LinuxCNC's tp queues it (planners.tp_queue): the check
+    # must not build the standard blends too, and its geometry is that of the path that ran
     import planners.paths.gcode.reader as reader
     calls = []
     real = reader.blend_corners
-    monkeypatch.setattr(reader, "blend_corners", lambda *a, **k: calls.append(a[2] if len(a) > 2 else None) or real(*a, **k))
+    monkeypatch.setattr(reader, "blend_corners", lambda *a, **k: calls.append(1) or real(*a, **k))
     f = prog(tmp_path, "G21 G90 G64 P0.05\nG1 X0 Y0 Z-400 F3000\nG1 X20\nG1 Y20\nG1 X0\nM2\n")
     rep = check_program(f, KEOPS, "trapezoid")
-    assert len(calls) == 1 and calls[0] is not None          # one blend, sized to the speed
+    assert calls == []
     from planners.paths.gcode import program_path, read_gcode
-    sized = program_path(read_gcode(f, home=KEOPS.home), (KEOPS.limits.cartesian.v, KEOPS.limits.cartesian.a,
-                                                           KEOPS.limits.feed_max, True))
-    assert rep.stats["length_mm"] == sized.length < 60.0     # three 20 mm lines minus two blends
+    from planners import plan
+    ran = plan("trapezoid", program_path(read_gcode(f, home=KEOPS.home), deferred=True), KEOPS)
+    assert rep.stats["length_mm"] == ran.path.length < 60.0     # three 20 mm lines minus two blends
     # every other planner gets the standard blends, built once
-    calls.clear()
     rep = check_program(f, KEOPS, "scurve")
-    assert calls == [None] and rep.stats["length_mm"] == program_path(read_gcode(f, home=KEOPS.home)).length
+    assert calls == [1] and rep.stats["length_mm"] == program_path(read_gcode(f, home=KEOPS.home)).length
 
 
 def test_deferred_program_path_blends_on_first_read(tmp_path):

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from planners.paths.blend import BlendSpeed, blend_corners
+from planners.paths.blend import blend_corners
 from planners.paths.lines import cut_into_lines
 from planners.paths import Arc, Line, NurbsPath, SegmentPath
 
@@ -37,47 +37,6 @@ def test_room_limited_blend_uses_half_the_shorter_line():
     assert arc.radius == pytest.approx(2.0)                      # d = R·tan(45°) = 4/2
     assert done[0][1] == pytest.approx(2.0 * (math.sqrt(2) - 1))
     assert segs[-1].length == pytest.approx(2.0)                 # half of the 4 mm line is left
-
-
-# LinuxCNC 2.9's speed-sized blend (blendmath.c blendComputeParameters, planner type 0):
-# kossel-like limits, 20 mm/s on every axis, 500 mm/s²; a 90° corner in the XY plane
-# (a_max = 500, a_n = 500·√0.75, φ = π/2, θ = π/4 so d = R).
-V_AX, A_AX = 20.0, 500.0
-
-
-def speed_corner(L, v, tol=math.inf):
-    segs, done = blend_corners(corner(L, L), [tol], BlendSpeed([v, v], [V_AX, V_AX], V_AX, A_AX))
-    return [g for g in segs if g.kind == "arc"][0], segs, done
-
-
-def test_speed_sized_blend_long_lines_take_the_parabolic_blend_radius():
-    # long lines at 10 mm/s: v_plan = F; the "equivalent parabolic blend" of half the
-    # acceleration lasts v/(a/2) and covers s = 2v²/a, R = s/φ = 4v²/(π·a) (> v²/a_n)
-    v = 10.0
-    arc, segs, _ = speed_corner(40.0, v)
-    R = 4 * v * v / (math.pi * A_AX)
-    assert R > v * v / (A_AX * math.sqrt(0.75))
-    assert arc.radius == pytest.approx(R, rel=1e-12)
-    assert arc.v_cap == pytest.approx(v, rel=1e-15)
-    assert segs[0].length == pytest.approx(40.0 - R, rel=1e-12)           # d = R at 90°
-
-
-def test_speed_sized_blend_short_lines_are_room_limited():
-    # 1 mm lines at 20 mm/s: half a line (0.5 mm) is the room; the arc's speed is what its
-    # radius allows at the normal acceleration, √(a_n·R) ≈ 14.7 mm/s
-    arc, _, _ = speed_corner(1.0, 20.0)
-    assert arc.radius == pytest.approx(0.5, rel=1e-12)
-    assert arc.v_cap == pytest.approx(math.sqrt(A_AX * math.sqrt(0.75) * 0.5), rel=1e-12)
-
-
-def test_speed_sized_blend_within_the_g64_p_tolerance():
-    # G64 P0.01 on long lines: the tolerance limits the radius, as in the largest-arc blend
-    p = 0.01
-    arc, _, done = speed_corner(40.0, 10.0, p)
-    R = p / (math.sqrt(2) - 1)
-    assert arc.radius == pytest.approx(R, rel=1e-9)
-    assert done[0][1] == pytest.approx(p, rel=1e-9)
-    assert arc.v_cap == pytest.approx(math.sqrt(A_AX * math.sqrt(0.75) * R), rel=1e-9)
 
 
 def test_exact_stop_collinear_reversal_and_arc_corners_are_kept():
@@ -178,35 +137,3 @@ def test_blend_arcs_built_column_wise_equal_arc_exact(tmp_path):
     for g in path.segments:
         if g.kind == "line":
             assert np.abs(g.start + g.length * g.direction - g.end).max() < 1e-12
-
-
-def spiral_piece():
-    # arc r = 5 (G3 half circle) → line 1 mm → arc r = 6 (G3 half circle): 90° corners, as
-    # benchmarks/oracle/programs/spiral_arcs.ngc
-    z = [0, 0, 1]
-    return [Arc([5, 0, 0], [0, 0, 0], z, math.pi), Line([-5, 0, 0], [-6, 0, 0]),
-            Arc([-6, 0, 0], [0, 0, 0], z, math.pi)]
-
-
-def test_speed_sized_line_arc_blends_follow_blendmath():
-    # G64 P0.01 at 20 mm/s. arc → line: not convex (the line leaves the circle outwards), θ is
-    # half the 90° interior angle, the radius the tolerance's P/(√2 − 1) as between lines.
-    # line → arc: convex, φ2_max = min(π/3, π/4), θ = π/4 − φ2_max/4 = 3π/16, R = P·sinθ/(1 − sinθ).
-    # The real LinuxCNC passes these corners at 3.231 and 2.323 mm/s (sampled chord speeds of
-    # √(a_n·R) = 3.233 and 2.327, benchmarks/oracle/README.md)
-    p = 0.01
-    segs, done = blend_corners(spiral_piece(), [p, p], BlendSpeed([20.0] * 3, [20.0] * 3, V_AX, A_AX))
-    path = SegmentPath(segs)                       # contiguous, else it raises
-    assert len(path.corners()) == 0 and len(done) == 2
-    blends = [g for g in segs if getattr(g, "v_cap", None)]
-    a_n = A_AX * math.sqrt(0.75)
-    R1 = p / (math.sqrt(2) - 1)
-    th = 3 * math.pi / 16
-    R2 = p * math.sin(th) / (1 - math.sin(th))
-    assert [g.radius for g in blends] == [pytest.approx(R1, rel=1e-9), pytest.approx(R2, rel=1e-9)]
-    assert [g.v_cap for g in blends] == [pytest.approx(math.sqrt(a_n * R1), rel=1e-9),
-                                         pytest.approx(math.sqrt(a_n * R2), rel=1e-9)]
-    assert all(0 < dev <= p for _, dev in done)
-    # the circles keep their centres and radii, shortened by the trim angles
-    assert segs[0].radius == pytest.approx(5.0) and segs[-1].radius == pytest.approx(6.0)
-    assert segs[0].angle < math.pi and segs[-1].angle < math.pi

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from planners.paths import Arc, Line, SegmentPath, load_path
-from planners.paths.blend import BlendSpeed, blend_corners
 from planners.paths.gcode import parse_gcode
 
 
@@ -150,26 +149,28 @@ def test_path_file_spiral_field_round_trip(tmp_path):
 
 
 def test_line_spiral_blends_are_tangent_circles_within_the_tolerance():
-    # line → spiral (G3, r 5 → 5.02) → line under G64 P0.01, sized to 20 mm/s
-    arc = Arc([0, 0, 0], [0, 5, 0], [0, 0, 1], math.pi / 2, spiral=0.02)
-    segs = [Line([-10, -3, 0], [0, 0, 0]), arc, Line(arc.end, arc.end + [0, 10, 0])]
-    p = 0.01
-    out, done = blend_corners(segs, [p, p], BlendSpeed([20.0] * 3, [20.0] * 3, 20.0, 500.0))
-    path = SegmentPath(out)                                 # contiguous, else it raises
-    assert len(done) == 2 and all(0 < dev <= p for _, dev in done)
-    assert len(path.corners()) == 0                         # G1 at every join
-    blends = [g for g in out if getattr(g, "v_cap", None)]
-    spiral = next(g for g in out if g.kind == "arc" and g.spiral)
-    assert spiral.center.tolist() == arc.center.tolist()
-    assert spiral.spiral / spiral.angle == pytest.approx(arc.spiral / arc.angle, rel=1e-12)
-    for g, line, at_end in ((blends[0], segs[0], False), (blends[1], segs[2], True)):
-        # the blend circle: R from the line, tangent to the spiral where it meets it
-        q = spiral.end if at_end else spiral.start
-        t = spiral.tangent_out() if at_end else spiral.tangent_in()
-        assert abs(np.linalg.norm(q - g.center) - g.radius) <= 1e-9
-        assert abs(float((q - g.center) @ t)) <= 1e-9 * g.radius
-        off = g.center - line.start
-        assert abs(np.linalg.norm(off - (off @ line.direction) * line.direction) - g.radius) <= 1e-9
+    # line → spiral (G3, r 5 → 5.02 about the programmed centre) → line under G64 P0.01, as
+    # trapezoid queues it (planners.tp_queue): each corner gets a blend arc that leaves the line
+    # tangentially and meets the trimmed spiral on it and tangent to it
+    from planners import tp_queue as Q
+    text = ("G21 G90 G17 G64 P0.01\nG0 X-10 Y-3 Z-250\nG1 X0 Y0 F1200\n"
+            "G3 X5.02 Y5 I0 J5\nG1 X15\nM2\n")
+    runs, _ = Q.build(parse_gcode(text).moves, Q.Limits(1e-3, 20.0, 500.0, 20.0))
+    tcs = [tc for r in runs for tc in r]
+    kinds = [tc.kind for tc in tcs]
+    assert kinds.count("blend") == 2 and kinds.count("circle") == 1
+    k = kinds.index("circle")
+    spiral = tcs[k].arc
+    assert spiral.center.tolist() == [0.0, 5.0, -250.0]
+    assert spiral.spiral / spiral.angle == pytest.approx(0.02 / (math.pi / 2), rel=1e-12)
+    before, after = tcs[k - 1].arc, tcs[k + 1].arc
+    assert np.abs(before.end - spiral.start).max() <= 1e-9
+    assert np.abs(before.tangent_out() - spiral.tangent_in()).max() <= 1e-9
+    assert np.abs(after.start - spiral.end).max() <= 1e-9
+    assert np.abs(after.tangent_in() - spiral.tangent_out()).max() <= 1e-9
+    for b in (before, after):   # the corner within P of the blend circle (tp_blend's deviation check)
+        corner = np.array([0.0, 0.0, -250.0]) if b is before else np.array([5.02, 5.0, -250.0])
+        assert 0 < np.linalg.norm(corner - b.center) - b.radius <= 0.01 + 1e-12
 
 
 def test_trapezoid_caps_a_spiral_by_its_radius_of_curvature_at_the_start():

@@ -128,10 +128,10 @@ def test_deterministic_and_gcode_part_on_kossel(tmp_path):
     a.save_csv(fa)
     b.save_csv(fb)
     assert fa.read_bytes() == fb.read_bytes()
-    # 2 exact stops: each full circle's end (to the 3D line down / the G0 up: not coplanar,
-    # no blend arc in LinuxCNC); the line → circle corners are blended (tpCreateLineArcBlend);
-    # the feed never above F_max = 20 mm/s
-    assert a.info["corners"] == 2
+    # each full circle's end: to the 3D line down a parabolic blend (not coplanar, no blend
+    # arc: tpChooseBestBlend), to the G0 up an exact stop (tp.c handleModeChange); the
+    # line → circle corners are blended (tpCreateLineArcBlend); the feed never above F_max
+    assert (a.info["parabolic_blends"], a.info["exact_stops"]) == (1, 1)
     assert a.sd.max() <= kossel.limits.feed_max * (1 + 1e-12)
     # lower bound: length at F_max; upper: plus a full stop-and-go per corner and per blend
     L = part.length
@@ -144,16 +144,20 @@ def test_programmed_feed_option(keops, tmp_path):
     path = resolve_path(str(f))
     fast = plan("trapezoid", path, keops, programmed_feed=False)
     slow = plan("trapezoid", path, keops)            # the programmed F is the default
-    assert fast.sd.max() == pytest.approx(1000.0)
+    # at F_max (1000 mm/s) the look-ahead binds: the last move is never final, so the first
+    # ends at √(a·L) (it could stop within half of the last, tp.c
+    # tpCalculateOptimizationInitialVel) and the second peaks at √((2aL + a·L)/2) = 866 mm/s
+    a = keops.limits.cartesian.a
+    assert fast.sd.max() == pytest.approx(math.sqrt(1.5 * a * 50.0), abs=a * fast.T)
     from planners.feed import use_max_feed           # the suite's --max-feed mark: F_max
     assert plan("trapezoid", use_max_feed(resolve_path(str(f))), keops).execution_time_s == fast.execution_time_s
     # first move capped at F6000 = 100 mm/s, the second at F30000 = 500 mm/s (< F_max)
     first = slow.s <= 50.0
     assert slow.sd[first].max() == pytest.approx(100.0)
     assert slow.sd.max() == pytest.approx(500.0)
-    # collinear moves: no stop between them (G61 stops only at tangent breaks). Closed form:
-    # 0→100 in 100/a, cruise, 100→500 on the second move, cruise, 500→0.
-    a = keops.limits.cartesian.a
+    # collinear moves: no stop between them (G61 is exact path: tpSetupTangent makes the
+    # straight junction TANGENT). Closed form: 0→100 in 100/a, cruise, 100→500 on the second
+    # move, cruise, 500→0.
     d_up1, d_up2, d_down = 100**2 / (2 * a), (500**2 - 100**2) / (2 * a), 500**2 / (2 * a)
     t = (100 / a + (50 - d_up1) / 100 + 400 / a + (50 - d_up2 - d_down) / 500 + 500 / a)
     assert abs(slow.execution_time_s - t) <= 2 * slow.T
@@ -226,18 +230,3 @@ def test_simulate_equals_the_reference_loop_bit_for_bit(tmp_path, machine, name)
     s0, sd0, ex0 = _simulate_reference(planned, vmax, amax, vf, m.servo_period_s)
     assert len(s) > 100
     assert np.array_equal(s, s0) and np.array_equal(sd, sd0) and ex == ex0
-
-
-def test_circle_tangential_acceleration_share_as_tc_update_circle_acc_ratio():
-    # tc.c tcUpdateCircleAccRatio / blendmath.c pmCircleActualMaxVel: a G2/G3 arc of radius
-    # 10 whose machine speed is 20 mm/s needs v²/ρ = 40 mm/s² of the 500 normally, and gets
-    # √(1 − (40/500)²) of 500 tangentially; the last move (never finalized) keeps 0.5
-    from planners.paths.gcode import parse_gcode, program_path
-    from planners.trapezoid import segment_limits
-    path = program_path(parse_gcode("G21 G90 G17 G61\nG0 X-10 Y-10 Z-250\nG1 X10 F900\n"
-                                    "G3 X10 Y10 I0 J10\nG1 X-10\nG3 X-10 Y-10 I0 J-10\nM2\n"))
-    vmax, amax = segment_limits(path, 20.0, 500.0, 20.0)
-    assert [g.kind for g in path.segments] == ["line", "arc", "line", "arc"]
-    assert amax[1] == pytest.approx(500.0 * math.sqrt(1 - (40.0 / 500.0) ** 2), rel=1e-12)
-    assert amax[3] == pytest.approx(250.0, rel=1e-12)
-    assert vmax[1] == vmax[3] == pytest.approx(20.0)

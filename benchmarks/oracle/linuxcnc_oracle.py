@@ -2,9 +2,9 @@
 
     PYTHONPATH=. python benchmarks/oracle/linuxcnc_oracle.py [--only NAME,...] [--repeat N]
 
-Every program of benchmarks/oracle/programs/ (plus the standard test_part) runs on LinuxCNC
-(headless, serialised: minutes of wall time, one heavy job) and is planned by `trapezoid`
-with the programmed feed. Prints a Markdown table — execution times, Δ % and the joint
+Every program of benchmarks/oracle/programs/ (plus the standard test_part and the corpus CAM
+programs) runs on LinuxCNC (headless, serialised: minutes of wall time, one heavy job) and
+is planned by `trapezoid` with the programmed feed. Prints a Markdown table — execution times, Δ % and the joint
 velocity peak ratio Δ % (both from planners.verify on each planner's own geometry) — and
 writes results/oracle/linuxcnc_oracle.json. ``--repeat N`` runs LinuxCNC N times per program
 and reports the spread of its execution time (the determinism of the `linuxcnc` planner).
@@ -18,6 +18,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
+CORPUS = REPO / "benchmarks/paths/corpus"
 sys.path.insert(0, str(REPO))
 
 from planners.verify import command_metrics  # noqa: E402
@@ -41,6 +42,14 @@ PROGRAMS = {
     "lcnc_naive_cam_corner1": ("kossel", HERE / "programs/lcnc_naive_cam_corner1.ngc"),
     "lcnc_naive_cam_corner2": ("kossel", HERE / "programs/lcnc_naive_cam_corner2.ngc"),
     "lcnc_naive_cam_reversal": ("kossel", HERE / "programs/lcnc_naive_cam_reversal.ngc"),
+    # G61 exact path: the kink's acceleration reduction stays at a corner that stops
+    "g61_square": ("kossel", HERE / "programs/g61_square.ngc"),
+    # the corpus CAM programs (benchmarks/paths/corpus)
+    "cam_blend_kossel": ("kossel", CORPUS / "cam_blend_kossel.ngc"),
+    "pocket_kossel": ("kossel", CORPUS / "pocket_kossel.ngc"),
+    "contour_kossel": ("kossel", CORPUS / "contour_kossel.ngc"),
+    "helix_kossel": ("kossel", CORPUS / "helix_kossel.ngc"),
+    "cam_dense_lcnc": ("linuxcnc_delta", CORPUS / "cam_dense_lcnc.ngc"),
 }
 
 

@@ -17,7 +17,7 @@ class CanonMove:
     start: tuple                # (x, y, z) mm
     end: tuple
     feed_mm_min: float | None   # programmed feed (None for rapids)
-    path_mode: tuple            # ("exact",) | ("blend", p_mm, q_mm): G61/G61.1 or G64 P Q
+    path_mode: tuple            # ("exact", "path" | "stop") | ("blend", p_mm, q_mm): G61 / G61.1 / G64 P Q
     center: tuple | None = None  # arc: centre (the coordinate along the normal = start's)
     plane: int = 17             # arc: 17 | 18 | 19
     turn: int = 0               # arc: ARC_FEED's rotation: −1 = one CW turn part, +1 CCW, ±n …

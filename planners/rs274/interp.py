@@ -334,7 +334,9 @@ class Interpreter(Offsets, Motion, Flow):
                     raise LineError("G64 P and Q must be ≥ 0")
                 m.path = ("blend", p, q)
             else:
-                m.path = ("exact",)
+                # G61 exact path (LinuxCNC's TC_TERM_COND_EXACT: a tangent junction runs
+                # through), G61.1 exact stop (TC_TERM_COND_STOP)
+                m.path = ("exact", "path" if g == 610 else "stop")
             self.flush()
         if 3 in groups:
             m.absolute = groups[3] == 900

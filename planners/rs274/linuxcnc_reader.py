@@ -122,12 +122,12 @@ def _rs274_stream(src: str, tool_table, timeout):
         if name == "USE_LENGTH_UNITS":
             unit = 25.4 if "INCH" in args[0] else (10.0 if "CM" in args[0] else 1.0)
         elif name == "SET_MOTION_CONTROL_MODE":
-            mode = "blend" if args[0] == "CANON_CONTINUOUS" else "exact"
+            mode = {"CANON_CONTINUOUS": "blend", "CANON_EXACT_PATH": "path"}.get(args[0], "stop")
             p = float(args[1]) * unit if len(args) > 1 else 0.0
         elif name == "SET_NAIVECAM_TOLERANCE":
             q = float(args[0]) * unit
         elif name in _MOTION:
-            modes.append(("blend", p, q) if mode == "blend" else ("exact",))
+            modes.append(("blend", p, q) if mode == "blend" else ("exact", mode))
         elif name in _EVENTS:
             kind, value = _EVENTS[name]
             if name == "PROGRAM_END" and events and events[-1][:2] == ("m", 5) and events[-1][2] == n:

@@ -10,9 +10,8 @@ zero-length moves are dropped as LinuxCNC's canon drops them. Errors are
 Corners: the path-control mode in force when a move is read governs the corner at its end
 (LinuxCNC's term_cond): G61/G61.1 → exact stop; G64 P p → blended within p mm;
 G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tolerance other
-than the room available (half of each adjoining segment); ``program_path(prog, speed_limits)``
-blends as LinuxCNC's tp does instead (arcs sized to the speed, line↔arc corners blended: what
-the ``trapezoid`` planner plans on). G64 … Q q joins runs of short moves that stay within q
+than the room available (half of each adjoining segment); the ``trapezoid`` planner re-blends
+the program as LinuxCNC's tp does instead (planners.tp_queue). G64 … Q q joins runs of short moves that stay within q
 of one line into that line first, as LinuxCNC's canon does (:mod:`.naivecam`). Blending is done by
 :mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
@@ -26,7 +25,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from planners.paths.base import PathError, gc_paused
-from planners.paths.blend import BlendSpeed, blend_corners
+from planners.paths.blend import blend_corners
 from planners.paths.gcode.naivecam import join_moves
 from planners.paths.segments import Arc, Line, SegmentPath
 
@@ -58,6 +57,9 @@ class Move:
     # feed: tp.c handleModeChange never blends them) or "end"; None otherwise
     stop: str | None = None
     parabolic_end: bool = False    # G64 end with nothing to blend with (tc.c: half acceleration)
+    # the path-control mode in force (planners.rs274 CanonMove.path_mode), kept when
+    # ``blend_mm`` becomes None at a stop: LinuxCNC's term_cond and tolerance of the move
+    path_mode: tuple = ("exact", "stop")
 
 
 # M codes that only change the interpreter's state (M70–M73 save/restore modal state): no sync
@@ -227,7 +229,7 @@ def _segments(prog: GCodeProgram, canon: list, first: int) -> list[int]:
         if prog.moves and prog.moves[-1].rapid != (cm.kind == "rapid") and prog.moves[-1].stop is None:
             prog.moves[-1].stop = "mode"      # tp.c handleModeChange: exact stop, full acceleration
             prog.moves[-1].blend_mm = None
-        prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, _blend_of(cm.path_mode)))
+        prog.moves.append(Move(seg, ln, cm.kind == "rapid", feed, _blend_of(cm.path_mode), path_mode=cm.path_mode))
         # after an arc, the next segment starts where the arc's geometry ends (within ~1e-15
         # of the programmed end): segments chain exactly, and the standard paths plan as before
         pos = seg.end.copy() if cm.kind == "arc" else end
@@ -248,7 +250,8 @@ def _only_move_from_home(prog: GCodeProgram, m0, home) -> None:
     target, prog.start = prog.start, home.copy()
     prog.notes.append((m0.line, f"the only move: planned from home {home.tolist()}"))
     prog.moves.append(Move(Line(home, target, m0.line, f"{source}:{m0.line}"), m0.line, m0.kind == "rapid",
-                           None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, _blend_of(m0.path_mode)))
+                           None if m0.kind == "rapid" else m0.feed_mm_min / 60.0, _blend_of(m0.path_mode),
+                           path_mode=m0.path_mode))
 
 
 def _stop(move: Move, why: str) -> None:
@@ -314,58 +317,42 @@ def read_gcode(file, start=None, home=None, **options) -> GCodeProgram:
     return prog
 
 
-def program_path(prog: GCodeProgram, speed_limits=None, *, deferred: bool = False) -> SegmentPath:
-    """The blended path of a program (G61 corners kept sharp, G64 corners rounded).
+def program_path(prog: GCodeProgram, *, deferred: bool = False) -> SegmentPath:
+    """The blended path of a program (G61 corners kept sharp, G64 corners rounded: the
+    largest arc its tolerance and half of each line allow).
 
-    ``speed_limits`` = (axis v, axis a, F_max, programmed F?) sizes each G64 blend arc to the
-    speed as LinuxCNC's tp does (planners.paths.blend.BlendSpeed); without it (the standard
-    paths) a corner gets the largest arc its tolerance and half of each line allow.
     ``deferred``: blend on the first use of the geometry (``program`` and ``source`` are there
-    at once): a planner that re-blends the program at its own speeds (trapezoid) never pays
+    at once): a planner that re-blends the program as LinuxCNC does (trapezoid) never pays
     for these blends, seconds on a 10⁵-line program."""
     if deferred:
-        return _DeferredProgramPath(prog, speed_limits)
+        return _DeferredProgramPath(prog)
     with gc_paused():
-        return SegmentPath(_blended_segments(prog, speed_limits), prog.source, program=prog)
+        return SegmentPath(_blended_segments(prog), prog.source, program=prog)
 
 
-def _blended_segments(prog: GCodeProgram, speed_limits) -> list:
-    speed = None if speed_limits is None else blend_speed(prog, *speed_limits)
-    return blend_corners(prog.segments(), prog.blend_tolerances(), speed)[0]
+def _blended_segments(prog: GCodeProgram) -> list:
+    return blend_corners(prog.segments(), prog.blend_tolerances())[0]
 
 
 class _DeferredProgramPath(SegmentPath):
-    """program_path(prog, speed_limits), built when an attribute of the geometry is first read."""
+    """program_path(prog), built when an attribute of the geometry is first read."""
 
-    def __init__(self, prog: GCodeProgram, speed_limits):
-        self.program, self.source, self._speed_limits = prog, prog.source, speed_limits
+    def __init__(self, prog: GCodeProgram):
+        self.program, self.source, self._pending = prog, prog.source, True
 
     def __getattr__(self, name):
         # only reached for an attribute not set yet, i.e. one that SegmentPath.__init__ sets
         d = self.__dict__
-        if name.startswith("__") or "_speed_limits" not in d:
+        if name.startswith("__") or not d.get("_pending"):
             raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
-        speed_limits = d.pop("_speed_limits")
+        d["_pending"] = False
         try:
             with gc_paused():
-                SegmentPath.__init__(self, _blended_segments(self.program, speed_limits), self.source,
-                                     program=self.program)
+                SegmentPath.__init__(self, _blended_segments(self.program), self.source, program=self.program)
         except BaseException:
-            d["_speed_limits"] = speed_limits     # a blend error is raised again on the next read
+            d["_pending"] = True           # a blend error is raised again on the next read
             raise
         return getattr(self, name)
-
-
-def blend_speed(prog: GCodeProgram, v_axis: float, a_axis: float, feed_max: float,
-                programmed: bool = True) -> BlendSpeed:
-    """Each move's requested speed (its F, or F_max for a rapid or without programmed feed) and
-    its own velocity limit (the fastest axis at v_axis along a line, F_max at most: tc->maxvel)."""
-    req = [feed_max if (m.rapid or not programmed or m.feed_mm_s is None) else min(feed_max, m.feed_mm_s)
-           for m in prog.moves]
-    # all moves' directions at once (a CAM program has 10⁵ of them); an arc: 1 (unused)
-    U = np.array([m.segment.direction if m.segment.kind == "line" else (1.0, 0.0, 0.0) for m in prog.moves])
-    maxvel = np.minimum(feed_max, v_axis / np.abs(U).max(axis=1)).tolist()
-    return BlendSpeed(req, maxvel, v_axis, a_axis)
 
 
 def load_gcode_path(file, start=None, **options) -> SegmentPath:

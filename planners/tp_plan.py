@@ -1,0 +1,228 @@
+"""trapezoid on a G-code program: LinuxCNC's motion queue (planners.tp_queue) run cycle by cycle
+(planners.tp_run), and the geometry the tool follows.
+
+The geometry is the queue's segments laid end to end (lines, circles, blend arcs with the
+line they consumed); a parabolic blend (tp.c ``tpDoParabolicBlending``) moves the tool by the
+sum of two segments' displacements, off both: there the geometry is the polyline through the
+positions of the blend's periods, as LinuxCNC commands them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planners import tp_queue as Q
+from planners.paths.base import norm3
+from planners.paths.segments import Arc, Line
+from planners.tp_run import simulate
+
+TINY = 1e-9                  # mm: a piece or polyline step shorter than this is dropped
+
+
+def queue_arrays(runs, lim: Q.Limits):
+    """Per segment of the flattened runs: (segments, L, target speed, acceleration, final
+    speed, {i: blend speed} of the parabolic junctions, the segments ending at rest, run-end
+    indices). A run's last segment ends at rest: the queue drains there."""
+    tcs = [tc for r in runs for tc in r]
+    ends = set(np.cumsum([len(r) for r in runs]) - 1)
+    L = [tc.target for tc in tcs]
+    vt = [min(tc.reqvel, tc.maxvel, lim.feed_max) for tc in tcs]     # tpGetRealTargetVel
+    acc = [Q.tangential_acc(tc) for tc in tcs]
+    vf, blends, stops = [0.0] * len(tcs), {}, []
+    for i, tc in enumerate(tcs):
+        if i in ends or tc.term in (Q.STOP, Q.EXACT):
+            stops.append(i)
+        elif tc.term == Q.TANGENT:                   # tpGetRealFinalVel
+            vf[i] = min(tc.finalvel, vt[i], vt[i + 1])
+        else:
+            blends[i] = Q.blend_velocities(tc, tcs[i + 1])[0]
+    return tcs, L, vt, acc, vf, blends, stops, sorted(ends)
+
+
+def pieces(tc) -> list:
+    """The geometry of a queued segment, its lengths summing to tc.target."""
+    if tc.kind == "line":
+        return [Line.exact(tc.start, tc.end, tc.u, tc.line)] if tc.target > TINY else []
+    if tc.kind == "circle":
+        return [tc.arc]
+    out = []
+    if tc.line_length > TINY:
+        a = tc.arc.start
+        out.append(Line.exact(a - tc.line_length * tc.u, a, tc.u, tc.line))
+    return out + [tc.arc]
+
+
+def cut(segs, a: float, b: float) -> list:
+    """The part of segments laid end to end between arc lengths a ≤ b."""
+    out, s0 = [], 0.0
+    for g in segs:
+        lo, hi = max(a - s0, 0.0), min(b - s0, g.length)
+        if hi - lo > TINY:
+            out.append(g if (lo == 0.0 and hi == g.length) else _sub(g, lo, hi))
+        s0 += g.length
+    return out
+
+
+def _sub(g, lo: float, hi: float):
+    """Segment g from arc length lo to hi."""
+    if g.kind == "line":
+        return Line.exact(g.start + lo * g.direction, g.start + hi * g.direction, g.direction, g.line)
+    h = Arc.__new__(Arc)
+    h.normal, h.line, h.spiral = g.normal, g.line, 0.0
+    if g.spiral:
+        # a spiral's angle is not proportional to its length: the angles at lo and hi; the rest
+        # keeps the same dr/dφ and rise per radian
+        p0, p1 = (float(x) for x in g._measure.phi_of(np.array([lo, hi])))
+        f0, f1 = p0 / g.angle, p1 / g.angle
+        h.start = g.planar_point(p0) + f0 * g.rise * g.normal
+        h.spiral = g.spiral * (f1 - f0)
+    else:
+        f0, f1 = lo / g.length, hi / g.length
+        h.start = _arc_at(g, f0 * g.angle)
+    h.center = g.center + f0 * g.rise * g.normal
+    h.angle, h.rise = (f1 - f0) * g.angle, (f1 - f0) * g.rise
+    h._derive()
+    return h
+
+
+def _arc_at(g, phi: float):
+    return g.center + math.cos(phi) * g.a + math.sin(phi) * g.b + (phi / g.angle) * g.rise * g.normal
+
+
+def point(segs, x: float):
+    """(point, unit tangent) at arc length x along segments laid end to end."""
+    s0 = 0.0
+    for g in segs:
+        if x <= s0 + g.length or g is segs[-1]:
+            t = min(max(x - s0, 0.0), g.length)
+            if g.kind == "line":
+                return g.start + t * g.direction, g.direction
+            if g.spiral:
+                P, d = (v[0] for v in g.eval(np.array([t]), 1))
+                return P, d / norm3(d)
+            d = g._tangent(t / g.length * g.angle)
+            return _arc_at(g, t / g.length * g.angle), d / norm3(d)
+        s0 += g.length
+    raise ValueError("point of an empty segment list")
+
+
+def run_program(prog, lim: Q.Limits):
+    """(geometry, s, sd, {move index: arc length where its queue run ends}, info) of a
+    program as LinuxCNC's tp runs it (a queue sync's wait goes at its run's end)."""
+    runs, ends = Q.build(prog.moves, lim)
+    tcs, L, vt, acc, vf, blends, stops, run_ends = queue_arrays(runs, lim)
+    cum = np.concatenate([[0.0], np.cumsum(L)])
+    ramps = [tc.finalvel if tc.term == Q.TANGENT and not tc.rapid else None for tc in tcs]
+    s, sd, excess, trace = simulate(L, vt, acc, vf, lim.T, float(cum[-1]), blends, stops, ramps)
+    geometry, s, sd, tc_start = blended_geometry([pieces(tc) for tc in tcs], np.array(s), np.array(sd), trace, cum)
+    info = {"queue_segments": len(tcs), "blend_arcs": sum(tc.kind == "blend" for tc in tcs),
+            "consumed_lines": sum(tc.kind == "blend" and tc.line_length > 0 for tc in tcs),
+            "parabolic_blends": len(blends), "exact_stops": len(stops) - len(run_ends),
+            "tangent_kinks": sum(tc.term == Q.TANGENT and tc.kind != "blend" and tc.kink_red > 0 for tc in tcs),
+            "length_clamped": sum(tc.clamped and tc.maxvel < min(tc.reqvel, lim.feed_max) for tc in tcs),
+            "boundary_speed_excess_mm_s": float(excess)}
+    run_end_s = {ends[r]: float(tc_start[i + 1]) for r, i in enumerate(run_ends)}
+    return geometry, s, sd, run_end_s, info
+
+
+def blended_geometry(segs_of, s, sd, trace, cum):
+    """(geometry, s, sd, start of each segment's kept part in the new s): the segments' pieces
+    end to end (``cum``: where each segment starts in the simulated s), each parabolic blend's
+    periods (``trace``) as a polyline: a segment is kept from where the blend into it ended to
+    where the blend out of it began (its first and last samples on its own)."""
+    blend = {k: (i, x, x2, v, v2) for k, i, x, x2, v, v2 in trace}
+    n = len(segs_of)
+    idx = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, n - 1)
+    reg = np.ones(len(s), bool)
+    reg[list(blend)] = False
+    # a segment's progress grows with time: its first and last samples on its own
+    ri, rx = idx[reg], (s - cum[idx])[reg]
+    k0, k1 = np.searchsorted(ri, np.arange(n), "left"), np.searchsorted(ri, np.arange(n), "right") - 1
+    lo = np.where(k0 < len(ri), rx[np.minimum(k0, len(ri) - 1)], np.inf)
+    hi = np.where(k1 >= 0, rx[np.maximum(k1, 0)], 0.0)
+    into = {blend[k][0] + 1 for k in blend}
+    out_of = {blend[k][0] for k in blend}
+    a = [lo[i] if i in into else 0.0 for i in range(n)]
+    b = [hi[i] if i in out_of else cum[i + 1] - cum[i] for i in range(n)]
+    geometry, start, s_new, sd_new = [], np.zeros(n + 1), s.copy(), sd.copy()
+    length = 0.0
+    ks = sorted(blend)
+    j = 0
+    for i in range(n):
+        start[i] = length
+        part = cut(segs_of[i], a[i], b[i])
+        geometry += part
+        length += sum(g.length for g in part)
+        if i in out_of:
+            last = point(segs_of[i], b[i])[0]
+            while j < len(ks) and blend[ks[j]][0] == i:
+                k = ks[j]
+                _, x, x2, v, v2 = blend[k]
+                p1, t1 = point(segs_of[i], x)
+                p2, t2 = point(segs_of[i + 1], x2)
+                p = p1 + p2 - point(segs_of[i + 1], 0.0)[0]
+                length, last = _step(geometry, last, p, length, segs_of[i][-1].line)
+                s_new[k], sd_new[k] = length, norm3(v * t1 + v2 * t2)
+                j += 1
+            length, _ = _step(geometry, last, point(segs_of[i + 1], a[i + 1])[0], length, segs_of[i][-1].line)
+    start[n] = length
+    # within its segment's kept part (a piece under TINY was dropped from it)
+    ir = idx[reg]
+    s_new[reg] = np.minimum(start[ir] + (s[reg] - cum[ir]) - np.array(a)[ir], start[ir + 1])
+    s_new[-1] = length
+    return geometry, np.minimum(s_new, length), sd_new, start
+
+
+def _step(geometry: list, last, p, length: float, line):
+    """A polyline step from ``last`` to ``p`` (none if shorter than TINY): (length, last)."""
+    d = norm3(p - last)
+    if d <= TINY:
+        return length, last
+    geometry.append(Line.exact(last, p, (p - last) / d, line))
+    return length + d, p
+
+
+IO_CYCLE_S = 0.100          # [EMCIO] CYCLE_TIME of the LinuxCNC sim config (planners/linuxcnc/runner.py)
+# coolant M codes are commands to LinuxCNC's io task: M7 mist on, M8 flood on, M9 both off
+IO_COMMANDS = {7: 1, 8: 1, 9: 2}
+
+
+def move_waits(prog) -> dict:
+    """{move index: seconds at rest after it} for a program's queue syncs.
+
+    A dwell waits its P. A coolant M code is a command to the io task, which looks at its
+    command buffer once per io cycle (ioControl.cc main loop, esleep(emc_io_cycle_time)) and
+    then sleeps a full cycle: the first command waits on average half a cycle (a random
+    phase: LinuxCNC's own spread run to run), each further one a whole cycle. The mean is
+    used (same inputs, same outputs). Other M codes (spindle, M62–M65 …) go to motion: no wait.
+    Nothing waits after the last move (the span measured ends there)."""
+    per_move: dict[int, list] = {}
+    for e in prog.events:
+        if 0 < e.index <= len(prog.moves):
+            per_move.setdefault(e.index - 1, []).append(e)
+    waits = {}
+    for mi, evs in per_move.items():
+        n_io = sum(IO_COMMANDS.get(e.value, 0) for e in evs if e.kind == "m")
+        dwell = sum(float(e.value) for e in evs if e.kind == "dwell")
+        w = dwell + (0.5 * IO_CYCLE_S + (n_io - 1) * IO_CYCLE_S if n_io else 0.0)
+        if w > 0 and mi < len(prog.moves) - 1:
+            waits[mi] = w
+    return waits
+
+
+def insert_waits(s: np.ndarray, sd: np.ndarray, at: list, T: float):
+    """s, sd with round(wait/T) samples at rest at each (arc length, wait) of ``at``, in order
+    (the profile reaches the stop, stays, then runs on as simulated)."""
+    if not at:
+        return s, sd
+    parts_s, parts_v, j0 = [], [], 0
+    for pos, w in sorted(at):
+        j = int(np.searchsorted(s, pos - 1e-9))
+        n = int(round(w / T))
+        parts_s += [s[j0:j], np.full(n, pos)]
+        parts_v += [sd[j0:j], np.zeros(n)]
+        j0 = j
+    parts_s.append(s[j0:])
+    parts_v.append(sd[j0:])
+    return np.concatenate(parts_s), np.concatenate(parts_v)

@@ -1,0 +1,226 @@
+"""planners.tp_queue / tp_blend / tp_plan (LinuxCNC 2.9's motion queue) against closed forms.
+
+The numbers come from tp.c / blendmath.c / tc.c read at LinuxCNC f1270d6ed7 and worked out by
+hand here; where the real LinuxCNC was run on the same program its figure is in the comment
+(benchmarks/oracle/README.md has the rest).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from kins import load_machine
+from planners import plan, tp_queue as Q
+from planners.paths.gcode import parse_gcode, program_path
+
+# kossel-like: 1 ms period, 20 mm/s and 500 mm/s² on every axis, F_max 20 mm/s; a corner in
+# the XY plane has a_max = 500 (blendmath.c calculateInscribedDiameter), a_n = 500·√0.75
+KOSSEL = Q.Limits(1e-3, 20.0, 500.0, 20.0)
+A_N = 500.0 * math.sqrt(0.75)
+
+
+def queue(text, lim=KOSSEL):
+    runs, _ = Q.build(parse_gcode(text).moves, lim)
+    return [tc for r in runs for tc in r]
+
+
+def corner(L, F, p=""):
+    """Two lines of L mm at a 90° corner in XY, F mm/min, G64 [P…]."""
+    return f"G21 G90 G17 G64 {p}\nG0 X0 Y0 Z0\nG1 X{L} F{F}\nY{L}\nM2\n"
+
+
+def test_long_lines_take_the_parabolic_blend_radius():
+    # blendComputeParameters: long lines at 10 mm/s, v_plan = F; the "equivalent parabolic
+    # blend" at half the acceleration lasts v/(a/2) and covers s = 2v²/a: R = s/φ = 4v²/(π·a)
+    v = 10.0
+    line1, blend, line2 = queue(corner(40, 600))
+    R = 4 * v * v / (math.pi * 500.0)
+    assert R > v * v / A_N
+    assert blend.kind == "blend" and blend.arc.radius == pytest.approx(R, rel=1e-12)
+    assert blend.maxvel == pytest.approx(v, rel=1e-15)
+    assert line1.target == pytest.approx(40.0 - R, rel=1e-12)          # d = R at 90°
+    # into the arc tangent; the last G64 move stays PARABOLIC (half acceleration)
+    assert (line1.term, blend.term, line2.term) == (Q.TANGENT, Q.TANGENT, Q.PARABOLIC)
+
+
+def test_short_lines_are_room_limited():
+    # 1 mm lines at 20 mm/s: half a line (0.5 mm) is the room; the arc's speed is what its
+    # radius allows at the normal acceleration, √(a_n·R) ≈ 14.7 mm/s
+    _, blend, _ = queue(corner(1, 1200))
+    assert blend.arc.radius == pytest.approx(0.5, rel=1e-12)
+    assert blend.maxvel == pytest.approx(math.sqrt(A_N * 0.5), rel=1e-12)
+
+
+def test_blend_within_the_g64_p_tolerance():
+    p = 0.01
+    _, blend, _ = queue(corner(40, 600, "P0.01"))
+    R = p / (math.sqrt(2) - 1)
+    assert blend.arc.radius == pytest.approx(R, rel=1e-9)
+    # the arc's middle is R(√2 − 1) = P from the corner (40, 0)
+    mid = blend.arc.eval(np.array([blend.arc.length / 2]), 0)[0][0]
+    assert np.linalg.norm(mid - [40, 0, 0]) == pytest.approx(p, rel=1e-9)
+    assert blend.maxvel == pytest.approx(math.sqrt(A_N * R), rel=1e-9)
+
+
+def test_line_arc_blends_follow_blendmath():
+    # G64 P0.01 at 20 mm/s, benchmarks/oracle/programs/spiral_arcs.ngc's first corners.
+    # arc → line: not convex (the line leaves the circle outwards), θ is half the 90°
+    # interior angle, the radius the tolerance's P/(√2 − 1) as between lines. line → arc:
+    # convex, φ2_max = min(π/3, π/4), θ = π/4 − φ2_max/4 = 3π/16, R = P·sinθ/(1 − sinθ).
+    # The real LinuxCNC passes them at 3.231 and 2.323 mm/s (√(a_n·R) = 3.233 and 2.327)
+    p = 0.01
+    tcs = queue("G21 G90 G17 G64 P0.01\nG0 X5 Y0 Z0\nG3 X-5 Y0 I-5 J0 F1200\nG1 X-6\nG3 X6 Y0 I6 J0\nM2\n")
+    assert [tc.kind for tc in tcs] == ["circle", "blend", "line", "blend", "circle"]
+    R1 = p / (math.sqrt(2) - 1)
+    th = 3 * math.pi / 16
+    R2 = p * math.sin(th) / (1 - math.sin(th))
+    blends = [tcs[1], tcs[3]]
+    assert [b.arc.radius for b in blends] == [pytest.approx(R1, rel=1e-9), pytest.approx(R2, rel=1e-9)]
+    assert [b.maxvel for b in blends] == [pytest.approx(math.sqrt(A_N * R1), rel=1e-9),
+                                          pytest.approx(math.sqrt(A_N * R2), rel=1e-9)]
+    # the circles keep their centres and radii, shortened by the trim angles
+    assert tcs[0].arc.radius == pytest.approx(5.0) and tcs[-1].arc.radius == pytest.approx(6.0)
+    assert tcs[0].arc.angle < math.pi and tcs[-1].arc.angle < math.pi
+
+
+def test_clamp_by_length_one_period():
+    # tc.c tcClampVelocityByLength: v ≤ L/T; again when the length is final (tcFinalizeLength)
+    tc = Q.TC("line", 1, False, 0.15, 300.0, 300.0, 5000.0, Q.PARABOLIC, 0.0)
+    Q.clamp_by_length(tc, 1e-3)
+    assert tc.maxvel == pytest.approx(150.0, rel=1e-15)
+    tc.target = 0.1
+    Q.finalize(tc, 1e-3)
+    assert tc.finalized and tc.maxvel == pytest.approx(100.0, rel=1e-15)
+
+
+def test_many_tiny_collinear_moves_last_a_period_each(tmp_path):
+    # 400 collinear moves of 5 µm at F1200: no corner (tpSetupTangent: a straight junction is
+    # TANGENT, no blend arc), and each segment's max velocity is what lasts 1.02 periods
+    # (tpComputeOptimalVelocity: L/(1.02·T) = 4.902 mm/s, below the 20 mm/s of F); the first
+    # (never the later one of a look-ahead pair) and the last (never final) keep L/T
+    # (tcClampVelocityByLength)
+    text = "G21 G90 G64\nG0 X0 Y0 Z-250\nF1200\n" + "".join(f"G1 X{0.005 * (k + 1):.3f}\n" for k in range(400)) + "M2\n"
+    tcs = queue(text)
+    assert len(tcs) == 400 and all(tc.term == Q.TANGENT for tc in tcs[:-1])
+    v = 0.005 / (1.02e-3)
+    assert [tc.maxvel for tc in tcs[1:-1]] == [pytest.approx(v, rel=1e-12)] * 398
+    assert [tcs[0].maxvel, tcs[-1].maxvel] == [pytest.approx(5.0, rel=1e-12)] * 2
+    pr = plan("trapezoid", program_path(parse_gcode(text)), load_machine("kossel"))
+    assert pr.sd.max() == pytest.approx(v, rel=1e-9)
+    # 2 mm at 4.902 mm/s, plus the ramps (≈ v/a at 500 mm/s², the last move at 250: < 0.02 s)
+    assert abs(pr.execution_time_s - 2.0 / v) < 0.02
+
+
+def test_a_short_line_between_two_blends_is_consumed():
+    # linuxcnc_delta-like limits (1 ms, 300 mm/s, 5000 mm/s²), F18000, G64 P0.05: 90° corners
+    # A (10 mm) → B (0.3 mm) → C (10 mm). Each blend is tolerance-limited: R = d = P/(√2 − 1)
+    # = 0.1207 mm at v_plan = √(a_n·R) = 22.9 mm/s. B keeps 0.3 − 2R = 0.0586 mm, which takes
+    # 2.6 ms < ARC_BLEND_GAP_CYCLES (4) periods at 22.9 mm/s: blendCheckConsume pops B and the
+    # second blend segment starts with it (spherical_arc.c arcPoint's line part)
+    lim = Q.Limits(1e-3, 300.0, 5000.0, 300.0)
+    tcs = queue("G21 G90 G17 G64 P0.05\nG0 X0 Y0 Z0\nG1 X10 F18000\nY0.3\nX0\nM2\n", lim)
+    assert [tc.kind for tc in tcs] == ["line", "blend", "blend", "line"]
+    R = 0.05 / (math.sqrt(2) - 1)
+    b2 = tcs[2]
+    assert b2.line_length == pytest.approx(0.3 - 2 * R, rel=1e-9)
+    assert b2.target == pytest.approx(R * math.pi / 2 + 0.3 - 2 * R, rel=1e-9)
+    assert b2.maxvel == pytest.approx(math.sqrt(5000.0 * math.sqrt(0.75) * R), rel=1e-9)
+    # the geometry is contiguous: line, arc, the consumed piece of B, arc, line
+    pr = plan("trapezoid", program_path(parse_gcode("G21 G90 G17 G64 P0.05\nG0 X0 Y0 Z0\nG1 X10 F18000\n"
+                                                    "Y0.3\nX0\nM2\n")), load_machine("linuxcnc_delta"))
+    assert [g.kind for g in pr.path.segments] == ["line", "arc", "line", "arc", "line"]
+    assert pr.info["consumed_lines"] == 1
+
+
+SQUARE = "G21 G90 G17 {mode}\nG0 X-10 Y-10 Z-250\nG1 X10 F1200\nG1 Y10\nG1 X-10\nM2\n"
+
+
+def test_g61_exact_path_keeps_the_kink_acceleration_reduction():
+    # G61 (TC_TERM_COND_EXACT): tpSetupTangent sets the kink properties of a 90° corner
+    # (acceleration reduced by ARC_BLEND_KINK_RATIO = 0.1 on both segments), no blend is
+    # made, and tpChooseBestBlend leaves EXACT as it is: each 20 mm line runs rest to rest at
+    # 0.9·500 = 450 mm/s², 3·(20/20 + 20/450) = 3.133 s (LinuxCNC: 3.135 s). G61.1 (STOP) stops
+    # before any of that: 3·(1 + 20/500) = 3.120 s (LinuxCNC: 3.120 s)
+    kossel = load_machine("kossel")
+    g61 = plan("trapezoid", program_path(parse_gcode(SQUARE.format(mode="G61"))), kossel)
+    g611 = plan("trapezoid", program_path(parse_gcode(SQUARE.format(mode="G61.1"))), kossel)
+    assert abs(g61.execution_time_s - 3 * (1 + 20 / 450)) <= 3 * g61.T
+    assert abs(g611.execution_time_s - 3 * (1 + 20 / 500)) <= 3 * g611.T
+    assert np.abs(np.diff(g61.sd)).max() / g61.T == pytest.approx(450.0, rel=1e-9)
+    assert g61.info["exact_stops"] == g611.info["exact_stops"] == 2
+
+
+def test_g61_runs_through_collinear_moves():
+    # G61 is exact *path*: two collinear 0.4 mm moves are TANGENT (tpSetupTangent). The last
+    # move is never finalized, so the first ends at √(a·L₂) = 14.1 mm/s (it could stop within
+    # half of the last: tpCalculateOptimizationInitialVel); each move peaks at
+    # √((2aL + v_f²)/2) = 17.3 mm/s: 2·(17.3 + (17.3 − 14.1))/500 = 0.082 s (LinuxCNC: 0.083 s).
+    # G61.1 stops between them: 2·2·√(0.4/500) = 0.113 s
+    text = "G21 G90 G17 {mode}\nG0 X-0.4 Y0 Z-250\nG1 X0 F1200\nG1 X0.4\nM2\n"
+    kossel = load_machine("kossel")
+    vf, vp = math.sqrt(500 * 0.4), math.sqrt((2 * 500 * 0.4 + 500 * 0.4) / 2)
+    t = plan("trapezoid", program_path(parse_gcode(text.format(mode="G61"))), kossel).execution_time_s
+    assert abs(t - 2 * (vp + vp - vf) / 500) <= 2e-3
+    t = plan("trapezoid", program_path(parse_gcode(text.format(mode="G61.1"))), kossel).execution_time_s
+    assert abs(t - 4 * math.sqrt(0.4 / 500)) <= 2e-3
+
+
+def test_a_line_into_a_helix_is_a_parabolic_blend():
+    # the line and the helix of benchmarks/oracle/programs/delta_star.ngc: not coplanar, no
+    # blend arc (tpCreateLineArcBlend), and tpChooseBestBlend takes the parabolic blend over
+    # the kink. Both segments move at once (tpDoParabolicBlending): the speed dips but never
+    # stops (LinuxCNC: 44.5 mm/s at the bottom, from 100)
+    text = ("G21 G90 G17 G64\nG0 X0 Y50 Z0\nG1 X0 Y20 Z-10 F6000\nG2 X0 Y20 Z-20 I0 J-20\nM2\n")
+    pr = plan("trapezoid", program_path(parse_gcode(text)), load_machine("linuxcnc_delta"))
+    assert pr.info["parabolic_blends"] == 1 and pr.info["exact_stops"] == 0
+    k = int(np.argmin(np.abs(pr.s - 31.6228)))                     # the junction: √(30² + 10²)
+    assert pr.sd[k - 100:k + 100].min() == pytest.approx(44.5, rel=0.05)
+
+
+def test_circle_tangential_acceleration_share_as_tc_update_circle_acc_ratio():
+    # tc.c tcUpdateCircleAccRatio / blendmath.c pmCircleActualMaxVel: a G2/G3 arc of radius
+    # 10 whose machine speed is 20 mm/s needs v²/ρ = 40 mm/s² of the 500 normally, and gets
+    # √(1 − (40/500)²) of 500 tangentially once final; the last move (never final) keeps 0.5.
+    # All junctions are tangent (G61 exact path runs through them)
+    tcs = queue("G21 G90 G17 G61\nG0 X-10 Y-10 Z-250\nG1 X10 F900\n"
+                "G3 X10 Y10 I0 J10\nG1 X-10\nG3 X-10 Y-10 I0 J-10\nM2\n")
+    assert [tc.kind for tc in tcs] == ["line", "circle", "line", "circle"]
+    assert all(tc.term == Q.TANGENT for tc in tcs[:-1])
+    assert Q.tangential_acc(tcs[1]) == pytest.approx(500.0 * math.sqrt(1 - (40.0 / 500.0) ** 2), rel=1e-9)
+    assert Q.tangential_acc(tcs[3]) == pytest.approx(250.0, rel=1e-9)
+    assert tcs[1].maxvel == tcs[3].maxvel == pytest.approx(20.0)
+
+
+@pytest.mark.parametrize("machine,text", [
+    ("linuxcnc_delta", "G21 G90 G17 G64\nG0 X0 Y50 Z0\nG1 X0 Y20 Z-10 F6000\nG2 X0 Y20 Z-20 I0 J-20\nM2\n"),
+    ("kossel", "G21 G90 G17 G64 P0.01\nG0 X0 Y0 Z-250\nF1200\n"
+               + "".join(f"G1 X{0.3 * (k + 1):.3f} Y{0.2 * (k % 2):.3f}\n" for k in range(60)) + "M2\n")])
+def test_program_profiles_are_valid_on_their_contiguous_geometry(machine, text):
+    # the queue's segments (a parabolic blend's polyline, consumed lines) laid end to end:
+    # SegmentPath refuses a gap; the profile runs forwards from rest to rest on it, and its
+    # path is where the tool is at each period: the period's chord is the speed's integral
+    m = load_machine(machine)
+    pr = plan("trapezoid", program_path(parse_gcode(text)), m)
+    pr.validate()
+    assert (np.diff(pr.s) >= 0).all() and pr.sd[0] == pr.sd[-1] == 0.0
+    P = pr.path.point(pr.s)
+    chord = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    assert (chord <= np.diff(pr.s) + 1e-9).all()          # a chord is never longer than its arc
+    assert np.abs(np.diff(pr.s) - 0.5 * (pr.sd[:-1] + pr.sd[1:]) * pr.T).max() < 0.05 * m.limits.feed_max * pr.T
+
+
+def test_a_short_tangent_segment_ramps_evenly_to_its_final_speed():
+    # tp.c tpActivateSegment / tpCalculateRampAccel: a tangent segment that lasts less than
+    # 1/ARC_BLEND_RAMP_FREQ (10 ms) from its first full period on accelerates at the constant
+    # (v_f² − v²)/(2·dx) that reaches its final speed at its end, not at the limit (500 mm/s²)
+    from planners.tp_run import simulate
+    L, T = [5.0, 0.05, 5.0], 1e-3
+    runs = [simulate(L, [19.0, 20.0, 20.0], [500.0] * 3, [19.0, 20.0, 0.0], T, sum(L), ramps=r)
+            for r in (None, [None, 20.0, None])]
+    for (s, sd, _, _), ramp in zip(runs, (False, True)):
+        s, sd = np.array(s), np.array(sd)
+        k = int(np.nonzero(s > 5.0)[0][0])              # the first sample on the short segment
+        v, dx = sd[k], 5.05 - s[k]
+        assert 2 * dx / (v + 20.0) < 0.01
+        expected = (20.0 ** 2 - v ** 2) / (2 * dx) if ramp else 500.0
+        assert (sd[k + 1] - sd[k]) / T == pytest.approx(expected, rel=1e-9)
