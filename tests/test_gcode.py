@@ -64,6 +64,14 @@ def test_m_codes_are_recorded_with_their_line_and_m30_ends():
     assert len(p.moves) == 1
 
 
+def test_user_m_code_takes_p_and_q():
+    # interp_check.cc: P and Q are a user M code's (M100–M199) arguments, not stray words
+    p = prog("M101 P1 Q2.5\nG1 X1 F60\n")
+    assert [(e.kind, e.value, e.line) for e in p.events] == [("m", 101, 3)] and len(p.moves) == 1
+    with pytest.raises(GCodeError, match="Q word with no code"):
+        prog("M5 Q2\n")
+
+
 def test_zero_length_move_is_dropped_but_its_m_code_counts():
     # (was an error; LinuxCNC's canon drops it — the thesis part's "N70 Z-240 M09")
     p = prog("G1 X1 F60\nN70 X1 M09\nG1 X2\n")

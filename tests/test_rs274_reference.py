@@ -56,6 +56,7 @@ CONSTRUCTS = {
     "cam_preamble": ("%\n(CAM)\nG90 G94 G91.1 G40 G49 G17\nG21\nG54\nG80 G00 X1 Y2 Z3\n/G1 X2 F300\n"
                      "G64 P0.01 Q0.005\nG1 X 1 0 . 5 Y-1\nN70 Z3 M09\nM5 M9\nG28\nM30\n%\n"),
     "polar": "G21 G0 X1 Y0 Z0\nG1 @5 ^30 F100\nG91 G1 @1\nG1 ^10\nM2\n",
+    "user_m_code_p_q": "G21 G0 X1 Y0 Z0\nM190 P1 Q2.5\nG1 X2 F100\nM101\nG1 Y1\nM2\n",
     # a program opened by '%' ends at the next lone '%': LinuxCNC never reads what follows
     "percent_bounds": "%\nG21 G0 X1 Y0 Z0\n(100 % feed)\nG1 X2 F100\nG0 Z1\n \t% \nG0 X9 Y9 Z9\nM2\n",
 }
