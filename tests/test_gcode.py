@@ -36,6 +36,25 @@ def test_inches_n_numbers_comments_percent():
     assert p.moves[0].line == 4
 
 
+def test_percent_lines_bound_the_program_as_linuxcnc_reads_them():
+    # the first non-blank line '%' opens it, the next lone '%' ends it (a G1 after is never
+    # read); a '%' on any other line, or with a comment, is an error of that line
+    p = parse_gcode("\n%\nG21 G0 X0 Y0 Z0\nG1 X1 F60\n  %\nG1 X5\n", "t.ngc")
+    assert ends(p).tolist() == [[1.0, 0.0, 0.0]] and p.moves[0].line == 4
+    for text, line in (("G21 G0 X0 Y0 Z0\n%\nG1 X1 F60\nM2\n", 2),
+                       ("%\nG21 G0 X0 Y0 Z0\n% (end)\nG1 X1 F60\n", 3),
+                       ("% (start)\nG21 G0 X0 Y0 Z0\nG1 X1 F60\n%\n", 1)):
+        with pytest.raises(GCodeError, match="'%' here") as e:
+            parse_gcode(text, "t.ngc")
+        assert e.value.line == line
+
+
+def test_subroutine_file_lone_percent_lines_are_skipped(tmp_path):
+    (tmp_path / "sq.ngc").write_text("%\no<sq> sub\nG1 X#1 F60\no<sq> endsub\nM2\n%\n")
+    p = parse_gcode("G21 G0 X0 Y0 Z0\no<sq> call [3]\nM2\n", "t.ngc", subroutine_path=[tmp_path])
+    assert ends(p).tolist() == [[3.0, 0.0, 0.0]]
+
+
 def test_m_codes_are_recorded_with_their_line_and_m30_ends():
     # (was: S/T/M/G40/G80 "ignored with a note"; the interpreter now records M codes as events
     # at the move index where LinuxCNC would stop for them)
@@ -43,6 +62,14 @@ def test_m_codes_are_recorded_with_their_line_and_m30_ends():
     assert [(e.kind, e.value, e.line, e.index) for e in p.events] == [("m", 3, 3, 0), ("m", 30, 5, 1)]
     assert "M30: end of program" in " ".join(n for _, n in p.notes)
     assert len(p.moves) == 1
+
+
+def test_user_m_code_takes_p_and_q():
+    # interp_check.cc: P and Q are a user M code's (M100–M199) arguments, not stray words
+    p = prog("M101 P1 Q2.5\nG1 X1 F60\n")
+    assert [(e.kind, e.value, e.line) for e in p.events] == [("m", 101, 3)] and len(p.moves) == 1
+    with pytest.raises(GCodeError, match="Q word with no code"):
+        prog("M5 Q2\n")
 
 
 def test_zero_length_move_is_dropped_but_its_m_code_counts():

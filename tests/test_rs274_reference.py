@@ -56,6 +56,9 @@ CONSTRUCTS = {
     "cam_preamble": ("%\n(CAM)\nG90 G94 G91.1 G40 G49 G17\nG21\nG54\nG80 G00 X1 Y2 Z3\n/G1 X2 F300\n"
                      "G64 P0.01 Q0.005\nG1 X 1 0 . 5 Y-1\nN70 Z3 M09\nM5 M9\nG28\nM30\n%\n"),
     "polar": "G21 G0 X1 Y0 Z0\nG1 @5 ^30 F100\nG91 G1 @1\nG1 ^10\nM2\n",
+    "user_m_code_p_q": "G21 G0 X1 Y0 Z0\nM190 P1 Q2.5\nG1 X2 F100\nM101\nG1 Y1\nM2\n",
+    # a program opened by '%' ends at the next lone '%': LinuxCNC never reads what follows
+    "percent_bounds": "%\nG21 G0 X1 Y0 Z0\n(100 % feed)\nG1 X2 F100\nG0 Z1\n \t% \nG0 X9 Y9 Z9\nM2\n",
 }
 
 
@@ -69,6 +72,7 @@ def test_construct_reads_as_linuxcnc(name, tmp_path):
 REFUSED = {        # LinuxCNC refuses these too
     "G1 X[1/0] F10": "division by zero", "G2 X1 Y1 I5 J0 F10": "radius", "G0 X#<nope>": "#<nope>",
     "G1 X1 F10 Q5": "Q word", "G0 G1 X1": "same modal group", "#5420=1": "read-only", "G2 X1 Y1 K1 F10": "K word",
+    "%": "'%' here",     # not the first line: LinuxCNC's "Bad character '%' used"
 }
 UNSUPPORTED = {    # LinuxCNC reads these; out of scope here: refused by name
     "G41 D1": "G41", "G81 Z-1 R1": "G81", "G33 Z-1 K1": "G33", "G1 A10 F10": "A axis", "G17.1": "G17.1",

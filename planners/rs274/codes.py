@@ -122,6 +122,8 @@ def check_other_codes(w, g0, groups, mg, arc_done: bool) -> None:
         used.add("q")
     if 5 in mg or 9 in mg:
         used |= set("pqle")
+    if 11 in mg:                     # a user M code (M100–M199) gets P and Q as its arguments
+        used |= set("pq")
     if arc_done:
         used |= set("ijkrp")
     for letter in w:

@@ -134,10 +134,10 @@ class Interpreter(Offsets, Motion, Flow):
         self.params.set(int(round(n)), value)
 
     # ------------------------------------------------------------------ files
-    def source(self, name: str, text: str | None = None) -> SourceFile:
+    def source(self, name: str, text: str | None = None, main: bool = False) -> SourceFile:
         f = self._files.get(name)
         if f is None:
-            f = SourceFile(name, text if text is not None else _read_text(name))
+            f = SourceFile(name, text if text is not None else _read_text(name), main)
             self._files[name] = f
         return f
 
@@ -157,7 +157,7 @@ class Interpreter(Offsets, Motion, Flow):
 
     # ------------------------------------------------------------------ run
     def run(self, text: str, source: str = "<gcode>") -> CanonProgram:
-        main = self.source(source, text)
+        main = self.source(source, text, main=True)
         self.out = CanonProgram(source, tuple(self.pos))
         self.frames = [Frame(main, 0)]
         self.cur_line = 0

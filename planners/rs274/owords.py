@@ -4,14 +4,20 @@ O number or name, as rs274ngc's control blocks do."""
 from __future__ import annotations
 
 from planners.rs274.errors import LineError, RS274Error
-from planners.rs274.tokens import tokenise
+from planners.rs274.tokens import percent_lines, tokenise
 
 
 class SourceFile:
-    def __init__(self, name: str, text: str):
+    """``main``: the program itself, whose '%' lines LinuxCNC reads as its bounds; a
+    subroutine file's lone '%' lines are skipped (as before: LinuxCNC's handling of them
+    depends on the main program and is not modelled)."""
+
+    def __init__(self, name: str, text: str, main: bool = False):
         self.name = name
         self.blocks = []
-        for raw in text.splitlines():
+        lines = text.splitlines()
+        lines = percent_lines(lines) if main else ["" if raw.strip() == "%" else raw for raw in lines]
+        for raw in lines:
             try:
                 self.blocks.append(tokenise(raw))
             except LineError as e:          # raised when (if) the line runs

@@ -60,14 +60,33 @@ def strip_comments(raw: str) -> tuple[str, str | None]:
     return "".join(out).lower(), comment
 
 
+def percent_lines(lines: list[str]) -> list[str]:
+    """The lines of a main program that LinuxCNC reads (rs274ngc_pre.cc Interp::open,
+    interp_read.cc read_text): when its first non-blank line is a lone '%', the program ends
+    at the next lone '%' and what follows is never read; both '%' lines become blank."""
+    first = next((i for i, raw in enumerate(lines) if raw.strip()), None)
+    if first is None or lines[first].strip() != "%":
+        return lines
+    out = lines[:first] + [""]
+    for raw in lines[first + 1:]:
+        # read_text compares after removing trailing white space, then spaces and tabs
+        if raw.rstrip().replace(" ", "").replace("\t", "") == "%":
+            return out + [""]
+        out.append(raw)
+    return out
+
+
 def tokenise(raw: str) -> Block | None:
-    """A parsed block, or None for a line with nothing to do (blank, comment, '%')."""
+    """A parsed block, or None for a line with nothing to do (blank, comment)."""
     s, comment = strip_comments(raw)
     b = Block(comment=comment)
     if not s:
         return b if comment is not None else None
     if s == "%":
-        return None
+        # the opening and closing '%' of a program are gone (percent_lines); any other '%'
+        # line, or one with a comment, stops LinuxCNC: "Bad character '%' used"
+        raise LineError("'%' here: only a lone '%' as the first line opens a program, and the "
+                        "next lone '%' ends it")
     if s[0] == "/":
         b.delete = True
         s = s[1:]
