@@ -22,13 +22,16 @@ Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): i
 a, b and jerk lie 10⁵ apart and Clarabel returned a profile far from the optimum (bird 2.45 s,
 scaled 1.50 s before the joins' rows).
 
-The limits hold at the stations.  Between them (a(s) is quadratic there and bulges over a
-bound held at both ends: keops/bird read the joint acceleration 1.004 × its limit) the check
-at T can read above them: the profile is sampled at T and checked; where a difference window
-reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at the stations
-under the window and one either side, and the pieces touched are solved again (from their last
-solution), up to MAX_REPAIRS rounds.  A profile still above a limit after them is returned as
-it is (info["above_at_T"] counts its windows): the harness's check reports it.
+Stations: ≤ grid_mm apart, every segment end and G1 join on the grid, refined at curvature
+peaks; q′, q″, q‴ at each station from the IK's stencil (constraints.joint_derivs), not
+interpolated.  The limits hold at the stations.  Between them (a(s) is quadratic there and
+bulges over a bound held at both ends: keops/bird read the joint acceleration 1.004 × its
+limit) the check at T can read above them: the profile is sampled at T and checked; where a
+difference window reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at
+the stations under the window and one either side, and the pieces touched are solved again
+(from their last solution), up to MAX_REPAIRS rounds; pieces still above a limit then are
+stretched uniformly in time.  A profile still above a limit after that is returned as it is
+(info["above_at_T"] counts its windows): the harness's check reports it.
 """
 from __future__ import annotations
 
@@ -38,31 +41,52 @@ import time
 import copp_py as copp
 import numpy as np
 
-from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, check_limits, check_path, feed_cap,
-                          join_jumps, joint_derivs, rest_pieces)
+from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
+                          check_path, feed_cap, join_jumps, joint_derivs, rest_pieces)
 from .profile import Profile
+from .verify import FEASIBLE_TOL
 
 # sequential convex programming: a piece is re-linearised around its solution until a solve
-# gains less than this fraction of its time (bird on keops: 3 solves), at most this often
+# gains less than LIN_TOL of its time, at most MAX_LINEARISATIONS solves; after a tightening,
+# one solve from the last solution (more moved the result by < 0.1 % at twice the time)
 LIN_TOL = 1e-3
 MAX_LINEARISATIONS = 4
+# stations ≤ REFINE_RADII curvature radii apart (the jerk between stations at lobe tips and
+# blend arcs read above the limit where they were sparser), no closer than REFINE_MIN_MM
+# (Clarabel stopped on insufficient progress at 2·10⁻⁵ mm)
+REFINE_RADII = 0.5
+REFINE_MIN_MM = 1e-3
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
-# read, doubled each round (windows next to a G1 join read above again by less each time)
+# read, doubled each round (windows next to a G1 join read above again by less each time);
+# then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit
 MAX_REPAIRS = 8
 TIGHTEN_EXTRA = 1e-3
+MAX_STRETCHES = 8
 LIMIT_COLUMNS = ("velocity", "acceleration", "jerk", "feed")
 
 
-def _grid(table, joins, s0, s1, grid_mm):
+def _grid(path, table, joins, s0, s1, grid_mm):
     """Stations ≤ grid_mm apart (≥ 19 intervals a piece, ≥ 4 a segment: a 0.04 mm G64 blend arc
-    is resolved), with every segment end and G1 join of the piece on it."""
+    is resolved) with every segment end and G1 join of the piece on it, then cells split to
+    ≤ REFINE_RADII curvature radii (at their ends), none below REFINE_MIN_MM."""
     step = min(grid_mm, (s1 - s0) / 19)
     inner = [sj for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6]
     edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
                                       inner, [s0, s1]]))
     parts = [np.linspace(a, b, max(5, int(math.ceil((b - a) / step - 1e-9)) + 1))[:-1]
              for a, b in zip(edges[:-1], edges[1:])]
-    return np.concatenate(parts + [[s1]])
+    grid = np.concatenate(parts + [[s1]])
+    for _ in range(6):
+        _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
+        kap = np.linalg.norm(np.cross(P1, P2), axis=1)
+        h = np.diff(grid)
+        k = np.minimum(np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII), 16)
+        need = np.nonzero((k > 1) & (h > REFINE_MIN_MM))[0]
+        if len(need) == 0:
+            break
+        new = np.concatenate([grid[i] + h[i] * np.arange(1, int(k[i])) / k[i] for i in need])
+        grid = np.sort(np.concatenate([grid, new]))
+    return grid
 
 
 def _join_rows(machine, path, grid, joins, T_scaled):
@@ -84,13 +108,13 @@ class _Piece:
         self.k, self.s0, self.s1 = k, s0, s1
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
-        self.grid = _grid(table, joins, s0, s1, grid_mm)
+        self.grid = _grid(path, table, joins, s0, s1, grid_mm)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
-        P1, P2, _ = table.cartesian(e)
-        cap = feed_cap(path, self.grid, limits, T, kappa=np.linalg.norm(np.cross(P1, P2), axis=1))
+        cart = cartesian_derivs(path, e)
+        cap = feed_cap(path, self.grid, limits, T, kappa=np.linalg.norm(np.cross(cart[1], cart[2]), axis=1))
         self.cap2 = (cap * self.tu) ** 2
-        self.deriv = (table.joint_positions(e),) + tuple(table.joints(e))
+        self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
         self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
         for i, *_, kappa in self.joins:        # the read κṡ² alone within J
             self.cap2[i] = min(self.cap2[i], self.lims[2] / kappa.max())
@@ -98,6 +122,7 @@ class _Piece:
         # check at T reads the limit above 1 in a window over the station (tighten)
         self.factor = np.ones((len(self.grid), len(LIMIT_COLUMNS)))
         self.a_lin = self.span = None
+        self.insufficient_progress = 0
 
     def where(self) -> str:
         return f"piece {self.k} (s = {self.s0:.6g}…{self.s1:.6g} mm)"
@@ -136,8 +161,7 @@ class _Piece:
         a_lin = np.minimum(self.a_lin, self.cap2 * self.factor[:, 3] ** 2)
         best = None
         for _ in range(rounds):
-            rob = self._robot(a_lin)
-            prof = copp.solver.topp3_socp.solve(copp.solver.topp3_socp.Problem(rob.constraints, a_lin))
+            prof = self._socp(self._robot(a_lin), a_lin)
             tf, ts = copp.interpolation.s_to_t_topp3(self.grid - self.s0, prof)
             if not np.isfinite(tf):
                 raise copp.CoppError(f"the profile's time is {tf}")
@@ -149,6 +173,19 @@ class _Piece:
             a_lin = prof.a
         self.a_lin = best[1].a
         return best[1], best[2]
+
+    def _socp(self, rob, a_lin):
+        """TOPP3-SOCP's profile; where Clarabel stops on insufficient progress (pocket_kossel:
+        feeds 10⁻³ of F_max at 4 µm blend arcs next to ones at F_max), its last iterate, which
+        the check at T judges like any other."""
+        prob = copp.solver.topp3_socp.Problem(rob.constraints, a_lin)
+        try:
+            return copp.solver.topp3_socp.solve(prob)
+        except copp.CoppError as e:
+            if "InsufficientProgress" not in str(e):
+                raise
+        self.insufficient_progress += 1
+        return copp.solver.topp3_socp.solve(prob, copp.clarabel.ClarabelOptions(allow_insufficient_progress=True))
 
     def tighten(self, col, s_lo, s_hi, ratio, new, extra) -> None:
         """In ``new`` (the next factors): limit ``col`` at the stations under [s_lo, s_hi] and
@@ -169,7 +206,11 @@ class _Topp3Span:
         self.prof, self.tu, self.ts = prof, piece.tu, ts
         self.s0, self.s = piece.s0, piece.grid - piece.s0
         self.a, self.b, self.ns = prof.a, prof.b, prof.num_stationary
-        self.duration = float(ts[-1]) * self.tu
+        self.lam = 1.0                                   # a uniform time stretch (_stretch)
+
+    @property
+    def duration(self):
+        return float(self.ts[-1]) * self.tu * self.lam
 
     def _cubic(self, i_node, s_end, tau):
         """ṡ, s̈, s⃛ of s = s_end + C·τ³ reaching station i_node at its a."""
@@ -177,7 +218,8 @@ class _Topp3Span:
         return 3 * C * tau ** 2, 6 * C * tau, np.full_like(tau, 6 * C)
 
     def at(self, tt):
-        u = np.clip(np.asarray(tt, float) / self.tu, 0.0, self.ts[-1])   # scaled time
+        tu = self.tu * self.lam
+        u = np.clip(np.asarray(tt, float) / tu, 0.0, self.ts[-1])       # scaled time
         uu, inv = np.unique(u, return_inverse=True)                      # copp wants them increasing
         s = copp.interpolation.t_to_s_topp3_samples(self.s, self.prof, self.ts, uu)[inv]
         n = len(self.s) - 1
@@ -193,7 +235,6 @@ class _Topp3Span:
         if h1:
             m = k >= n - h1
             sd[m], sdd[m], sddd[m] = self._cubic(n - h1, self.s[-1], u[m] - self.ts[-1])
-        tu = self.tu
         return s, sd / tu, sdd / tu ** 2, sddd / tu ** 3
 
 
@@ -212,7 +253,7 @@ def _reads_above(prof, machine, path, limits):
     """[(limit column, first sample of the window, its width in samples, ratio)] of every window
     that reads a limit above 1 at T: joint v, a, j by differences of the IK'd samples (as
     planners.verify reads them), the feed against F_max."""
-    from planners.verify import FEASIBLE_TOL, differences
+    from planners.verify import differences
     T, lim = prof.T, limits.joint
     D = differences(machine.ik(path.point(prof.s)), T)
     reads = [np.abs(D["velocity"]).max(axis=1) / lim.v, np.abs(D["acceleration"]).max(axis=1) / lim.a,
@@ -237,6 +278,28 @@ def _tighten(prof, pieces, above, extra) -> None:
             p.factor, p.span = f, None
 
 
+def _stretch(prof, pieces, machine, path, limits, info) -> Profile:
+    """The last resort when tightening left windows above a limit: each piece with a sample
+    above stretched uniformly in time by the worst need there (planners.verify.stretch_need:
+    velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to MAX_STRETCHES times."""
+    from planners.verify import stretch_need
+    T = prof.T
+    for _ in range(MAX_STRETCHES):
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
+        starts = np.concatenate([[0.0], np.cumsum([p.span.duration for p in pieces])])
+        g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
+        worst = np.zeros(len(pieces))
+        np.maximum.at(worst, g, need)
+        if worst.max() <= 1 + FEASIBLE_TOL:
+            break
+        for p, w in zip(pieces, worst):
+            if w > 1 + FEASIBLE_TOL:
+                p.span.lam *= w * (1 + TIGHTEN_EXTRA)
+        prof = Profile.from_pieces("copp", T, [p.span for p in pieces], path, info)
+    info["stretch"] = [round(p.span.lam, 6) for p in pieces]
+    return prof
+
+
 def plan(path, machine, limits=None, *, grid_mm: float = 0.1) -> Profile:
     """COPP TOPP3-SOCP: joint v, a, j limits and the feed caps, checked and tightened at T."""
     t0 = time.perf_counter()
@@ -255,12 +318,17 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.1) -> Profile:
     for rnd in range(MAX_REPAIRS + 1):
         prof = _sample(pieces, T, path, info)
         above = _reads_above(prof, machine, path, limits)
-        if not above or rnd == MAX_REPAIRS:
+        if not above:
+            break
+        if rnd == MAX_REPAIRS:
+            prof = _stretch(prof, pieces, machine, path, limits, info)
+            above = _reads_above(prof, machine, path, limits)
             break
         # what the round read above: windows per limit, the time before tightening
         info["tightened"].append({"time_s": prof.execution_time_s,
                                   **{c: sum(1 for a in above if a[0] == m) for m, c in enumerate(LIMIT_COLUMNS)}})
         _tighten(prof, pieces, above, TIGHTEN_EXTRA * 2 ** rnd)
     prof.info["above_at_T"] = len(above)
+    prof.info["insufficient_progress"] = sum(p.insufficient_progress for p in pieces)
     prof.planning_time_s = time.perf_counter() - t0
     return prof
