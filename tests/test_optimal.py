@@ -173,3 +173,73 @@ def test_piece_over_the_node_budget_is_refused_naming_it():
     msg = str(e.value)
     assert "piece 0 " in msg and "79 phases" in msg and "1896 nodes" in msg and "1500 nodes" in msg
     assert "G-code lines 3…42" in msg
+
+
+def test_lower_bound_brackets_the_seven_phase_closed_form():
+    """The bound T₁·(1 − m) of the first solve lies below the margin-free optimum L/V + V/A + A/J,
+    by at most its margin, and the profile's time lies above it."""
+    L, m = 30.0, 0.005
+    p = plan("optimal", vertical(L), KOSSEL, margin=m)
+    lim = KOSSEL.limits.joint
+    exact = L / lim.v + lim.v / lim.a + lim.a / lim.j
+    lb = p.info["lower_bound_s"]
+    assert exact * (1 - m) * (1 - 1e-4) <= lb <= exact * (1 + 1e-6)
+    assert p.execution_time_s >= exact
+    assert p.info["gap"] == pytest.approx(p.execution_time_s / lb - 1)
+
+
+def test_turn_nodes_count_the_turned_angle():
+    """∫κ ds over an arc is its angle θ: θ / NODE_RADII nodes, none on the lines either side."""
+    from planners.constraints import PathTable
+    from planners.paths import Arc
+    R, th = 2.0, 1.5
+    a = Arc([R, 0, -300], [0, 0, -300], [0, 0, 1], th)
+    path = SegmentPath([Line([R, -5, -300], [R, 0, -300]), a, Line(a.end, a.end + 5 * a.tangent_out())])
+    s, N = optimal.turn_nodes(path, PathTable(path, KOSSEL))
+    assert N[-1] == pytest.approx(th / optimal.NODE_RADII, rel=1e-6)
+    assert N[s <= 5.0 - 1e-6].max() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_warm_start_puts_the_turn_nodes_on_the_arc():
+    """With the turn counted, the arc (1.5 rad) gets ≥ θ / NODE_RADII intervals of its own; without,
+    the nodes are spread in time only."""
+    from planners.constraints import PathTable
+    from planners.paths import Arc
+    from planners.scurve import plan_joint
+    R, th = 0.5, 1.5
+    a = Arc([R, 0, -300], [0, 0, -300], [0, 0, 1], th)
+    path = SegmentPath([Line([R, -40, -300], [R, 0, -300]), a, Line(a.end, a.end + 40 * a.tangent_out())])
+    warm = plan_joint(path, KOSSEL)
+    turn = optimal.turn_nodes(path, PathTable(path, KOSSEL))
+    lo, hi = 40.0, 40.0 + R * th
+    for t, need in ((turn, th / optimal.NODE_RADII), (None, 0)):
+        Ns, H, S, V, A, U = optimal._warm_start(warm, [0.0, path.length], 1e-3, 80, 1.02, t)
+        on_arc = np.count_nonzero((S > lo) & (S < hi))
+        assert len(H) == Ns.sum() and np.all(H > 0)
+        assert on_arc >= need - 1
+    assert on_arc < th / optimal.NODE_RADII - 1     # time-spread only: fewer than the turn asks
+
+
+def test_slowed_down_scales_each_order_by_its_power():
+    """t → λt scales the joint velocity by 1/λ, the acceleration by 1/λ², the jerk by 1/λ³: a
+    solution 1.3 × over a jerk limit comes back within it, λ ≈ 1.3^(1/3), its time × λ."""
+    from planners.constraints import PathTable
+    from planners.scurve import plan_joint
+    path = vertical(10.0)
+    lim = KOSSEL.limits
+    table = PathTable(path, KOSSEL)
+    T = KOSSEL.servo_period_s
+    piece = optimal._Piece(table, table_feed_cap(path, table, lim, T), 0.0, path.length, lim, 0.0,
+                           join_jumps(path, table, KOSSEL), T)
+    sol, _, _ = piece.solve(*optimal._warm_start(plan_joint(path, KOSSEL), [0.0, path.length], 1e-3, 300, 1.02))
+    prof = optimal.sample_cubic([sol], T, path, {})
+    tight = MachineLimits(Limits(lim.joint.v, lim.joint.a, lim.joint.j / 1.3), lim.cartesian, lim.feed_max,
+                          lim.chord_error_mm)
+    r = command_metrics(KOSSEL, path.point(prof.s), T, prof.s)
+    r["joint_peak_ratio"]["jerk"] *= 1.3
+    out = optimal._slowed_down(KOSSEL, path, prof, rest_pieces(path), tight, [sol], r, T, [])
+    lam = out.info["slowed_down"][0]
+    assert lam == pytest.approx(1.3 ** (1 / 3), rel=2e-3)
+    assert out.info["continuous_time_s"] == pytest.approx(lam * prof.info["continuous_time_s"], rel=1e-9)
+    after = command_metrics(KOSSEL, path.point(out.s), T, out.s)["joint_peak_ratio"]["jerk"]
+    assert after * 1.3 <= 1 + 1e-6                       # within the tightened jerk limit
