@@ -35,6 +35,7 @@ BUILTIN = {
     "pso": ("planners.pso", "plan"),
     "toppra": ("planners.toppra_ref", "plan"),
     "optimal": ("planners.optimal", "plan"),
+    "copp": ("planners.copp_ref", "plan"),       # COPP's TOPP3-SOCP (copp-py): a second jerk-limited reference
     "linuxcnc": ("planners.linuxcnc", "plan"),   # the real LinuxCNC 2.9, run headless
 }
 

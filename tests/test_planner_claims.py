@@ -40,7 +40,7 @@ def run(name, machine_name):
     return CACHE[key]
 
 
-PLANNERS = ["scurve", "scurve_joint", "toppra", "optimal", "pso"]
+PLANNERS = ["scurve", "scurve_joint", "toppra", "optimal", "pso", "copp"]
 
 
 @pytest.mark.parametrize("machine_name", ["keops", "kossel"])
@@ -61,7 +61,7 @@ def test_profile_is_consistent_and_at_rest(name, machine_name):
 
 
 @pytest.mark.parametrize("machine_name", ["keops", "kossel"])
-@pytest.mark.parametrize("name", ["scurve_joint", "optimal", "pso"])
+@pytest.mark.parametrize("name", ["scurve_joint", "optimal", "pso", "copp"])
 def test_joint_limited_planners_are_feasible(name, machine_name):
     _, _, p, r = run(name, machine_name)
     assert r["feasible"], r["joint_peak_ratio"]
@@ -91,6 +91,7 @@ def test_reference_times_order(machine_name):
     assert t["toppra"] <= t["optimal"] + T            # the jerk limit only adds time
     assert t["optimal"] <= t["pso"] + T               # optimal is optimal within tolerance
     assert t["optimal"] <= t["scurve_joint"] + T
+    assert t["toppra"] <= t["copp"] + T               # COPP's TOPP3 meets the jerk limit too
 
 
 @pytest.mark.parametrize("machine_name", ["keops", "kossel"])

@@ -29,7 +29,7 @@ from kins import load_machine  # noqa: E402
 from planners.paths import load_path, path_from_dict  # noqa: E402
 
 SEED = 20190          # corpus seed: path k of the generator draws from SEED + 1000·k + attempt
-PLANNERS = ["trapezoid", "scurve", "scurve_joint", "pso", "toppra", "optimal"]
+PLANNERS = ["trapezoid", "scurve", "scurve_joint", "pso", "toppra", "optimal", "copp"]
 
 # --- the literature curve ---------------------------------------------------------------
 # The "butterfly": a degree-3 NURBS with 51 control points, non-uniform knots and weights

@@ -1,0 +1,99 @@
+"""copp reference (COPP's TOPP3-SOCP): the 1-D jerk-limited closed form where every joint moves
+like s, feasibility at T and the order against toppra (the jerk-free lower bound), errors."""
+import math
+
+import numpy as np
+import pytest
+import ruckig
+
+import planners.copp_ref as copp_ref
+from kins import Limits, MachineLimits, load_machine
+from planners import PlanningError, plan
+from planners.paths import Line, SegmentPath, resolve_path
+from planners.verify import command_metrics
+from test_planner_claims import short_path
+
+KOSSEL = load_machine("kossel")
+KEOPS = load_machine("keops")
+TOL = 1 + 1e-6
+
+
+def rest_to_rest_time(L, V, A, J):
+    """Minimum time of a 1-D rest-to-rest move of length L under |v| ≤ V, |a| ≤ A, |j| ≤ J when
+    neither A nor V is reached within the jerk phases' limits checked below: the cruise at V
+    after jerk-only ramps of 2√(V/J) (valid while V·J ≤ A² and L ≥ V·2√(V/J))."""
+    assert V * J <= A * A and L >= 2 * V * math.sqrt(V / J)
+    return L / V + 2 * math.sqrt(V / J)
+
+
+def test_vertical_line_on_a_linear_delta_is_the_1d_jerk_limited_optimum():
+    """On a linear delta a vertical move drives every joint exactly like z (q′ = 1, q″ = q‴ = 0)
+    and the feed cap F_max equals V: the minimum time is the 1-D jerk-limited rest-to-rest
+    optimum, here in closed form (V·J = 2·10⁵ ≤ A² = 2.5·10⁵: A is never reached) and from
+    ruckig as a second method."""
+    L = 30.0
+    lim = KOSSEL.limits.joint                                   # 20 mm/s, 500 mm/s², 10⁴ mm/s³
+    exact = rest_to_rest_time(L, lim.v, lim.a, lim.j)           # 1.5894 s
+    inp = ruckig.InputParameter(1)
+    inp.current_position, inp.target_position = [0.0], [L]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [lim.v], [lim.a], [lim.j]
+    traj = ruckig.Trajectory(1)
+    ruckig.Ruckig(1).calculate(inp, traj)
+    assert traj.duration == pytest.approx(exact, rel=1e-9)
+    p = plan("copp", SegmentPath([Line([0, 0, -300], [0, 0, -300 + L])]), KOSSEL)
+    T = KOSSEL.servo_period_s
+    r = command_metrics(KOSSEL, p.path.point(p.s), T, p.s)
+    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= TOL
+    # no faster than the optimum (the check at T may let a sampled profile gain < T), and
+    # within the 0.1 mm grid's loss (measured 0.16 %)
+    assert exact - T <= p.execution_time_s <= exact * 1.003 + T
+
+
+@pytest.mark.parametrize("machine", [KEOPS, KOSSEL], ids=["keops", "kossel"])
+def test_short_path_feasible_at_T_and_no_faster_than_toppra(machine):
+    """A line, a tangent arc (a G1 join), a line, an exact-stop corner: every joint limit and the
+    feed within bounds at T, and the jerk limit costs time against toppra's jerk-free bound."""
+    path = short_path(machine)
+    p = plan("copp", path, machine)
+    r = command_metrics(machine, path.point(p.s), p.T, p.s)
+    assert r["feasible"], r["joint_peak_ratio"]
+    assert r["cartesian_peak_ratio"]["feed"] <= TOL
+    assert p.info["above_at_T"] == 0 and p.info["pieces"] == 2
+    assert p.execution_time_s > plan("toppra", path, machine).execution_time_s
+
+
+@pytest.mark.slow
+def test_bird_on_keops_feasible_and_between_toppra_and_optimal():
+    """The standard path: feasible at T; toppra (no jerk limit) is faster; the jerk-limited
+    optimum (`optimal`, 1.76575 s in results/baseline.json) within 0.5 % (the grid's loss)."""
+    path = resolve_path("bird")
+    p = plan("copp", path, KEOPS)
+    r = command_metrics(KEOPS, path.point(p.s), p.T, p.s)
+    assert r["feasible"], r["joint_peak_ratio"]
+    assert r["cartesian_peak_ratio"]["feed"] <= TOL
+    assert plan("toppra", path, KEOPS).execution_time_s < p.execution_time_s
+    assert p.execution_time_s == pytest.approx(1.76575, rel=5e-3)
+
+
+def test_limit_not_positive():
+    lim = KEOPS.limits
+    bad = MachineLimits(Limits(lim.joint.v, lim.joint.a, 0.0), lim.cartesian, lim.feed_max, lim.chord_error_mm)
+    with pytest.raises(PlanningError, match="copp: joint limit j = 0.0 must be a finite number > 0"):
+        plan("copp", SegmentPath([Line([0, 0, -400], [10, 0, -400])]), KEOPS, bad)
+
+
+@pytest.mark.parametrize("grid", [0.0, -1.0, float("nan"), "0.1"])
+def test_bad_grid(grid):
+    with pytest.raises(PlanningError, match="copp: grid_mm = .* must be a finite number > 0"):
+        plan("copp", SegmentPath([Line([0, 0, -400], [10, 0, -400])]), KEOPS, grid_mm=grid)
+
+
+def test_solver_failure_names_the_piece(monkeypatch):
+    """A failure of COPP's solver is a PlanningError naming the rest-to-rest piece and the cause."""
+    def fail(*_a, **_k):
+        raise copp_ref.copp.CoppError("topp3_socp reported a failure in Clarabel solver with status MaxIterations")
+    monkeypatch.setattr(copp_ref.copp.solver.topp3_socp, "solve", fail)
+    c = KEOPS.home
+    path = SegmentPath([Line(c, c + np.array([10.0, 0, 0])), Line(c + np.array([10.0, 0, 0]), c + np.array([10.0, 8, 0]))])
+    with pytest.raises(PlanningError, match=r"copp: no solution of piece 0 \(s = 0…10 mm\): CoppError: .*MaxIterations"):
+        plan("copp", path, KEOPS)
