@@ -29,6 +29,7 @@ comes first and why margins are per piece and per limit: the measurements in doc
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -160,8 +161,9 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
          max_nodes_per_piece: int = 600, warm=None, warm_stretch: float = 1.02,
          retries: int = 3) -> Profile:
     """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from ``warm`` (a
-    Profile; default the `scurve_joint` plan) slowed down by ``warm_stretch``; where IPOPT
-    fails from there, once more from RETRY_STRETCH (a start further inside the constraints)."""
+    Profile; default `copp`'s, else `scurve_joint`'s) slowed down by ``warm_stretch``; where
+    IPOPT fails from there, once more from RETRY_STRETCH (a start further inside the
+    constraints).  The faster of the solution and the start is returned, both checked at T."""
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
     check_limits(limits, "optimal")
@@ -172,22 +174,55 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
     joins = join_jumps(path, table, machine)
     pcs = rest_pieces(path)
     _check_node_budget(path, joins, pcs)
-    if warm is None:
-        from .scurve import plan_joint
-        warm = plan_joint(path, machine, limits)
+    warm = _seed(path, machine, limits) if warm is None else warm
     turn = turn_nodes(path, table)
+    prof, failure = None, None
     for stretch in sorted({warm_stretch, max(warm_stretch, RETRY_STRETCH)}):
         problems = [_Piece(table, cap, s0, s1, limits, margin, joins, T) for s0, s1 in pcs]
         try:
             prof = _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s,
                           max_nodes_per_piece, retries, turn)
+            prof.info["warm_stretch"] = stretch
             break
-        except IpoptFailure:
-            if stretch >= RETRY_STRETCH:
-                raise
-    prof.info["warm_stretch"] = stretch
+        except PlanningError as e:          # IPOPT failed, or still above a limit when slowed down
+            failure = e
+            if not isinstance(e, IpoptFailure):
+                break
+    prof = _faster_of(prof, warm, machine, path, failure)
     prof.planning_time_s = time.perf_counter() - t0
     return prof
+
+
+def _seed(path, machine, limits) -> Profile:
+    """The warm start: COPP's TOPP3-SOCP profile (spatial grid, stations refined at lobe tips,
+    checked at T; a convex problem per linearisation, so it does not lose itself where IPOPT
+    does), else the s-curve with its joint-space repair."""
+    from .copp_ref import plan as copp_plan
+    try:
+        return copp_plan(path, machine, limits)
+    except PlanningError:
+        from .scurve import plan_joint
+        return plan_joint(path, machine, limits)
+
+
+def _faster_of(prof, warm, machine, path, failure) -> Profile:
+    """The NLP's solution or, where the warm start is within the limits at T and faster (the NLP
+    failed, or its slow-down cost more than it gained), the warm start as `optimal`'s answer,
+    saying so in info["source"]."""
+    from planners.verify import command_metrics
+    r = command_metrics(machine, path.point(warm.s), warm.T, warm.s)
+    warm_ok = r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6
+    if prof is not None and (not warm_ok or prof.execution_time_s <= warm.execution_time_s):
+        prof.info["source"] = "nlp"
+        return prof
+    if not warm_ok:
+        raise failure
+    info = dict(warm.info, source=f"warm start ({warm.planner})",
+                nlp=str(failure) if prof is None else f"{prof.execution_time_s:.6g} s")
+    if prof is not None:
+        info["lower_bound_s"] = prof.info["lower_bound_s"]
+        info["gap"] = warm.execution_time_s / prof.info["lower_bound_s"] - 1
+    return dataclasses.replace(warm, planner="optimal", info=info)
 
 
 def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, max_nodes,
