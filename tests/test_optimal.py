@@ -243,3 +243,26 @@ def test_slowed_down_scales_each_order_by_its_power():
     assert out.info["continuous_time_s"] == pytest.approx(lam * prof.info["continuous_time_s"], rel=1e-9)
     after = command_metrics(KOSSEL, path.point(out.s), T, out.s)["joint_peak_ratio"]["jerk"]
     assert after * 1.3 <= 1 + 1e-6                       # within the tightened jerk limit
+
+
+def test_the_faster_of_the_solution_and_its_start_within_the_limits():
+    """_faster_of keeps the NLP's profile unless its (checked) start is faster; a start above a
+    limit is never returned: with no solution the NLP's failure is raised."""
+    path = vertical(10.0)
+    fast = plan("scurve_joint", path, KOSSEL)
+    slow = plan("scurve_joint", path, KOSSEL, margin=0.1)
+    slow.info["lower_bound_s"] = 0.9 * fast.execution_time_s
+    assert slow.execution_time_s > fast.execution_time_s
+    out = optimal._faster_of(slow, fast, KOSSEL, path, None)
+    assert out.planner == "optimal" and out.info["source"] == "warm start (scurve_joint)"
+    assert np.array_equal(out.s, fast.s)
+    assert out.info["gap"] == pytest.approx(fast.execution_time_s / slow.info["lower_bound_s"] - 1)
+    assert optimal._faster_of(fast, slow, KOSSEL, path, None) is fast
+    lim = KOSSEL.limits
+    double = MachineLimits(Limits(2 * lim.joint.v, 2 * lim.joint.a, 2 * lim.joint.j), lim.cartesian,
+                           2 * lim.feed_max, lim.chord_error_mm)
+    over = plan("scurve_joint", path, KOSSEL, double)           # above KOSSEL's own limits
+    assert not command_metrics(KOSSEL, path.point(over.s), over.T, over.s)["feasible"]
+    with pytest.raises(PlanningError, match="IPOPT failed"):
+        optimal._faster_of(None, over, KOSSEL, path, PlanningError("optimal: IPOPT failed on piece …"))
+    assert optimal._faster_of(slow, over, KOSSEL, path, None) is slow
