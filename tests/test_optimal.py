@@ -59,10 +59,11 @@ def test_g64_blend_arc_between_toppra_and_scurve_joint():
     (From toppra's start, 68× over the jerk limit on such arcs, it did not converge.)"""
     from planners.paths.gcode import parse_gcode, program_path
     path = program_path(parse_gcode("G21 G90 G64 P0.01\nG1 X-20 Y-20 Z-250 F1200\nX20\nY20\n"))
-    p = plan("optimal", path, KOSSEL)
+    sj, tp = plan("scurve_joint", path, KOSSEL), plan("toppra", path, KOSSEL)
+    p = plan("optimal", path, KOSSEL, warm=sj)
+    assert p.info["source"] == "nlp"
     assert all(st.startswith("Solve_Succeeded") for st in p.info["ipopt"])
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
-    sj, tp = plan("scurve_joint", path, KOSSEL), plan("toppra", path, KOSSEL)
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
 
 
@@ -73,9 +74,10 @@ def test_thin_grid_is_refined_before_the_margin_grows():
     passed (0.04) cost 6 % over the toppra bound (15.936 s against 14.991 s); the refined grid
     passes at the first margin and ends within 3 % of it (15.392 s)."""
     from planners.paths import resolve_path
+    from planners.scurve import plan_joint
     path = resolve_path("bird_kossel")
-    p = plan("optimal", path, KOSSEL)
-    assert p.info["margin"] == 0.005
+    p = plan("optimal", path, KOSSEL, warm=plan_joint(path, KOSSEL))
+    assert p.info["source"] == "nlp" and p.info["margin"] == 0.005
     assert max(p.info["nodes"]) > 600
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
     tp = plan("toppra", path, KOSSEL)
@@ -152,9 +154,10 @@ def test_flower_passes_with_a_and_j_bounded_between_nodes():
     bound and scurve_joint."""
     from planners.paths import resolve_path
     keops = load_machine("keops")
+    from planners.scurve import plan_joint
     path = resolve_path("flower")
-    p = plan("optimal", path, keops)
-    assert p.info["midpoints"] == [True]
+    p = plan("optimal", path, keops, warm=plan_joint(path, keops))
+    assert p.info["source"] == "nlp" and p.info["midpoints"] == [True]
     assert command_metrics(keops, path.point(p.s), p.T, p.s)["feasible"]
     tp, sj = plan("toppra", path, keops), plan("scurve_joint", path, keops)
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
