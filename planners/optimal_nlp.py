@@ -18,6 +18,10 @@ class IpoptFailure(PlanningError):
 
 
 LIMIT_KINDS = ("velocity", "acceleration", "jerk", "feed")     # each with its own margin
+# IPOPT's iterations per solve (a count, not a clock: the result must not depend on the machine's
+# speed). From copp's start a solve that converges takes 15–90; one that does not ran > 20 min on
+# a 150-control-point NURBS at 600, and its iterate then lost to the start anyway
+MAX_ITER = 150
 # The interpolants' grid (_phase_grid): rows closer than this are merged, and no cell is more
 # than GRADE times as wide as a neighbour
 MIN_GAP_MM = 1e-5
@@ -61,7 +65,7 @@ class _Piece:
         # to 1200 nodes (from the seed; 58 iterations without)
         self.midpoints = False
 
-    def solve(self, Ns, H0, S0, V0, A0, U0, max_iter=600):
+    def solve(self, Ns, H0, S0, V0, A0, U0, max_iter=MAX_ITER):
         """Ns: intervals of each phase (the phases are separated by the G1 joins, where the
         node lies exactly on the join); H0: each interval's initial duration (a phase's
         durations scale together)."""
