@@ -37,7 +37,8 @@ OWN_LIMITS = {"trapezoid": "cartesian v/a", "linuxcnc": "cartesian v/a", "scurve
 TOL = 1e-6                  # planners.verify.FEASIBLE_TOL: a ratio ≤ 1 + 1e-6 is within its limit
 CSV_FIELDS = ("path", "machine", "kind", "planner", "status", "execution_time_s", "feasible",
               "cartesian_feasible", "joint_v", "joint_a", "joint_j", "cart_v", "cart_a", "cart_j",
-              "own_limits_ok", "feed", "joint_worst", "cart_worst", "planning_time_s", "error")
+              "own_limits_ok", "feed", "joint_worst", "cart_worst", "planning_time_s", "lower_bound_s",
+              "error")
 
 
 class CorpusError(ValueError):
@@ -62,6 +63,7 @@ class Row:
     cart_j: float = math.nan
     feed: float = math.nan
     planning_time_s: float = math.nan
+    lower_bound_s: float = math.nan   # a planner's own bound on the optimum (optimal: info["lower_bound_s"])
     error: str = ""
     extra: dict = field(default_factory=dict)
 
@@ -166,6 +168,7 @@ def run_one(entry: dict, planner: str, machine, path) -> Row:
         row.planning_time_s = time.perf_counter() - t0
         return row
     row.planning_time_s = float(prof.planning_time_s)
+    row.lower_bound_s = _finite((prof.info or {}).get("lower_bound_s"))
     T = machine.servo_period_s
     try:
         met = command_metrics(machine, prof.path.point(prof.s), T, prof.s)
@@ -300,8 +303,9 @@ def write_markdown(rows: list[Row], file, title="Toolpath corpus") -> None:
                  f"{s['failed']} | {s['errors']} | {_fmt(s['ratio_median'], 4)} | {_fmt(s['ratio_worst'], 4)} | "
                  f"{_fmt(s['plan_median_s'], 3)} | {_fmt(s['plan_worst_s'], 3)} |")
     L += ["", "## Every row", "",
-          "| path | machine | planner | T (s) | T/T_best | feasible | joint v/a/j | Cartesian v/a/j | plan (s) | error |",
-          "|---|---|---|---|---|---|---|---|---|---|"]
+          "| path | machine | planner | T (s) | T/T_best | feasible | joint v/a/j | Cartesian v/a/j | plan (s) | "
+          "gap to its bound | error |",
+          "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         b = best[r.path]
         ratio = r.execution_time_s / b if r.status == "ok" and math.isfinite(b) else math.nan
@@ -310,7 +314,7 @@ def write_markdown(rows: list[Row], file, title="Toolpath corpus") -> None:
         err = r.error.replace("|", "\\|").replace("\n", " ")
         L.append(f"| {r.path} | {r.machine} | {r.planner} | {_fmt(r.execution_time_s, 5)} | {_fmt(ratio, 4)} | "
                  f"{_fmt(r.feasible) if r.status == 'ok' else r.status} | {jr} | {cr} | "
-                 f"{_fmt(r.planning_time_s, 3)} | {err} |")
+                 f"{_fmt(r.planning_time_s, 3)} | {_fmt(r.execution_time_s / r.lower_bound_s - 1, 4)} | {err} |")
     Path(file).write_text("\n".join(L) + "\n")
 
 

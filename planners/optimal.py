@@ -29,13 +29,14 @@ comes first and why margins are per piece and per limit: the measurements in doc
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 
 from .constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
                           table_feed_cap)
-from .optimal_nlp import LIMIT_KINDS, _Piece
+from .optimal_nlp import LIMIT_KINDS, IpoptFailure, _Piece
 from .profile import Profile
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
@@ -47,6 +48,12 @@ MAX_NODES_REFINED = 1500
 # ... when the budget had spread its nodes this many times thinner than node_period_s (kossel's
 # 3 s pieces: 5 ms; keops' flower: 2 ms, where refining cost time and still failed the check)
 THIN_GRID_FACTOR = 3.0
+# Where the path turns, a node at least every NODE_RADII curvature radii of travel (6° of turn;
+# the 24 nodes of MIN_PHASE_NODES on a 90° blend arc are 3.75° apart)
+NODE_RADII = 0.1
+# Where IPOPT fails from the warm start slowed by warm_stretch, it starts again from this
+# (rand_tilted_weights_keops: Infeasible_Problem_Detected from 1.02, solved from 1.1)
+RETRY_STRETCH = 1.1
 
 
 def broken_limits(machine, path, prof, pcs, limits) -> set:
@@ -67,28 +74,54 @@ def broken_limits(machine, path, prof, pcs, limits) -> set:
     return out
 
 
-def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15):
+def turn_nodes(path, table):
+    """(s, the nodes the path's turning asks for up to s: ∫κ ds / NODE_RADII) on the table's rows
+    (refined at lobe tips, so a tip narrower than the base spacing is counted in full)."""
+    s = table.s
+    k = np.asarray(path.curvature(s), float)
+    return s, np.concatenate([[0.0], np.cumsum(np.diff(s) * (k[1:] + k[:-1]) / 2)]) / NODE_RADII
+
+
+def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15, turn=None):
     """Phase sizes, interval durations and nodes from a profile (the warm start) on one piece,
-    slowed down by `stretch`.  ``bounds`` = [s0, joins…, s1]."""
+    slowed down by `stretch`.  ``bounds`` = [s0, joins…, s1].  Nodes come one per
+    ``node_period_s`` and, where the path turns (``turn`` = turn_nodes(…)), one more per
+    NODE_RADII curvature radii of travel: the limits hold at the nodes only, and a lobe tip of
+    radius 0.03 mm passed in a few ms fell between nodes ~28 ms apart (kossel's butterfly: the
+    joint jerk read 6.8 × its limit at T).  Over the budget the time share is thinned first."""
     t = prof.t
     sgrid, idx = np.unique(prof.s, return_index=True)
     tb = np.interp(bounds, sgrid, t[idx])
     D = np.maximum(np.diff(tb), 4 * prof.T)
-    Ns = np.clip(np.ceil(D * stretch / node_period_s).astype(int), MIN_PHASE_NODES, None)
+    tf = [np.linspace(tb[k], tb[k] + D[k], max(400, int(np.ceil(D[k] / prof.T))) + 1) for k in range(len(D))]
+    geo = [np.zeros(len(x)) for x in tf]
+    if turn is not None:
+        geo = [np.interp(np.interp(x, t, prof.s), *turn) for x in tf]
+        geo = [g - g[0] for g in geo]
+    base = [(x - x[0]) * stretch / node_period_s for x in tf]
+    for scale in 0.8 ** np.arange(40):      # thin the time share until the nodes fit the budget
+        Ns = np.array([max(MIN_PHASE_NODES, int(np.ceil(b[-1] * scale + g[-1]))) for b, g in zip(base, geo)])
+        if Ns.sum() <= max_nodes:
+            break
     if Ns.sum() > max_nodes:
         Ns = np.maximum(MIN_PHASE_NODES, (Ns * max_nodes / Ns.sum()).astype(int))
-    tt = np.concatenate([np.linspace(tb[k], tb[k] + D[k], Ns[k] + 1)[:-1] for k in range(len(Ns))]
-                        + [[tb[-1]]])
+    tt, H = [], []
+    for k in range(len(D)):
+        # nodes at equal steps of the cumulative count (the 1e-9 keeps it increasing)
+        c = base[k] * scale + geo[k] + 1e-9 * np.arange(len(tf[k]))
+        tk = np.interp(np.linspace(0, c[-1], Ns[k] + 1), c, tf[k])
+        tt.append(tk[:-1])
+        H.append(np.diff(tk) * stretch)
+    tt = np.concatenate(tt + [[tf[-1][-1]]])
+    H = np.concatenate(H)
     S = np.interp(tt, t, prof.s)
     S[0], S[-1] = bounds[0], bounds[-1]
     V = np.interp(tt, t, prof.sd) / stretch
     V[0] = V[-1] = 0.0
-    hs = D * stretch / Ns
-    H = np.repeat(hs, Ns)
     A = np.zeros_like(V)
     A[1:-1] = (V[2:] - V[:-2]) / (H[1:] + H[:-1])
     U = np.diff(A) / H
-    return Ns, hs, S, V, A, U
+    return Ns, H, S, V, A, U
 
 
 class _CubicSpans:
@@ -128,29 +161,79 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
          max_nodes_per_piece: int = 600, warm=None, warm_stretch: float = 1.02,
          retries: int = 3) -> Profile:
     """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from ``warm`` (a
-    Profile; default the `scurve_joint` plan) slowed down by ``warm_stretch``."""
-    from planners.verify import command_metrics
-
+    Profile; default `copp`'s, else `scurve_joint`'s) slowed down by ``warm_stretch``; where
+    IPOPT fails from there, once more from RETRY_STRETCH (a start further inside the
+    constraints).  The faster of the solution and the start is returned, both checked at T."""
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
     check_limits(limits, "optimal")
     check_path(path, "optimal")
     T = machine.servo_period_s
-    table = PathTable(path, machine)
+    table = PathTable(path, machine, refine=True)
     cap = table_feed_cap(path, table, limits, T)
     joins = join_jumps(path, table, machine)
     pcs = rest_pieces(path)
     _check_node_budget(path, joins, pcs)
-    if warm is None:
+    warm = _seed(path, machine, limits) if warm is None else warm
+    turn = turn_nodes(path, table)
+    prof, failure = None, None
+    for stretch in sorted({warm_stretch, max(warm_stretch, RETRY_STRETCH)}):
+        problems = [_Piece(table, cap, s0, s1, limits, margin, joins, T) for s0, s1 in pcs]
+        try:
+            prof = _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s,
+                          max_nodes_per_piece, retries, turn)
+            prof.info["warm_stretch"] = stretch
+            break
+        except PlanningError as e:          # IPOPT failed, or still above a limit when slowed down
+            failure = e
+            if not isinstance(e, IpoptFailure):
+                break
+    prof = _faster_of(prof, warm, machine, path, failure)
+    prof.planning_time_s = time.perf_counter() - t0
+    return prof
+
+
+def _seed(path, machine, limits) -> Profile:
+    """The warm start: COPP's TOPP3-SOCP profile (spatial grid, stations refined at lobe tips,
+    checked at T; a convex problem per linearisation, so it does not lose itself where IPOPT
+    does), else the s-curve with its joint-space repair."""
+    from .copp_ref import plan as copp_plan
+    try:
+        return copp_plan(path, machine, limits)
+    except PlanningError:
         from .scurve import plan_joint
-        warm = plan_joint(path, machine, limits)
-    problems, starts, bounds = [], [], []
-    budgets = [max_nodes_per_piece] * len(pcs)
-    for s0, s1 in pcs:
-        piece = _Piece(table, cap, s0, s1, limits, margin, joins, T)
-        bounds.append([s0] + [sj for sj, _ in piece.joins] + [s1])
-        problems.append(piece)
-        starts.append(_warm_start(warm, bounds[-1], node_period_s, max_nodes_per_piece, warm_stretch))
+        return plan_joint(path, machine, limits)
+
+
+def _faster_of(prof, warm, machine, path, failure) -> Profile:
+    """The NLP's solution or, where the warm start is within the limits at T and faster (the NLP
+    failed, or its slow-down cost more than it gained), the warm start as `optimal`'s answer,
+    saying so in info["source"]."""
+    from planners.verify import command_metrics
+    r = command_metrics(machine, path.point(warm.s), warm.T, warm.s)
+    warm_ok = r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6
+    if prof is not None and (not warm_ok or prof.execution_time_s <= warm.execution_time_s):
+        prof.info["source"] = "nlp"
+        return prof
+    if not warm_ok:
+        raise failure
+    info = dict(warm.info, source=f"warm start ({warm.planner})",
+                nlp=str(failure) if prof is None else f"{prof.execution_time_s:.6g} s")
+    if prof is not None:
+        info["lower_bound_s"] = prof.info["lower_bound_s"]
+        info["gap"] = warm.execution_time_s / prof.info["lower_bound_s"] - 1
+    return dataclasses.replace(warm, planner="optimal", info=info)
+
+
+def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, max_nodes,
+           retries, turn) -> Profile:
+    """Solve, check at T, and on a limit read above 1 refine the thin grids or widen the
+    margins; the last resort slows the pieces still above a limit down (_slowed_down)."""
+    from planners.verify import command_metrics
+    T = machine.servo_period_s
+    bounds = [[p.s0] + [sj for sj, _ in p.joins] + [p.s1] for p in problems]
+    starts = [_warm_start(warm, b, node_period_s, max_nodes, stretch, turn) for b in bounds]
+    budgets = [max_nodes] * len(pcs)
     for attempt in range(retries + 1):
         sols, statuses, nxt = _solve_pieces(problems, starts)
         margins = [dict(p.margins) for p in problems]
@@ -158,29 +241,59 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
                                             "margin": max(max(m.values()) for m in margins),
                                             "margins": margins, "midpoints": [p.midpoints for p in problems],
                                             "nodes": [int(np.sum(x[0])) for x in starts],
-                                            "g1_joins": len(joins)})
+                                            "phases": sum(len(p.joins) + 1 for p in problems)})
+        if attempt == 0:
+            # the lower bound: scaled in time by 1/(1 − m), a profile within the limits becomes one
+            # within the limits less the margin m, so the margin-free optimum on these nodes is
+            # ≥ T₁·(1 − m) (IPOPT's optimum is local: a bound of the node relaxation, not a certificate)
+            bound = sum(float(np.sum(x[0])) for x in sols) * (1 - max(max(m.values()) for m in margins))
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
         if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
             break
         if attempt == retries:
-            raise _limit_error(machine, path, prof, limits, r, statuses)
+            prof = _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses)
+            break
         # the limits hold at the nodes only: where the node budget spread a piece's grid
         # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine comes before a
         # larger margin, which costs time everywhere.  Warm-started from the feasible seed again:
         # from this solution (on the limits at the old nodes, off them between) IPOPT took
         # > 4 min on test_part's first piece at 1200 nodes, from the seed 29 s
-        thin = [sum(st[1] * st[0]) / sum(st[0]) >= THIN_GRID_FACTOR * node_period_s
+        thin = [float(np.mean(st[1])) >= THIN_GRID_FACTOR * node_period_s
                 and budgets[i] < MAX_NODES_REFINED for i, st in enumerate(starts)]
         if any(thin):
             for i, b in enumerate(bounds):
                 if thin[i]:
                     budgets[i] = min(2 * budgets[i], MAX_NODES_REFINED)
-                    nxt[i] = _warm_start(warm, b, node_period_s, budgets[i], warm_stretch)
+                    nxt[i] = _warm_start(warm, b, node_period_s, budgets[i], stretch, turn)
         else:
-            _widen_margins(machine, path, prof, pcs, limits, problems, budgets, max_nodes_per_piece)
+            _widen_margins(machine, path, prof, pcs, limits, problems, budgets, max_nodes)
         starts = nxt
-    prof.planning_time_s = time.perf_counter() - t0
+    prof.info["lower_bound_s"] = bound
+    prof.info["gap"] = prof.execution_time_s / bound - 1
     return prof
+
+
+def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses) -> Profile:
+    """The last resort, feasible by construction: each piece that still breaks a limit at T is
+    run slower, uniformly (t → λt scales the joint velocity by 1/λ, the acceleration by 1/λ², the
+    jerk by 1/λ³), by the factor its worst ratio needs; the info says by how much."""
+    from planners.verify import command_metrics
+    total = np.ones(len(sols))
+    info = dict(prof.info)
+    for _ in range(4):
+        ratio = r["joint_peak_ratio"]
+        need = max(ratio.get("velocity", 0.0), ratio.get("acceleration", 0.0) ** 0.5,
+                   ratio.get("jerk", 0.0) ** (1 / 3), r["cartesian_peak_ratio"].get("feed", 0.0))
+        lam = np.ones(len(sols))
+        for g in {g for g, _ in broken_limits(machine, path, prof, pcs, limits)}:
+            lam[g] = max(need, 1.0) * (1 + 1e-4)
+        sols = [(h * k, s, v / k, a / k ** 2, u / k ** 3) for (h, s, v, a, u), k in zip(sols, lam)]
+        total *= lam
+        prof = sample_cubic(sols, T, path, dict(info, slowed_down=[float(x) for x in total]))
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
+            return prof
+    raise _limit_error(machine, path, prof, limits, r, statuses)
 
 
 def _check_node_budget(path, joins, pcs) -> None:
@@ -203,12 +316,12 @@ def _solve_pieces(problems, starts):
     """Solve each piece from its start; returns the solutions, IPOPT's status of each and
     the next start of each (this solution, as phase sizes, durations and node values)."""
     sols, statuses, nxt = [], [], []
-    for piece, (Ns, hs, S, V, A, U) in zip(problems, starts):
-        sol, status, iters = piece.solve(Ns, hs, S, V, A, U)
+    for piece, (Ns, H, S, V, A, U) in zip(problems, starts):
+        sol, status, iters = piece.solve(Ns, H, S, V, A, U)
         sols.append(sol)
         statuses.append(f"{status} ({iters} it)")
         hh = sol[0]
-        nxt.append((Ns, hh[np.cumsum(Ns) - 1], sol[1], sol[2], sol[3], sol[4]))
+        nxt.append((Ns, hh, sol[1], sol[2], sol[3], sol[4]))
     return sols, statuses, nxt
 
 

@@ -13,7 +13,19 @@ from .constraints import JUMP_READ_FACTOR, PlanningError
 # IPOPT's own progress table, for diagnosing a solve: PKM_IPOPT_PRINT=5 (default 0, silent)
 IPOPT_PRINT_LEVEL = int(os.environ.get("PKM_IPOPT_PRINT", "0"))
 
+class IpoptFailure(PlanningError):
+    """IPOPT stopped without a solution (neither optimal nor acceptable nor at its limit)."""
+
+
 LIMIT_KINDS = ("velocity", "acceleration", "jerk", "feed")     # each with its own margin
+# IPOPT's iterations per solve (a count, not a clock: the result must not depend on the machine's
+# speed). From copp's start a solve that converges takes 15–90; one that does not ran > 20 min on
+# a 150-control-point NURBS at 600, and its iterate then lost to the start anyway
+MAX_ITER = 150
+# The interpolants' grid (_phase_grid): rows closer than this are merged, and no cell is more
+# than GRADE times as wide as a neighbour
+MIN_GAP_MM = 1e-5
+GRADE = 2.0
 
 
 class _Piece:
@@ -28,8 +40,7 @@ class _Piece:
         bounds = [s0] + [sj for sj, _ in self.joins] + [s1]
         self.phase_fns = []
         for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
-            g = table.s[(table.s > a) & (table.s < b)]
-            g = np.unique(np.concatenate([[a], g, [b], np.linspace(a, b, 4)]))
+            g = _phase_grid(table.s[(table.s > a) & (table.s < b)], a, b)
             e = np.clip(g, a + 1e-9, b - 1e-9)
             d1, d2, d3 = table.joints(e)
             c = np.interp(g, table.s, cap)
@@ -54,13 +65,14 @@ class _Piece:
         # to 1200 nodes (from the seed; 58 iterations without)
         self.midpoints = False
 
-    def solve(self, Ns, h0s, S0, V0, A0, U0, max_iter=600):
-        """Ns, h0s: intervals and initial interval duration of each phase (the phases are
-        separated by the G1 joins, where the node lies exactly on the join)."""
+    def solve(self, Ns, H0, S0, V0, A0, U0, max_iter=MAX_ITER):
+        """Ns: intervals of each phase (the phases are separated by the G1 joins, where the
+        node lies exactly on the join); H0: each interval's initial duration (a phase's
+        durations scale together)."""
         L = self.s1 - self.s0
         lim = self.lim
         opti = ca.Opti()
-        eta, sig, nu, al, mu, h = _variables(opti, Ns, h0s)
+        eta, sig, nu, al, mu, h = _variables(opti, Ns, H0)
         s = self.s0 + L * sig
         v, a, u = lim.v * nu, lim.a * al, lim.j * mu
         bounds = np.cumsum(Ns)[:-1]
@@ -70,7 +82,8 @@ class _Piece:
         starts = np.concatenate([[0], np.cumsum(Ns)])
         for k, fns in enumerate(self.phase_fns):
             self._phase_constraints(opti, fns, int(starts[k]), int(starts[k + 1]), h, sm, v, a, u, v_mid)
-        opti.minimize(ca.dot(ca.DM(np.asarray(Ns, float) * np.asarray(h0s)), eta) / float(np.sum(np.asarray(Ns) * np.asarray(h0s))))
+        D0 = np.add.reduceat(np.asarray(H0, float), np.concatenate([[0], np.cumsum(Ns)[:-1]]))
+        opti.minimize(ca.dot(ca.DM(D0), eta) / float(np.sum(D0)))
         opti.set_initial(eta, np.ones(len(Ns)))
         opti.set_initial(sig, (S0 - self.s0) / L)
         opti.set_initial(nu, V0 / lim.v)
@@ -186,13 +199,34 @@ class _Piece:
         except RuntimeError as e:
             stats = opti.stats()
             if stats.get("return_status") not in ("Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded"):
-                raise PlanningError(f"optimal: IPOPT failed on piece s = {self.s0:.6g}…{self.s1:.6g} mm: "
+                raise IpoptFailure(f"optimal: IPOPT failed on piece s = {self.s0:.6g}…{self.s1:.6g} mm: "
                                     f"{stats.get('return_status', e)}") from None
             val = opti.debug.value
         return val, stats
 
 
-def _variables(opti, Ns, h0s):
+def _phase_grid(rows, a, b):
+    """The interpolants' grid on one phase: the table's rows (refined at lobe tips), without
+    rows closer than MIN_GAP_MM (the ±1e-7 mm rows at NURBS knots: a cubic B-spline through
+    them overshoots), graded so that no cell is over GRADE × a neighbour (a B-spline
+    interpolant rings where the spacing jumps 64×, as a refined lobe tip's does)."""
+    g = np.unique(np.concatenate([[a], rows, [b], np.linspace(a, b, 4)]))
+    keep = np.concatenate([[True], np.diff(g) > MIN_GAP_MM])
+    keep[-1] = True
+    g = g[keep]
+    if len(g) > 2 and g[-1] - g[-2] <= MIN_GAP_MM:
+        g = np.delete(g, -2)
+    for _ in range(64):
+        h = np.diff(g)
+        nb = np.minimum(np.concatenate([[np.inf], h[:-1]]), np.concatenate([h[1:], [np.inf]]))
+        wide = np.nonzero(h > GRADE * nb)[0]
+        if len(wide) == 0:
+            break
+        g = np.sort(np.concatenate([g, g[wide] + h[wide] / 2]))
+    return g
+
+
+def _variables(opti, Ns, H0):
     """The normalised variables (IPOPT likes O(1) numbers): η = h / h0 of each phase, σ = (s −
     s0) / L, ν = ṡ / V, α = s̈ / A at the nodes, μ = s⃛ / J on the intervals; and each interval's h."""
     N = int(sum(Ns))
@@ -203,5 +237,5 @@ def _variables(opti, Ns, h0s):
     mu = opti.variable(N)
     phase = np.repeat(np.arange(len(Ns)), Ns)
     sel = ca.DM(np.eye(len(Ns))[phase])             # (N × phases) picks each interval's phase
-    h = sel @ (eta * ca.DM(h0s))
+    h = (sel @ eta) * ca.DM(np.asarray(H0, float))
     return eta, sig, nu, al, mu, h

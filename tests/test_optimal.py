@@ -59,10 +59,11 @@ def test_g64_blend_arc_between_toppra_and_scurve_joint():
     (From toppra's start, 68× over the jerk limit on such arcs, it did not converge.)"""
     from planners.paths.gcode import parse_gcode, program_path
     path = program_path(parse_gcode("G21 G90 G64 P0.01\nG1 X-20 Y-20 Z-250 F1200\nX20\nY20\n"))
-    p = plan("optimal", path, KOSSEL)
+    sj, tp = plan("scurve_joint", path, KOSSEL), plan("toppra", path, KOSSEL)
+    p = plan("optimal", path, KOSSEL, warm=sj)
+    assert p.info["source"] == "nlp"
     assert all(st.startswith("Solve_Succeeded") for st in p.info["ipopt"])
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
-    sj, tp = plan("scurve_joint", path, KOSSEL), plan("toppra", path, KOSSEL)
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
 
 
@@ -73,9 +74,10 @@ def test_thin_grid_is_refined_before_the_margin_grows():
     passed (0.04) cost 6 % over the toppra bound (15.936 s against 14.991 s); the refined grid
     passes at the first margin and ends within 3 % of it (15.392 s)."""
     from planners.paths import resolve_path
+    from planners.scurve import plan_joint
     path = resolve_path("bird_kossel")
-    p = plan("optimal", path, KOSSEL)
-    assert p.info["margin"] == 0.005
+    p = plan("optimal", path, KOSSEL, warm=plan_joint(path, KOSSEL))
+    assert p.info["source"] == "nlp" and p.info["margin"] == 0.005
     assert max(p.info["nodes"]) > 600
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
     tp = plan("toppra", path, KOSSEL)
@@ -152,9 +154,10 @@ def test_flower_passes_with_a_and_j_bounded_between_nodes():
     bound and scurve_joint."""
     from planners.paths import resolve_path
     keops = load_machine("keops")
+    from planners.scurve import plan_joint
     path = resolve_path("flower")
-    p = plan("optimal", path, keops)
-    assert p.info["midpoints"] == [True]
+    p = plan("optimal", path, keops, warm=plan_joint(path, keops))
+    assert p.info["source"] == "nlp" and p.info["midpoints"] == [True]
     assert command_metrics(keops, path.point(p.s), p.T, p.s)["feasible"]
     tp, sj = plan("toppra", path, keops), plan("scurve_joint", path, keops)
     assert tp.execution_time_s <= p.execution_time_s <= sj.execution_time_s
@@ -173,3 +176,96 @@ def test_piece_over_the_node_budget_is_refused_naming_it():
     msg = str(e.value)
     assert "piece 0 " in msg and "79 phases" in msg and "1896 nodes" in msg and "1500 nodes" in msg
     assert "G-code lines 3…42" in msg
+
+
+def test_lower_bound_brackets_the_seven_phase_closed_form():
+    """The bound T₁·(1 − m) of the first solve lies below the margin-free optimum L/V + V/A + A/J,
+    by at most its margin, and the profile's time lies above it."""
+    L, m = 30.0, 0.005
+    p = plan("optimal", vertical(L), KOSSEL, margin=m)
+    lim = KOSSEL.limits.joint
+    exact = L / lim.v + lim.v / lim.a + lim.a / lim.j
+    lb = p.info["lower_bound_s"]
+    assert exact * (1 - m) * (1 - 1e-4) <= lb <= exact * (1 + 1e-6)
+    assert p.execution_time_s >= exact
+    assert p.info["gap"] == pytest.approx(p.execution_time_s / lb - 1)
+
+
+def test_turn_nodes_count_the_turned_angle():
+    """∫κ ds over an arc is its angle θ: θ / NODE_RADII nodes, none on the lines either side."""
+    from planners.constraints import PathTable
+    from planners.paths import Arc
+    R, th = 2.0, 1.5
+    a = Arc([R, 0, -300], [0, 0, -300], [0, 0, 1], th)
+    path = SegmentPath([Line([R, -5, -300], [R, 0, -300]), a, Line(a.end, a.end + 5 * a.tangent_out())])
+    s, N = optimal.turn_nodes(path, PathTable(path, KOSSEL))
+    assert N[-1] == pytest.approx(th / optimal.NODE_RADII, rel=1e-6)
+    assert N[s <= 5.0 - 1e-6].max() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_warm_start_puts_the_turn_nodes_on_the_arc():
+    """With the turn counted, the arc (1.5 rad) gets ≥ θ / NODE_RADII intervals of its own; without,
+    the nodes are spread in time only."""
+    from planners.constraints import PathTable
+    from planners.paths import Arc
+    from planners.scurve import plan_joint
+    R, th = 0.5, 1.5
+    a = Arc([R, 0, -300], [0, 0, -300], [0, 0, 1], th)
+    path = SegmentPath([Line([R, -40, -300], [R, 0, -300]), a, Line(a.end, a.end + 40 * a.tangent_out())])
+    warm = plan_joint(path, KOSSEL)
+    turn = optimal.turn_nodes(path, PathTable(path, KOSSEL))
+    lo, hi = 40.0, 40.0 + R * th
+    for t, need in ((turn, th / optimal.NODE_RADII), (None, 0)):
+        Ns, H, S, V, A, U = optimal._warm_start(warm, [0.0, path.length], 1e-3, 80, 1.02, t)
+        on_arc = np.count_nonzero((S > lo) & (S < hi))
+        assert len(H) == Ns.sum() and np.all(H > 0)
+        assert on_arc >= need - 1
+    assert on_arc < th / optimal.NODE_RADII - 1     # time-spread only: fewer than the turn asks
+
+
+def test_slowed_down_scales_each_order_by_its_power():
+    """t → λt scales the joint velocity by 1/λ, the acceleration by 1/λ², the jerk by 1/λ³: a
+    solution 1.3 × over a jerk limit comes back within it, λ ≈ 1.3^(1/3), its time × λ."""
+    from planners.constraints import PathTable
+    from planners.scurve import plan_joint
+    path = vertical(10.0)
+    lim = KOSSEL.limits
+    table = PathTable(path, KOSSEL)
+    T = KOSSEL.servo_period_s
+    piece = optimal._Piece(table, table_feed_cap(path, table, lim, T), 0.0, path.length, lim, 0.0,
+                           join_jumps(path, table, KOSSEL), T)
+    sol, _, _ = piece.solve(*optimal._warm_start(plan_joint(path, KOSSEL), [0.0, path.length], 1e-3, 300, 1.02))
+    prof = optimal.sample_cubic([sol], T, path, {})
+    tight = MachineLimits(Limits(lim.joint.v, lim.joint.a, lim.joint.j / 1.3), lim.cartesian, lim.feed_max,
+                          lim.chord_error_mm)
+    r = command_metrics(KOSSEL, path.point(prof.s), T, prof.s)
+    r["joint_peak_ratio"]["jerk"] *= 1.3
+    out = optimal._slowed_down(KOSSEL, path, prof, rest_pieces(path), tight, [sol], r, T, [])
+    lam = out.info["slowed_down"][0]
+    assert lam == pytest.approx(1.3 ** (1 / 3), rel=2e-3)
+    assert out.info["continuous_time_s"] == pytest.approx(lam * prof.info["continuous_time_s"], rel=1e-9)
+    after = command_metrics(KOSSEL, path.point(out.s), T, out.s)["joint_peak_ratio"]["jerk"]
+    assert after * 1.3 <= 1 + 1e-6                       # within the tightened jerk limit
+
+
+def test_the_faster_of_the_solution_and_its_start_within_the_limits():
+    """_faster_of keeps the NLP's profile unless its (checked) start is faster; a start above a
+    limit is never returned: with no solution the NLP's failure is raised."""
+    path = vertical(10.0)
+    fast = plan("scurve_joint", path, KOSSEL)
+    slow = plan("scurve_joint", path, KOSSEL, margin=0.1)
+    slow.info["lower_bound_s"] = 0.9 * fast.execution_time_s
+    assert slow.execution_time_s > fast.execution_time_s
+    out = optimal._faster_of(slow, fast, KOSSEL, path, None)
+    assert out.planner == "optimal" and out.info["source"] == "warm start (scurve_joint)"
+    assert np.array_equal(out.s, fast.s)
+    assert out.info["gap"] == pytest.approx(fast.execution_time_s / slow.info["lower_bound_s"] - 1)
+    assert optimal._faster_of(fast, slow, KOSSEL, path, None) is fast
+    lim = KOSSEL.limits
+    double = MachineLimits(Limits(2 * lim.joint.v, 2 * lim.joint.a, 2 * lim.joint.j), lim.cartesian,
+                           2 * lim.feed_max, lim.chord_error_mm)
+    over = plan("scurve_joint", path, KOSSEL, double)           # above KOSSEL's own limits
+    assert not command_metrics(KOSSEL, path.point(over.s), over.T, over.s)["feasible"]
+    with pytest.raises(PlanningError, match="IPOPT failed"):
+        optimal._faster_of(None, over, KOSSEL, path, PlanningError("optimal: IPOPT failed on piece …"))
+    assert optimal._faster_of(slow, over, KOSSEL, path, None) is slow
