@@ -1,21 +1,21 @@
 """`optimal` — minimum time with joint velocity, acceleration and jerk limits (CasADi + IPOPT).
 
-The jerk-limited reference: no profile that meets the shared constraint set (joint v, a, j;
-F_max; the chord-error feed cap) can be faster, within solver tolerance and the resolution
-of the grid.  Formulation (direct multiple shooting, exact integration):
+The jerk-limited reference on the shared constraint set (joint v, a, j; F_max; the chord-error
+feed cap).  Formulation (direct multiple shooting, exact integration):
 
 * the path is split at exact-stop corners; each piece is a rest-to-rest problem of its own
   (at a corner ṡ = s̈ = 0, so the pieces do not interact);
-* per piece N intervals of one common duration h (a variable): states s, ṡ, s̈ at the nodes,
-  constant jerk s⃛ on each interval, so s(t) is a cubic spline and the dynamics are exact;
+* per piece N intervals, their durations scaled together per phase (between G1 joins) by one
+  variable: states s, ṡ, s̈ at the nodes, constant jerk s⃛ on each interval, so s(t) is a cubic
+  spline and the dynamics are exact; nodes one per `node_period_s` and, where the path turns,
+  one per NODE_RADII curvature radii of travel (turn_nodes);
 * at every node: |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A, |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J (the jerk of both
   intervals that meet there), ṡ ≤ feed cap(s); q′, q″, q‴ and the cap are B-spline
-  interpolants of the PathTable over s, so IPOPT sees exact derivatives;
+  interpolants of a PathTable refined at lobe tips, so IPOPT sees exact derivatives;
 * the feed cap also holds the G1-join caps (constraints.second_derivative_jumps);
-* objective N·h, warm start from the `scurve_joint` profile (feasible, so IPOPT starts inside
-  the constraint set: from the faster but jerk-infeasible `toppra` profile IPOPT lost itself
-  in restoration on kossel's test_part, whose 0.04 mm blend arcs make it 68× over the jerk
-  limit), slowed down by 2 %.
+* objective Σh, warm start from `copp`'s TOPP3-SOCP profile (feasible at T; else the
+  `scurve_joint` one), slowed down by 2 %: IPOPT starts inside the constraint set (from the
+  jerk-infeasible `toppra` profile it lost itself in restoration on kossel's test_part).
 
 The solution is sampled at T exactly and checked with the independent metrics; if a
 discretisation effect pushes a joint ratio above 1 the problem is re-solved: on a grid twice
@@ -23,9 +23,11 @@ as fine (from the seed again) where the node budget had spread the nodes ≥ 3×
 `node_period_s` (up to MAX_NODES_REFINED per piece), else from the last solution, in the
 pieces where a limit read above 1: with the margin doubled on each limit read above 1 (each
 piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
-at each interval's midpoint too (keops' flower: the jerk read 1.04 × between nodes 2 ms
-apart at margin 0.005, still 1.003 × at 0.04 without the midpoints).  (Why refining
-comes first and why margins are per piece and per limit: the measurements in docs/TUNING.md.)
+at each interval's midpoint too.  Still above after `retries`, the pieces are slowed down
+uniformly until they pass (_slowed_down).  The faster of that solution and the warm start is
+returned (info["source"]).  info["lower_bound_s"] = T₁·(1 − m) of the first solve (a bound of
+the node relaxation, from IPOPT's local optimum) and info["gap"].  (Why refining comes first
+and why margins are per piece and per limit: the measurements in docs/TUNING.md.)
 """
 from __future__ import annotations
 
