@@ -27,8 +27,10 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
 The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
 lands on s = L at rest.
 
-The 1-D pieces (a ruckig segment, reachable feeds, phase sample times) are planners.scurve_pieces.
-Size: ~430 lines: the FLF, the critical points, the segment check and the repair loop of one
+The 1-D pieces (a ruckig segment, reachable feeds, phase sample times) are planners.scurve_pieces;
+the segment checks, run for all the segments of a round at once, planners.scurve_batch (the
+peak fit and the repair are generators whose tests scurve_batch.drive runs in lockstep).
+Size: ~400 lines: the FLF, the critical points, the peak fit and the repair loop of one
 method (TII 2022), kept together.
 """
 from __future__ import annotations
@@ -40,12 +42,12 @@ import numpy as np
 from ruckig import InputParameter, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
-from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
-                          chord_feed_cap, corner_list, ik_along, joint_derivs, peak_ratios,
-                          second_derivative_jumps, time_derivs)
+from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
+                          chord_feed_cap, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile
-from .scurve_pieces import Segment, phase_samples, reachable
+from .scurve_batch import Checker, drive
+from .scurve_pieces import Segment, reachable
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
@@ -214,22 +216,16 @@ class _Planner:
         self._reachable = memo
         return np.array(v)
 
-    def fit_peak(self, seg: Segment, vcap: float) -> bool:
-        """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection)."""
+    def fit_peak(self, seg: Segment, vcap: float, fmax: float):
+        """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection); ``fmax`` is
+        the FLF's largest value over the segment. A generator for scurve_batch.drive: it yields
+        ("flf", seg) per test of the feed against the FLF and returns whether ruckig fitted."""
         lo = max(seg.v0, seg.v1, 1e-6)
-        i0, i1 = np.searchsorted(self.grid, [seg.s0, seg.s0 + seg.L])
-        fmax = float(self.F[i0:i1 + 1].max()) if i1 >= i0 else lo
         hi = max(lo, min(vcap, fmax))
-
-        def under_flf():
-            tt = np.linspace(0, seg.duration, 48)
-            p, vv, _, _ = seg.at(tt)
-            return bool(np.all(vv <= np.interp(seg.s0 + p, self.grid, self.F) + 1e-6))
-
         seg.vpeak = hi
         if not seg.compute(self.otg, self.inp, self.traj):
             return False
-        if under_flf() or hi == lo:
+        if hi == lo or (yield "flf", seg):
             return True
         good = lo
         for _ in range(PEAK_BISECTION_ITERS):
@@ -237,7 +233,7 @@ class _Planner:
                 break
             mid = 0.5 * (good + hi)
             seg.vpeak = mid
-            if seg.compute(self.otg, self.inp, self.traj) and under_flf():
+            if seg.compute(self.otg, self.inp, self.traj) and (yield "flf", seg):
                 good = mid
             else:
                 hi = mid
@@ -246,63 +242,20 @@ class _Planner:
 
     def ratios(self, seg: Segment, reads: bool = True) -> np.ndarray:
         """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits),
-        with the reads at T of the joins at its ends (:meth:`join_reads`) unless ``reads`` is off."""
-        tt, xv, xa, xj = self.sampled(seg)
-        if reads:
-            hi, lo = xj, xj
-            for _, near, read in self.join_reads(seg, tt):
-                hi, lo = hi + np.outer(near, np.maximum(read, 0)), lo + np.outer(near, np.minimum(read, 0))
-            xj = np.maximum(np.abs(hi), np.abs(lo))
-        return peak_ratios(xv, xa, xj, self.check)
+        with the reads at T of the joins at its ends (scurve_batch.Checker) unless ``reads`` is off."""
+        c = Checker(self).check([seg])[0]
+        return c.r if reads else c.r0
 
-    def sampled(self, seg: Segment):
-        """(times, velocity, acceleration, jerk) of the checked axes over the segment."""
-        # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
-        # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
-        tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
-        # at a phase's end at() reads the next phase's jerk: a time just inside it gives the
-        # left limit (where the jerk flips sign, the two sides of a joint jerk differ)
-        d = np.diff(seg.tcum)
-        tt = np.unique(np.concatenate([tt, (seg.tcum[1:] - 1e-9 * d)[d > 0]]))
-        p, v, a, j = seg.at(tt)
-        lo, hi = np.searchsorted(self.fine_s, [seg.s0, seg.s0 + seg.L])
-        if hi > lo:
-            # the times of the refined rows inside the segment (p(t) is monotone): a jerk peak
-            # narrower than a period's travel falls between samples ≤ T apart
-            tt = np.unique(np.concatenate([tt, np.interp(self.fine_s[lo:hi] - seg.s0, p, tt)]))
-            p, v, a, j = seg.at(tt)
-        # evaluate just inside the segment: at a corner the derivatives are one-sided
-        s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
-        D = (None,) + (self.table.joints(s) if self.joint else self.table.cartesian(s))
-        xv, xa, xj = time_derivs(D[1], D[2], D[3], v, a, j)
-        return tt, xv, xa, xj
-
-    def join_reads(self, seg, tt):
-        """[(end 0 or 1, samples within 3T of it, signed read per axis)] for the segment's ends
-        at a join. A third difference at T is the jerk averaged by a quadratic B-spline kernel
-        (support 3T, peak 0.75/T), so the jump Δx″v² of the acceleration at the join adds up to
-        JUMP_READ_FACTOR·Δx″v²/T, with its sign, to an average of the continuous jerk next to
-        it (without this term a segment next to a join passes its own check and not the one at T)."""
-        out = []
-        for end, s_end, v_end in ((0, seg.s0, seg.v0), (1, seg.s0 + seg.L, seg.v1)):
-            k = int(np.searchsorted(self.joins, s_end))
-            for n in (k - 1, k):          # a join within 1 µm (merged critical points)
-                if 0 <= n < len(self.joins) and abs(self.joins[n] - s_end) < 1e-3 and v_end > 0:
-                    near = tt <= 3 * self.T if end == 0 else tt >= seg.duration - 3 * self.T
-                    out.append((end, near, JUMP_READ_FACTOR * self.join_d2[n] * v_end ** 2 / self.T))
-        return out
-
-    def join_feed_factors(self, seg) -> list[float]:
+    def join_feed_factors(self, chk) -> list[float]:
         """Per end, the factor on its feed that brings the join's read plus the continuous jerk
         next to it within the limit (the read scales as v²; the continuous jerk is kept, which
         errs low), in [0.49, 0.98]: for a segment that violates only through its joins' reads.
         None where that would take more than halving the feed (the continuous jerk next to the
         join leaves no room: the segment's J has to come down, as for any other violation)."""
-        tt, _, _, xj = self.sampled(seg)
         f = [1.0, 1.0]
-        for end, near, read in self.join_reads(seg, tt):
+        for end, read, jmax, jmin in chk.reads:
             # the continuous jerk of the read's sign next to the join leaves this much room
-            same = np.where(read > 0, xj[near].max(axis=0), -xj[near].min(axis=0))
+            same = np.where(read > 0, jmax, -jmin)
             room = np.maximum(self.check.j - same, 0.0)
             with np.errstate(divide="ignore", invalid="ignore"):
                 need = float(np.nanmin(np.sqrt(room / np.abs(read))))
@@ -311,53 +264,68 @@ class _Planner:
             f[end] = min(f[end], min(0.98 * need, 0.98))
         return f
 
-    def seg_ok(self, seg, vcap) -> bool:
-        return self.fit_peak(seg, vcap) and bool(np.all(self.ratios(seg) <= 1.0))
+    def seg_ok(self, seg, i, vcap):
+        """Fit segment i's peak, then check it: a generator returning its Check (None: no fit)."""
+        if not (yield from self.fit_peak(seg, vcap, self.fmax[i])):
+            return None
+        return (yield "check", seg)
 
-    def repair(self, i, seg, v, v_c, A, J, vcap):
-        """One round's repair of segment i that broke a limit: its join feeds (a violation
-        through the joins' reads only), else TII 2022's J, then A, then its feeds; updates the
-        arrays in place."""
-        f = self.join_feed_factors(seg) if np.all(self.ratios(seg, reads=False) <= 1.0) else None
+    def repair(self, i, seg, chk, v, v_c, A, J, vcap):
+        """One round's repair of segment i (its Check ``chk``) that broke a limit: its join feeds
+        (a violation through the joins' reads only), else TII 2022's J, then A, then its feeds;
+        updates the arrays in place. A generator for scurve_batch.drive."""
+        f = self.join_feed_factors(chk) if np.all(chk.r0 <= 1.0) else None
         if f is not None:
             # only the joins' reads at T break the limit: lower the feed at those joins
             v_c[i] = min(v_c[i], v[i] * f[0])
             v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f[1])
             return
+        fitted = seg.state()
+
+        def ok(f, attr, full):
+            setattr(seg, attr, full * f)
+            c = yield from self.seg_ok(seg, i, vcap[i])
+            return c is not None and bool(np.all(c.r <= 1.0))
+
         # TII 2022 axis repair: lower J, then A, to the largest value without violation
         for attr in ("J", "A"):
             full = getattr(seg, attr)
-
-            def ok(f, attr=attr, full=full):
-                setattr(seg, attr, full * f)
-                return self.seg_ok(seg, vcap[i])
-
-            if ok(0.05):
+            if (yield from ok(0.05, attr, full)):
                 lo, hi = 0.05, 1.0
                 while hi - lo > 0.01:
                     mid = 0.5 * (lo + hi)
-                    lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+                    lo, hi = (mid, hi) if (yield from ok(mid, attr, full)) else (lo, mid)
                 setattr(seg, attr, full * lo)
                 break
             setattr(seg, attr, full)
         A[i], J[i] = seg.A, seg.J
         seg.A, seg.J = A[i], J[i]
-        if not self.seg_ok(seg, vcap[i]):
-            # a violation of the feed itself: scale the segment's feeds down
-            r = self.ratios(seg)
-            # a cruise at constant feed has zero a and j ratios: they bound nothing (the
-            # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
-            bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
-                      r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
-            f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
-            vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
-            v_c[i] = min(v_c[i], v[i] * f)
-            v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
+        if (seg.A, seg.J) == (fitted[0], fitted[1]):
+            # neither lowered: the refit at the same A, J is the round's fit (ruckig is deterministic)
+            seg.restore(fitted)
+            r = chk.r
+        else:
+            c = yield from self.seg_ok(seg, i, vcap[i])
+            if c is not None and np.all(c.r <= 1.0):
+                return
+            r = (c if c is not None else (yield "check", seg)).r
+        # a violation of the feed itself: scale the segment's feeds down
+        # a cruise at constant feed has zero a and j ratios: they bound nothing (the
+        # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
+        bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
+                  r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
+        f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
+        vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
+        v_c[i] = min(v_c[i], v[i] * f)
+        v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
 
     def run(self, max_rounds: int = 60):
         s_c, v_c = self.critical_points()
         Ls = np.diff(s_c)
         nseg = len(Ls)
+        # the FLF's largest value over each segment (the ceiling of its peak feed)
+        i0, i1 = np.searchsorted(self.grid, s_c[:-1]), np.searchsorted(self.grid, s_c[:-1] + Ls)
+        self.fmax = [float(self.F[a:b + 1].max()) for a, b in zip(i0.tolist(), i1.tolist())]
         # the s-curve's own A, J: the Cartesian limits, tightened by the margin where those
         # are the checked limits (an axis-aligned stretch reads s⃛ = J on one axis)
         c = self.limits.cartesian
@@ -366,35 +334,32 @@ class _Planner:
         J = np.full(nseg, c.j * shrink)
         vcap = np.full(nseg, self.limits.feed_max)
         repairs = 0
-        # key → (segment, ratios) of the last round only: every key component only decreases
+        checker = Checker(self)
+        # key → (segment, Check) of the last round only: every key component only decreases
         # over the rounds, so a key absent from one round never comes back (keeping all rounds
         # held ~10⁶ segments on a 10⁵-line program)
         cache = {}
         for rnd in range(max_rounds):
             v = self.consistent(v_c, Ls, A, J)
-            segs, bad, kept = [], [], {}
-            for i in range(nseg):
-                key = (i, v[i], v[i + 1], A[i], J[i], vcap[i])
-                if key in cache:                      # unchanged since the last round
-                    seg, r = cache[key]
-                else:
-                    seg = Segment(s_c[i], Ls[i], v[i], v[i + 1], A[i], J[i], vcap[i])
-                    if not self.fit_peak(seg, vcap[i]):
-                        raise PlanningError(
-                            f"scurve: ruckig found no profile for segment {i} (s = {s_c[i]:.6g}…"
-                            f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
-                    r = self.ratios(seg)
-                kept[key] = (seg, r)
-                segs.append(seg)
-                if np.any(r > 1.0):
-                    bad.append((i, r))
-            cache = kept
+            keys = list(zip(range(nseg), v[:-1].tolist(), v[1:].tolist(), A.tolist(), J.tolist(), vcap.tolist()))
+            got = [cache.get(key) for key in keys]
+            new = [i for i in range(nseg) if got[i] is None]
+            # unchanged segments keep their fit and check; the new ones are fitted and checked together
+            fresh = [Segment(s_c[i], Ls[i], v[i], v[i + 1], A[i], J[i], vcap[i]) for i in new]
+            checks = drive([self.seg_ok(seg, i, vcap[i]) for i, seg in zip(new, fresh)], checker)
+            for i, seg, chk in zip(new, fresh, checks):
+                if chk is None:
+                    raise PlanningError(
+                        f"scurve: ruckig found no profile for segment {i} (s = {s_c[i]:.6g}…"
+                        f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
+                got[i] = (seg, chk)
+            cache = dict(zip(keys, got))
+            bad = [i for i in range(nseg) if np.any(got[i][1].r > 1.0)]
             if not bad:
-                return segs, {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
-                              "critical_points_mm": s_c.tolist()}
-            for i, _ in bad:
-                repairs += 1
-                self.repair(i, segs[i], v, v_c, A, J, vcap)
+                return [g[0] for g in got], {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
+                                             "critical_points_mm": s_c.tolist()}
+            repairs += len(bad)
+            drive([self.repair(i, got[i][0], got[i][1], v, v_c, A, J, vcap) for i in bad], checker)
         raise PlanningError(f"scurve: axis-limit repair did not converge in {max_rounds} rounds "
                             f"({len(bad)} segment(s) still violate)")
 

@@ -88,6 +88,13 @@ class Segment:
         self.duration = float(traj.duration)
         return True
 
+    def state(self):
+        """(A, J, vpeak and the fitted profile), for :meth:`restore`."""
+        return (self.A, self.J, self.vpeak, self.tcum, self.j, self.a, self.v, self.p, self.duration)
+
+    def restore(self, state):
+        (self.A, self.J, self.vpeak, self.tcum, self.j, self.a, self.v, self.p, self.duration) = state
+
     def at(self, tt):
         """(p, v, a, j) at local times tt (clipped to the segment)."""
         # np.minimum/np.maximum: np.clip's Python wrapper cost more than the arithmetic here
