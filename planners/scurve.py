@@ -39,7 +39,6 @@ import math
 import time
 
 import numpy as np
-from ruckig import InputParameter, Ruckig, Trajectory
 from scipy.optimize import minimize_scalar
 
 from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
@@ -47,7 +46,7 @@ from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limi
 from .feed import feed_ceiling
 from .profile import Profile
 from .scurve_batch import Checker, drive
-from .scurve_pieces import Segment, reachable
+from .scurve_pieces import Segment, reachable, solver
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
@@ -84,7 +83,7 @@ class _Planner:
     def __init__(self, path, machine, limits, joint: bool, margin: float, grid_mm: float):
         self.path, self.machine, self.limits, self.joint = path, machine, limits, joint
         self.T = machine.servo_period_s
-        self.otg, self.inp, self.traj = Ruckig(1), InputParameter(1), Trajectory(1)
+        self.otg, self.inp, self.traj = solver()
         lim = limits.joint if joint else limits.cartesian
         # plan the check against slightly tightened limits: the metrics read jerk as a third
         # difference at T, which can exceed the continuous peak by a fraction of a percent
@@ -107,7 +106,7 @@ class _Planner:
         g, piece = self.table.s, np.repeat(np.arange(len(self.table.counts)), self.table.counts)
         fine = (np.diff(g) < 0.999 * self.table.hs[piece[:-1]]) & (piece[1:] == piece[:-1])
         self.fine_s = np.unique(np.concatenate([g[:-1][fine], g[1:][fine]]))
-        self._reachable = {}            # memo of reachable() across the repair rounds
+        self._passes = None             # consistent()'s inputs and passes of the last round
 
     def F_at(self, s):
         """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
@@ -189,32 +188,38 @@ class _Planner:
         return out
 
     # -- segments -----------------------------------------------------------------
-    def consistent(self, v, Ls, A, J):
-        # Both passes in plain floats with the memo read inline (10⁵ segments a round).
-        # Each repair round changes a few segments: the rest of both passes repeats the same
-        # bisections, which made every round cost the whole path again, hence the memo.
-        # The memo keeps the last round's keys only (all rounds: ~10⁷ keys on a 10⁵-line program).
-        v = v.tolist()
-        Lr, A, J = (Ls * (1 - 1e-9)).tolist(), A.tolist(), J.tolist()
-        old, memo = self._reachable, {}
-        for i in range(len(Lr) - 1, -1, -1):
-            key = (v[i + 1], Lr[i], A[i], J[i], v[i])
-            r = memo.get(key)
-            if r is None:
-                r = old.get(key)
-                memo[key] = r = reachable(*key) if r is None else r
-            if r < v[i]:                     # min(v[i], r)
-                v[i] = r
-        for i in range(len(Lr)):
-            key = (v[i], Lr[i], A[i], J[i], v[i + 1])
-            r = memo.get(key)
-            if r is None:
-                r = old.get(key)
-                memo[key] = r = reachable(*key) if r is None else r
-            if r < v[i + 1]:
-                v[i + 1] = r
-        self._reachable = memo
-        return np.array(v)
+    def consistent(self, v_c, Ls, A, J):
+        """The feeds v_c at the critical points lowered until every segment can change between
+        its end feeds within its length: a backward, then a forward pass of reachable()."""
+        # Each repair round changes a few segments: an entry whose inputs (its segment, v_c and
+        # the feed it is reached from) are those of the last call keeps its last value, so a
+        # round costs the stretches that changed, not the whole path again (10⁵ segments)
+        n = len(Ls)
+        Lr = Ls * (1 - 1e-9)
+        last = self._passes
+        if last is None or len(last[0]) != n + 1:
+            last = (np.full(n + 1, np.nan),) + (np.full(n, np.nan),) * 3 + (np.full(n + 1, np.nan),) * 2
+        pvc, pL, pA, pJ, pb, pf = last
+        seg = ((Lr != pL) | (A != pA) | (J != pJ)).tolist()
+        new_vc = (v_c != pvc).tolist()
+        vc, L_, A_, J_ = v_c.tolist(), Lr.tolist(), A.tolist(), J.tolist()
+        b = pb.tolist()
+        b[n], carry = vc[n], vc[n] != b[n]
+        for i in range(n - 1, -1, -1):
+            if carry or seg[i] or new_vc[i]:
+                r = reachable(b[i + 1], L_[i], A_[i], J_[i], vc[i])
+                r = r if r < vc[i] else vc[i]            # min(v_c[i], r)
+                carry, b[i] = r != b[i], r
+        new_b = (np.array(b) != pb).tolist()
+        f = pf.tolist()
+        f[0], carry = b[0], b[0] != f[0]
+        for i in range(n):
+            if carry or seg[i] or new_b[i + 1]:
+                r = reachable(f[i], L_[i], A_[i], J_[i], b[i + 1])
+                r = r if r < b[i + 1] else b[i + 1]
+                carry, f[i + 1] = r != f[i + 1], r
+        self._passes = (v_c.copy(), Lr, A.copy(), J.copy(), np.array(b), np.array(f))
+        return np.array(f)
 
     def fit_peak(self, seg: Segment, vcap: float, fmax: float):
         """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection); ``fmax`` is
@@ -354,7 +359,7 @@ class _Planner:
                         f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
                 got[i] = (seg, chk)
             cache = dict(zip(keys, got))
-            bad = [i for i in range(nseg) if np.any(got[i][1].r > 1.0)]
+            bad = np.nonzero((np.array([g[1].r for g in got]) > 1.0).any(axis=1))[0].tolist()
             if not bad:
                 return [g[0] for g in got], {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
                                              "critical_points_mm": s_c.tolist()}

@@ -52,29 +52,30 @@ class Check:
 
 
 class Stack:
-    """The seven phases of many fitted segments, flat: jerk 7 per segment, the boundary states
-    a, v, p 8 per segment (ruckig's), ``tcum`` (N, 8)."""
+    """Many fitted segments' profiles in flat arrays: per segment 7 phase jerks, 8 boundary
+    states a, v, p (ruckig's), and ``tcum`` (N, 8), the phases' start times and the end."""
 
     def __init__(self, segs):
-        self.s0 = np.array([g.s0 for g in segs], float)
-        self.L = np.array([g.L for g in segs], float)
-        self.v0 = np.array([g.v0 for g in segs], float)
-        self.v1 = np.array([g.v1 for g in segs], float)
-        self.dur = np.array([g.duration for g in segs], float)
-        self.tcum = np.array([g.tcum for g in segs]).reshape(len(segs), 8)
-        self.j = np.array([g.j for g in segs]).reshape(-1)
-        self.a, self.v, self.p = (np.array([getattr(g, k) for g in segs]).reshape(-1) for k in ("a", "v", "p"))
-        self.n_state = len(self.a) // max(len(segs), 1)
+        rows = np.array([g.t + g.j + g.a + g.v + g.p for g in segs]).reshape(len(segs), 38)
+        # cumsum along a row adds in the order of Segment.tcum's 1-D cumsum
+        self.tcum = np.concatenate([np.zeros((len(segs), 1)), np.cumsum(rows[:, :7], axis=1)], axis=1)
+        self.j = rows[:, 7:14].ravel()
+        self.a, self.v, self.p = (rows[:, c:c + 8].ravel() for c in (14, 22, 30))
+        self.s0, self.L, self.v0, self.v1, self.dur = np.array(
+            [(g.s0, g.L, g.v0, g.v1, g.duration) for g in segs], float).reshape(len(segs), 5).T
 
     def at(self, idx, tt):
         """Segment.at of segment idx[k] at tt[k] (the same operations in the same order)."""
-        tc = self.tcum[idx]
         tt = np.minimum(np.maximum(tt, 0.0), self.dur[idx])
         # searchsorted(tcum, tt, "right") − 1, as tcum[0] = 0 ≤ tt and tcum is sorted
-        k = np.minimum((tc[:, 1:] <= tt[:, None]).sum(axis=1), 6)
-        dt = tt - tc[np.arange(len(idx)), k]
+        base = idx * 8
+        flat = self.tcum.ravel()
+        k = np.zeros(len(idx), np.int64)
+        for c in range(1, 7):
+            k += flat[base + c] <= tt
+        dt = tt - flat[base + k]
         j = self.j[idx * 7 + k]
-        row = idx * self.n_state + k
+        row = base + k
         a0, v0, p0 = self.a[row], self.v[row], self.p[row]
         a = a0 + j * dt
         v = v0 + a0 * dt + j * dt * dt / 2
@@ -99,22 +100,16 @@ def phase_grid(a, b, T):
     return y, n
 
 
-def _unique_per_segment(t, seg):
-    """(times, segment index) sorted by segment then time, exact duplicates within a segment
-    dropped: np.unique per segment."""
-    order = np.lexsort((t, seg))
-    t, seg = t[order], seg[order]
-    keep = np.ones(len(t), bool)
-    keep[1:] = (t[1:] != t[:-1]) | (seg[1:] != seg[:-1])
-    return t[keep], seg[keep]
-
-
 class Checker:
     """The tests of :meth:`planners.scurve._Planner.fit_peak` and of the segment check, for many
     segments at once; ``pl`` is the planner (its grid, FLF, tables, joins and check limits)."""
 
     def __init__(self, pl):
         self.pl = pl
+        # the checked axes' x′, x″, x‴ tables as (axes, rows): numpy runs an (n, 3) array's
+        # arithmetic in inner loops of 3, several times slower than along rows of n
+        tab = pl.table.joint if pl.joint else pl.table.cart
+        self.tabT = [np.ascontiguousarray(X.T) for X in tab[1:]]
 
     def answer(self, reqs):
         """Answers to [(kind, segment)] requests (see :func:`drive`), in order."""
@@ -157,9 +152,10 @@ class Checker:
         return out
 
     def times(self, st, segs):
-        """Sorted sample times per segment of ``segs`` (and their segment index): every jerk
-        phase on its own (≥ 16 points, ≤ T apart), just inside each phase's end (at a phase's
-        end at() reads the next phase's jerk) and at the refined rows of the table."""
+        """Sample times of the segments ``segs`` and their segment index, grouped by segment
+        (in no order within one; a time may repeat: only maxima are taken): every jerk phase on
+        its own (≥ 16 points, ≤ T apart), just inside each phase's end (at a phase's end at()
+        reads the next phase's jerk) and at the refined rows of the table."""
         T, fine = self.pl.T, self.pl.fine_s
         tc = st.tcum[segs]
         a, b = tc[:, :-1], tc[:, 1:]
@@ -168,77 +164,120 @@ class Checker:
         rows, _ = np.nonzero(d > 0)
         t = np.concatenate([y, np.zeros(len(segs)), st.dur[segs], (b - 1e-9 * d)[d > 0]])
         seg = np.concatenate([np.repeat(segs[rows], n), segs, segs, segs[rows]])
-        t, seg = _unique_per_segment(t, seg)
         lo, hi = np.searchsorted(fine, st.s0[segs]), np.searchsorted(fine, st.s0[segs] + st.L[segs])
         with_fine = np.nonzero(hi > lo)[0]
         if len(with_fine):
-            # the times of the refined rows inside a segment (p(t) is monotone): a jerk peak
-            # narrower than a period's travel falls between samples ≤ T apart
-            extra_t, extra_seg = [], []
+            # the times of the refined rows inside a segment (p(t) is monotone, the times sorted
+            # and unique as np.interp needs them): a jerk peak narrower than a period's travel
+            # falls between samples ≤ T apart
+            extra_t, extra_seg = [t], [seg]
             for k in with_fine.tolist():
                 g = segs[k]
-                a_, b_ = np.searchsorted(seg, [g, g + 1])
-                p = st.at(seg[a_:b_], t[a_:b_])[0]
-                extra_t.append(np.interp(fine[lo[k]:hi[k]] - st.s0[g], p, t[a_:b_]))
+                tg = np.unique(t[seg == g])
+                p = st.at(np.full(len(tg), g), tg)[0]
+                extra_t.append(np.interp(fine[lo[k]:hi[k]] - st.s0[g], p, tg))
                 extra_seg.append(np.full(hi[k] - lo[k], g))
-            t, seg = _unique_per_segment(np.concatenate([t] + extra_t), np.concatenate([seg] + extra_seg))
-        return t, seg
+            t, seg = np.concatenate(extra_t), np.concatenate(extra_seg)
+        order = np.argsort(seg, kind="stable")
+        return t[order], seg[order]
+
+    def derivs(self, s):
+        """x′, x″, x‴ of the checked axes at s as (axes, n): PathTable._interp's operations."""
+        i, w, h = self.pl.table._locate(s)
+        X1, X2, X3 = self.tabT
+        w2, w3 = w ** 2, w ** 3
+        h00, h10 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w
+        h01, h11 = -2 * w3 + 3 * w2, w3 - w2
+        h10h, h11h = h10 * h, h11 * h
+        j = i + 1
+        A1, B1, A2, B2, A3, B3 = X1[:, i], X1[:, j], X2[:, i], X2[:, j], X3[:, i], X3[:, j]
+        d1 = h00 * A1 + h10h * A2 + h01 * B1 + h11h * B2
+        d2 = h00 * A2 + h10h * A3 + h01 * B2 + h11h * B3
+        d3 = (1 - w) * A3 + w * B3
+        return d1, d2, d3
 
     def _check_chunk(self, st, segs):
         pl = self.pl
-        T, lim = pl.T, pl.check
+        lim = pl.check
         tt, idx = self.times(st, segs)
         p, v, a, j = st.at(idx, tt)
         s0 = st.s0[idx]
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(s0 + p, s0 + 1e-9, (st.s0 + st.L)[idx] - 1e-9)
-        D = pl.table.joints(s) if pl.joint else pl.table.cartesian(s)
-        xv, xa, xj = time_derivs(D[0], D[1], D[2], v, a, j)
+        D1, D2, D3 = self.derivs(s)
+        # constraints.time_derivs with the axes first (the same products in the same order)
+        xv = D1 * v
+        xa = D2 * v * v + D1 * a
+        xj = D3 * v ** 3 + 3 * D2 * v * a + D1 * j
         starts = np.searchsorted(idx, segs)
-        peak = lambda x: np.maximum.reduceat(np.abs(x).max(axis=1), starts)
-        mv, ma, mj = peak(xv), peak(xa), peak(xj)
-        reads, hi, lo = self._reads(st, segs, tt, idx, xj, starts)
-        mjr = mj if hi is None else peak(np.maximum(np.abs(hi), np.abs(lo)))
+        jrow = _abs_max(xj)
+        peak = lambda rowmax: np.maximum.reduceat(rowmax, starts)
+        mv, ma, mj = peak(_abs_max(xv)), peak(_abs_max(xa)), peak(jrow)
+        reads, jrow_r = self._reads(st, segs, tt, idx, xj, jrow)
+        mjr = mj if jrow_r is None else peak(jrow_r)
         r0 = np.column_stack([mv / lim.v, ma / lim.a, mj / lim.j])
         r = np.column_stack([mv / lim.v, ma / lim.a, mjr / lim.j])
         return [Check(r[k], r0[k], reads[k]) for k in range(len(segs))]
 
-    def _reads(self, st, segs, tt, idx, xj, starts):
+    def _reads(self, st, segs, tt, idx, xj, jrow):
         """The reads at T of the joins at the segments' ends: a third difference at T is the jerk
         averaged by a quadratic B-spline kernel (support 3T, peak 0.75/T), so the jump Δx″v² of
         the acceleration at a join adds up to JUMP_READ_FACTOR·Δx″v²/T, with its sign, to the
         continuous jerk within 3T of it (without it a segment next to a join passes its own check
         and not the one at T). Returns (per segment [(end, read, max and min of the jerk near
-        that end)], the jerk with the positive and with the negative reads added, or None, None)."""
+        that end)], per sample the largest |jerk| with the reads added, or None: no read)."""
         pl = self.pl
         T, joins, d2 = pl.T, pl.joins, pl.join_d2
         reads = [[] for _ in segs]
         hi = lo = None
+        touched = []
         for end, s_end, v_end in ((0, st.s0[segs], st.v0[segs]), (1, st.s0[segs] + st.L[segs], st.v1[segs])):
-            near = tt <= 3 * T if end == 0 else tt >= st.dur[idx] - 3 * T
             k = np.searchsorted(joins, s_end)
+            slots = []
             for n in (k - 1, k):          # a join within 1 µm (merged critical points)
                 nn = np.clip(n, 0, max(len(joins) - 1, 0))
                 ok = (n >= 0) & (n < len(joins)) & (v_end > 0)
                 if len(joins):
                     ok &= np.abs(joins[nn] - s_end) < 1e-3
-                which = np.nonzero(ok)[0]
-                if len(which) == 0:
-                    continue
+                if ok.any():
+                    slots.append((nn, np.nonzero(ok)[0]))
+            if not slots:
+                continue
+            # the samples within 3T of this end (each segment has one at least: its end)
+            rows = np.nonzero(tt <= 3 * T if end == 0 else tt >= st.dur[idx] - 3 * T)[0]
+            rseg = np.searchsorted(segs, idx[rows])
+            first = np.searchsorted(rseg, np.arange(len(segs)))
+            xn = xj[:, rows]
+            jmax, jmin = np.maximum.reduceat(xn, first, axis=1), np.minimum.reduceat(xn, first, axis=1)
+            if hi is None:
+                hi, lo = xj.copy(), xj.copy()
+            for nn, which in slots:
                 # v² as the scalar power of the per-segment form (an array's square can differ in the last bit)
                 vsq = np.array([x ** 2 for x in v_end[which].tolist()])
                 read = np.zeros((len(segs), d2.shape[1]))
                 read[which] = JUMP_READ_FACTOR * d2[nn[which]] * vsq[:, None] / T
-                pos = np.nonzero(np.isin(idx, segs[which]))[0]     # rows of those segments
-                m = near[pos][:, None]
-                r_at = read[np.searchsorted(segs, idx[pos])]
-                if hi is None:
-                    hi, lo = xj.copy(), xj.copy()
-                hi[pos] = hi[pos] + m * np.maximum(r_at, 0)
-                lo[pos] = lo[pos] + m * np.minimum(r_at, 0)
-                big = np.where(near[:, None], xj, -np.inf)
-                small = np.where(near[:, None], xj, np.inf)
-                jmax, jmin = np.maximum.reduceat(big, starts), np.minimum.reduceat(small, starts)
+                # the read added next to the join (elsewhere it adds ±0: no |value| changes)
+                on = np.zeros(len(segs), bool)
+                on[which] = True
+                sel = rows[on[rseg]]
+                rs = rseg[on[rseg]]
+                hi[:, sel] += np.maximum(read, 0)[rs].T
+                lo[:, sel] += np.minimum(read, 0)[rs].T
+                touched.append(sel)
                 for w in which.tolist():
-                    reads[w].append((end, read[w], jmax[w], jmin[w]))
-        return reads, hi, lo
+                    reads[w].append((end, read[w], jmax[:, w], jmin[:, w]))
+        if hi is None:
+            return reads, None
+        sel = np.unique(np.concatenate(touched))
+        jrow_r = jrow.copy()
+        jrow_r[sel] = _abs_max(np.maximum(np.abs(hi[:, sel]), np.abs(lo[:, sel])))
+        return reads, jrow_r
+
+
+def _abs_max(x):
+    """max |x| over the axes (the first index) per sample: numpy's max(axis=0) of a (3, n)
+    array cost several times the elementwise maxima of its rows."""
+    m = np.abs(x[0])
+    for row in x[1:]:
+        m = np.maximum(m, np.abs(row))
+    return m

@@ -1,12 +1,14 @@
 """The 1-D pieces of the s-curve (planners.scurve): how far a jerk-limited feed change needs,
-the largest feed reachable in a length, the sample times of a profile's phases, and one ruckig
-profile between two critical points (`Segment`)."""
+the largest feed reachable in a length, and one ruckig profile between two critical points
+(`Segment`)."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from ruckig import Result
+from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+_OK = (Result.Working, Result.Finished)
 
 
 def min_distance(v0, v1, A, J):
@@ -31,41 +33,34 @@ def reachable(v0, L, A, J, vmax):
     return lo
 
 
-def phase_samples(tcum, T):
-    """np.linspace(a, b, min(4000, max(16, ⌈(b − a)/T⌉))) of every phase [a, b] with b > a,
-    concatenated: the same values as numpy's linspace (k·step + a, the end set to b; k/div·Δ
-    + a where the step underflows), without a Python call per phase."""
-    a, b = tcum[:-1], tcum[1:]
-    keep = b > a
-    a, b = a[keep], b[keep]
-    n = np.minimum(4000, np.maximum(16, np.ceil((b - a) / T))).astype(np.int64)
-    first = np.cumsum(n) - n
-    ph = np.repeat(np.arange(len(n)), n)
-    k = (np.arange(int(n.sum())) - first[ph]).astype(float)
-    delta, div = b - a, (n - 1).astype(float)
-    step = delta / div
-    y = np.where(step[ph] == 0, k / div[ph] * delta[ph], k * step[ph]) + a[ph]
-    y[first + n - 1] = b
-    return y
+def solver():
+    """(Ruckig, InputParameter, Trajectory) for :meth:`Segment.compute`: one axis from position 0
+    at a = 0 to a = 0, never backwards (min velocity 0); compute sets the rest per segment (the
+    fixed inputs are set once: a segment check fits ~10⁵ profiles on a long program)."""
+    inp = InputParameter(1)
+    inp.current_position = [0.0]
+    inp.current_acceleration = [0.0]
+    inp.target_acceleration = [0.0]
+    inp.min_velocity = [0.0]
+    return Ruckig(1), inp, Trajectory(1)
 
 
 class Segment:
-    """One ruckig profile between two critical points, as arrays of its seven phases."""
+    """One ruckig profile between two critical points: its seven phases' durations ``t`` and
+    jerks ``j`` and the eight boundary states ``a``, ``v``, ``p``, as ruckig's lists (the checks
+    stack many segments' lists into one array: planners.scurve_batch)."""
 
-    __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "tcum", "j", "a", "v", "p", "duration")
+    __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "t", "j", "a", "v", "p", "duration")
 
     def __init__(self, s0, L, v0, v1, A, J, vpeak):
         self.s0, self.L, self.v0, self.v1, self.A, self.J, self.vpeak = s0, L, v0, v1, A, J, vpeak
         self.duration = None
 
     def compute(self, otg, inp, traj) -> bool:
-        inp.current_position = [0.0]
+        """Fit the profile with the solver of :func:`solver`; False if ruckig finds none."""
         inp.current_velocity = [self.v0]
-        inp.current_acceleration = [0.0]
         inp.target_position = [self.L]
         inp.target_velocity = [self.v1]
-        inp.target_acceleration = [0.0]
-        inp.min_velocity = [0.0]
         inp.max_acceleration = [self.A]
         inp.max_jerk = [self.J]
         # a segment that needs all its length to reach v1 = its peak (the consistency pass
@@ -77,32 +72,36 @@ class Segment:
                 res = otg.calculate(inp, traj)
             except Exception:  # ruckig.RuckigError: no profile for these inputs
                 continue
-            if res in (Result.Working, Result.Finished):
+            if res in _OK:
                 break
         else:
             return False
         prof = traj.profiles[0][0]
-        self.tcum = np.concatenate([[0.0], np.cumsum(prof.t)])
-        self.j, self.a = np.array(prof.j), np.array(prof.a)
-        self.v, self.p = np.array(prof.v), np.array(prof.p)
+        self.t, self.j, self.a, self.v, self.p = prof.t, prof.j, prof.a, prof.v, prof.p
         self.duration = float(traj.duration)
         return True
 
+    @property
+    def tcum(self):
+        """Start times of the phases and the end of the last (8)."""
+        return np.concatenate([[0.0], np.cumsum(self.t)])
+
     def state(self):
         """(A, J, vpeak and the fitted profile), for :meth:`restore`."""
-        return (self.A, self.J, self.vpeak, self.tcum, self.j, self.a, self.v, self.p, self.duration)
+        return (self.A, self.J, self.vpeak, self.t, self.j, self.a, self.v, self.p, self.duration)
 
     def restore(self, state):
-        (self.A, self.J, self.vpeak, self.tcum, self.j, self.a, self.v, self.p, self.duration) = state
+        (self.A, self.J, self.vpeak, self.t, self.j, self.a, self.v, self.p, self.duration) = state
 
     def at(self, tt):
         """(p, v, a, j) at local times tt (clipped to the segment)."""
         # np.minimum/np.maximum: np.clip's Python wrapper cost more than the arithmetic here
+        tcum = self.tcum
         tt = np.minimum(np.maximum(np.asarray(tt, float), 0.0), self.duration)
-        k = np.minimum(np.maximum(np.searchsorted(self.tcum, tt, side="right") - 1, 0), 6)
-        dt = tt - self.tcum[k]
-        j = self.j[k]
-        a = self.a[k] + j * dt
-        v = self.v[k] + self.a[k] * dt + j * dt * dt / 2
-        p = self.p[k] + self.v[k] * dt + self.a[k] * dt * dt / 2 + j * dt ** 3 / 6
-        return p, v, a, j
+        k = np.minimum(np.maximum(np.searchsorted(tcum, tt, side="right") - 1, 0), 6)
+        dt = tt - tcum[k]
+        jk, ak, vk, pk = (np.asarray(x)[k] for x in (self.j, self.a, self.v, self.p))
+        a = ak + jk * dt
+        v = vk + ak * dt + jk * dt * dt / 2
+        p = pk + vk * dt + ak * dt * dt / 2 + jk * dt ** 3 / 6
+        return p, v, a, jk
