@@ -42,13 +42,23 @@ def drive(gens, checker):
 
 class Check:
     """A segment's peak [v, a, j] ratios with (``r``) and without (``r0``) the reads at T of the
-    joins at its ends, and per read (end, signed read per axis, max and min of the continuous
-    jerk within 3T of that end)."""
+    joins at its ends, and ``reads``: per read (end, signed read per axis, max and min of the
+    continuous jerk within 3T of that end)."""
 
-    __slots__ = ("r", "r0", "reads")
+    __slots__ = ("r", "r0", "_src", "_k")
 
-    def __init__(self, r, r0, reads):
-        self.r, self.r0, self.reads = r, r0, reads
+    def __init__(self, r, r0, src, k):
+        self.r, self.r0, self._src, self._k = r, r0, src, k
+
+    @property
+    def reads(self):
+        # picked out of the chunk's arrays when asked: only a repair through the joins reads them
+        out = []
+        for end, which, read, jmax, jmin in self._src:
+            p = int(np.searchsorted(which, self._k))
+            if p < len(which) and which[p] == self._k:
+                out.append((end, read[p], jmax[:, p], jmin[:, p]))
+        return out
 
 
 class Stack:
@@ -106,10 +116,11 @@ class Checker:
 
     def __init__(self, pl):
         self.pl = pl
-        # the checked axes' x′, x″, x‴ tables as (axes, rows): numpy runs an (n, 3) array's
-        # arithmetic in inner loops of 3, several times slower than along rows of n
+        # the checked axes' x′, x″, x‴ tables as one (3·axes, rows) array: numpy runs an (n, 3)
+        # array's arithmetic in inner loops of 3, several times slower than along rows of n,
+        # and one np.take of all of them costs less than a gather per table
         tab = pl.table.joint if pl.joint else pl.table.cart
-        self.tabT = [np.ascontiguousarray(X.T) for X in tab[1:]]
+        self.tabT = np.ascontiguousarray(np.concatenate(tab[1:], axis=1).T)
 
     def answer(self, reqs):
         """Answers to [(kind, segment)] requests (see :func:`drive`), in order."""
@@ -184,13 +195,13 @@ class Checker:
     def derivs(self, s):
         """x′, x″, x‴ of the checked axes at s as (axes, n): PathTable._interp's operations."""
         i, w, h = self.pl.table._locate(s)
-        X1, X2, X3 = self.tabT
         w2, w3 = w ** 2, w ** 3
         h00, h10 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w
         h01, h11 = -2 * w3 + 3 * w2, w3 - w2
         h10h, h11h = h10 * h, h11 * h
-        j = i + 1
-        A1, B1, A2, B2, A3, B3 = X1[:, i], X1[:, j], X2[:, i], X2[:, j], X3[:, i], X3[:, j]
+        k = len(self.tabT) // 3
+        A, B = np.take(self.tabT, i, axis=1), np.take(self.tabT, i + 1, axis=1)
+        A1, A2, A3, B1, B2, B3 = A[:k], A[k:2 * k], A[2 * k:], B[:k], B[k:2 * k], B[2 * k:]
         d1 = h00 * A1 + h10h * A2 + h01 * B1 + h11h * B2
         d2 = h00 * A2 + h10h * A3 + h01 * B2 + h11h * B3
         d3 = (1 - w) * A3 + w * B3
@@ -217,20 +228,19 @@ class Checker:
         mjr = mj if jrow_r is None else peak(jrow_r)
         r0 = np.column_stack([mv / lim.v, ma / lim.a, mj / lim.j])
         r = np.column_stack([mv / lim.v, ma / lim.a, mjr / lim.j])
-        return [Check(r[k], r0[k], reads[k]) for k in range(len(segs))]
+        return [Check(r[k], r0[k], reads, k) for k in range(len(segs))]
 
     def _reads(self, st, segs, tt, idx, xj, jrow):
         """The reads at T of the joins at the segments' ends: a third difference at T is the jerk
         averaged by a quadratic B-spline kernel (support 3T, peak 0.75/T), so the jump Δx″v² of
         the acceleration at a join adds up to JUMP_READ_FACTOR·Δx″v²/T, with its sign, to the
         continuous jerk within 3T of it (without it a segment next to a join passes its own check
-        and not the one at T). Returns (per segment [(end, read, max and min of the jerk near
-        that end)], per sample the largest |jerk| with the reads added, or None: no read)."""
+        and not the one at T). Returns ([(end, the segments with a read there, their reads, the
+        max and min of their jerk near that end)] for Check.reads, per sample the largest |jerk|
+        with the reads added, or None: no read)."""
         pl = self.pl
         T, joins, d2 = pl.T, pl.joins, pl.join_d2
-        reads = [[] for _ in segs]
-        hi = lo = None
-        touched = []
+        reads, groups = [], []
         for end, s_end, v_end in ((0, st.s0[segs], st.v0[segs]), (1, st.s0[segs] + st.L[segs], st.v1[segs])):
             k = np.searchsorted(joins, s_end)
             slots = []
@@ -239,38 +249,37 @@ class Checker:
                 ok = (n >= 0) & (n < len(joins)) & (v_end > 0)
                 if len(joins):
                     ok &= np.abs(joins[nn] - s_end) < 1e-3
-                if ok.any():
-                    slots.append((nn, np.nonzero(ok)[0]))
-            if not slots:
-                continue
-            # the samples within 3T of this end (each segment has one at least: its end)
-            rows = np.nonzero(tt <= 3 * T if end == 0 else tt >= st.dur[idx] - 3 * T)[0]
-            rseg = np.searchsorted(segs, idx[rows])
-            first = np.searchsorted(rseg, np.arange(len(segs)))
-            xn = xj[:, rows]
-            jmax, jmin = np.maximum.reduceat(xn, first, axis=1), np.minimum.reduceat(xn, first, axis=1)
-            if hi is None:
-                hi, lo = xj.copy(), xj.copy()
-            for nn, which in slots:
-                # v² as the scalar power of the per-segment form (an array's square can differ in the last bit)
-                vsq = np.array([x ** 2 for x in v_end[which].tolist()])
-                read = np.zeros((len(segs), d2.shape[1]))
-                read[which] = JUMP_READ_FACTOR * d2[nn[which]] * vsq[:, None] / T
-                # the read added next to the join (elsewhere it adds ±0: no |value| changes)
+                which = np.nonzero(ok)[0]
+                if len(which):
+                    # v² as the scalar power of the per-segment form (an array's square can differ in the last bit)
+                    vsq = np.array([x ** 2 for x in v_end[which].tolist()])
+                    slots.append((which, JUMP_READ_FACTOR * d2[nn[which]] * vsq[:, None] / T))
+            if slots:
+                # the samples within 3T of this end (each segment has one at least: its end)
+                rows = np.nonzero(tt <= 3 * T if end == 0 else tt >= st.dur[idx] - 3 * T)[0]
+                rseg = np.searchsorted(segs, idx[rows])
+                first = np.searchsorted(rseg, np.arange(len(segs)))
+                xn = xj[:, rows]
+                jmax, jmin = np.maximum.reduceat(xn, first, axis=1), np.minimum.reduceat(xn, first, axis=1)
+                groups.append((rows, rseg, slots))
+                reads += [(end, which, read, jmax[:, which], jmin[:, which]) for which, read in slots]
+        if not reads:
+            return reads, None
+        # the jerk with the reads added on the samples next to a join, in the per-segment
+        # order (end 0, then 1): each read where it applies (elsewhere it adds ±0 and no
+        # |value| changes)
+        U = np.unique(np.concatenate([g[0] for g in groups]))
+        hi, lo = xj[:, U], xj[:, U]
+        for rows, rseg, slots in groups:
+            for which, read in slots:
                 on = np.zeros(len(segs), bool)
                 on[which] = True
-                sel = rows[on[rseg]]
-                rs = rseg[on[rseg]]
-                hi[:, sel] += np.maximum(read, 0)[rs].T
-                lo[:, sel] += np.minimum(read, 0)[rs].T
-                touched.append(sel)
-                for w in which.tolist():
-                    reads[w].append((end, read[w], jmax[:, w], jmin[:, w]))
-        if hi is None:
-            return reads, None
-        sel = np.unique(np.concatenate(touched))
+                at = np.searchsorted(U, rows[on[rseg]])
+                r = read[np.searchsorted(which, rseg[on[rseg]])].T
+                hi[:, at] += np.maximum(r, 0)
+                lo[:, at] += np.minimum(r, 0)
         jrow_r = jrow.copy()
-        jrow_r[sel] = _abs_max(np.maximum(np.abs(hi[:, sel]), np.abs(lo[:, sel])))
+        jrow_r[U] = _abs_max(np.maximum(np.abs(hi), np.abs(lo)))
         return reads, jrow_r
 
 
