@@ -319,7 +319,7 @@ class _Planner:
         # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
         bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
                   r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
-        f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
+        f = float(min(max(0.98 * min(bounds), 0.3), 0.95))
         vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
         v_c[i] = min(v_c[i], v[i] * f)
         v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)

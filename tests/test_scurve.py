@@ -350,3 +350,30 @@ def test_scurve_joint_is_joint_feasible_where_the_joint_jerk_peaks_between_sampl
     p = plan("scurve_joint", path, m)
     r = command_metrics(m, path.point(p.s), p.T, p.s)
     assert r["feasible"], r["joint_peak_ratio"]
+
+
+def test_segments_the_precheck_rejects_have_no_ruckig_profile():
+    """Segment.compute skips ruckig where min_distance > 2L (no jerk-limited profile covers less
+    than half the shortest change): it fits exactly where ruckig, asked directly, does."""
+    from ruckig import Result
+    rng = np.random.default_rng(11)
+    otg, inp, traj = scurve_pieces.solver()
+    fits = []
+    for _ in range(400):
+        v0, v1 = rng.uniform(0, 300, 2) * rng.choice([0.0, 1.0], 2, p=[0.2, 0.8])
+        A, J = rng.uniform(100, 1e4), rng.uniform(1e3, 5e5)
+        d = scurve_pieces.min_distance(v0, v1, A, J)
+        if d == 0:
+            continue
+        seg = scurve_pieces.Segment(0.0, d / rng.uniform(0.3, 4.0), v0, v1, A, J, max(v0, v1) * rng.uniform(1, 2))
+        got = seg.compute(otg, inp, traj)
+        inp.current_velocity, inp.target_position, inp.target_velocity = [v0], [seg.L], [v1]
+        inp.max_acceleration, inp.max_jerk, inp.max_velocity = [A], [J], [seg.vpeak]
+        try:
+            res = otg.calculate(inp, traj)
+        except Exception:
+            res = None
+        assert got == (res in (Result.Working, Result.Finished)), (v0, v1, A, J, seg.L)
+        fits.append((d / seg.L, got))
+    # both sides of the threshold were tried
+    assert any(r > 2 for r, _ in fits) and any(got for _, got in fits)
