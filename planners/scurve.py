@@ -39,7 +39,6 @@ import math
 import time
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
                           chord_feed_cap, corner_list, ik_along, joint_derivs, second_derivative_jumps)
@@ -143,6 +142,9 @@ class _Planner:
         for i, d in zip(mins, near):
             if d < 2 * m * h:      # a corner's own dip: it stops there
                 continue
+            # imported here: scipy.optimize takes ~0.5 s to import, and a G-code path of lines
+            # and arcs often has no FLF minimum away from its joins
+            from scipy.optimize import minimize_scalar
             lo, hi = g[max(i - 1, 0)], g[min(i + 1, n - 1)]
             r = minimize_scalar(lambda x: float(self.F_at(x)[0]), bounds=(lo, hi), method="bounded",
                                 options={"xatol": 1e-6})
