@@ -44,7 +44,7 @@ from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limi
                           chord_feed_cap, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile
-from .scurve_batch import Checker, drive
+from .scurve_batch import Checker, Joined, drive
 from .scurve_pieces import Segment, reachable, solver
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
@@ -373,13 +373,11 @@ class _Planner:
 
 def sample(segs, path, T, planner, info) -> Profile:
     """Join the segments and sample s(t) at exact multiples of T, ending at s = L at rest."""
-    prof = Profile.from_pieces(planner, T, segs, path, info)
+    joined = Joined(segs)
+    prof = Profile.from_pieces(planner, T, [joined], path, info)
     # times where the jerk changes (phase ends), for planners that start from this profile (pso)
-    starts = np.concatenate([[0.0], np.cumsum([g.duration for g in segs])])
-    sw = [float(starts[i] + c) for i, g in enumerate(segs)
-          for c, dt in zip(g.tcum[1:], np.diff(g.tcum)) if dt > 1e-12]
-    rest = [float(starts[i]) for i, g in enumerate(segs) if g.v0 == 0.0] + [float(starts[-1])]
-    prof.info.update(jerk_switch_times_s=[0.0] + sw, rest_times_s=rest)
+    sw, rest = joined.switch_times()
+    prof.info.update(jerk_switch_times_s=[0.0] + sw, rest_times_s=rest + [joined.duration])
     return prof
 
 

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constraints import JUMP_READ_FACTOR, time_derivs
+from .constraints import JUMP_READ_FACTOR
+from .scurve_pieces import Segment
 
 CHUNK_POINTS = 200_000     # samples per numpy pass: bounds the temporaries (~20 arrays of (n, 3))
 
@@ -66,13 +67,12 @@ class Stack:
     states a, v, p (ruckig's), and ``tcum`` (N, 8), the phases' start times and the end."""
 
     def __init__(self, segs):
-        rows = np.array([g.t + g.j + g.a + g.v + g.p for g in segs]).reshape(len(segs), 38)
+        rows = np.frombuffer(b"".join([g.prof for g in segs]), float).reshape(len(segs), 43)
         # cumsum along a row adds in the order of Segment.tcum's 1-D cumsum
-        self.tcum = np.concatenate([np.zeros((len(segs), 1)), np.cumsum(rows[:, :7], axis=1)], axis=1)
-        self.j = rows[:, 7:14].ravel()
-        self.a, self.v, self.p = (rows[:, c:c + 8].ravel() for c in (14, 22, 30))
-        self.s0, self.L, self.v0, self.v1, self.dur = np.array(
-            [(g.s0, g.L, g.v0, g.v1, g.duration) for g in segs], float).reshape(len(segs), 5).T
+        self.tcum = np.concatenate([np.zeros((len(segs), 1)), np.cumsum(rows[:, Segment.T], axis=1)], axis=1)
+        self.j = rows[:, Segment.J_].ravel()
+        self.a, self.v, self.p = (rows[:, c].ravel() for c in (Segment.A_, Segment.V_, Segment.P_))
+        self.s0, self.L, self.v0, self.v1, self.dur = rows[:, Segment.HEAD].T.copy()
 
     def at(self, idx, tt):
         """Segment.at of segment idx[k] at tt[k] (the same operations in the same order)."""
@@ -91,6 +91,36 @@ class Stack:
         v = v0 + a0 * dt + j * dt * dt / 2
         p = p0 + v0 * dt + a0 * dt * dt / 2 + j * dt ** 3 / 6
         return p, v, a, j
+
+
+class Joined:
+    """The segments laid end to end as one piece of Profile.from_pieces: each sample evaluated
+    in its segment at its time less the segment's start, as with a piece per segment, without
+    a Python call per segment (and in chunks: a 10⁵-line program has ~10⁶ samples)."""
+
+    s0 = 0.0
+
+    def __init__(self, segs):
+        self.st = Stack(segs)
+        self.starts = np.concatenate([[0.0], np.cumsum([g.duration for g in segs])])
+        self.duration = float(self.starts[-1])
+
+    def at(self, tt):
+        out = [np.empty(len(tt)) for _ in range(4)]
+        for c in range(0, len(tt), CHUNK_POINTS):
+            t = tt[c:c + CHUNK_POINTS]
+            k = np.clip(np.searchsorted(self.starts, t, side="right") - 1, 0, len(self.starts) - 2)
+            p, v, a, j = self.st.at(k, t - self.starts[k])
+            for o, x in zip(out, (self.st.s0[k] + p, v, a, j)):
+                o[c:c + CHUNK_POINTS] = x
+        return out
+
+    def switch_times(self):
+        """(the times where a phase of nonzero duration ends, the starts of the segments that
+        start at rest): for planners that start from this profile (pso)."""
+        tc = self.st.tcum
+        sw = (self.starts[:-1, None] + tc[:, 1:])[np.diff(tc, axis=1) > 1e-12]
+        return sw.tolist(), self.starts[:-1][self.st.v0 == 0.0].tolist()
 
 
 def phase_grid(a, b, T):
@@ -268,14 +298,19 @@ class Checker:
         # the jerk with the reads added on the samples next to a join, in the per-segment
         # order (end 0, then 1): each read where it applies (elsewhere it adds ±0 and no
         # |value| changes)
-        U = np.unique(np.concatenate([g[0] for g in groups]))
+        mark = np.zeros(len(tt), bool)
+        for rows, _, _ in groups:
+            mark[rows] = True
+        U = np.nonzero(mark)[0]
+        pos = np.cumsum(mark) - 1                 # sample → its place in U
         hi, lo = xj[:, U], xj[:, U]
         for rows, rseg, slots in groups:
             for which, read in slots:
-                on = np.zeros(len(segs), bool)
-                on[which] = True
-                at = np.searchsorted(U, rows[on[rseg]])
-                r = read[np.searchsorted(which, rseg[on[rseg]])].T
+                slot_of = np.full(len(segs), -1)
+                slot_of[which] = np.arange(len(which))
+                k = slot_of[rseg]
+                on = k >= 0
+                at, r = pos[rows[on]], read[k[on]].T
                 hi[:, at] += np.maximum(r, 0)
                 lo[:, at] += np.minimum(r, 0)
         jrow_r = jrow.copy()

@@ -4,6 +4,7 @@ the largest feed reachable in a length, and one ruckig profile between two criti
 from __future__ import annotations
 
 import math
+from array import array
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
@@ -46,11 +47,13 @@ def solver():
 
 
 class Segment:
-    """One ruckig profile between two critical points: its seven phases' durations ``t`` and
-    jerks ``j`` and the eight boundary states ``a``, ``v``, ``p``, as ruckig's lists (the checks
-    stack many segments' lists into one array: planners.scurve_batch)."""
+    """One ruckig profile between two critical points. ``prof`` holds s0, L, v0, v1, the duration,
+    the seven phases' durations and jerks and the eight boundary states a, v, p (ruckig's) as
+    one buffer of 43 doubles: the checks stack many segments' buffers into one array
+    (planners.scurve_batch) at the cost of a copy."""
 
-    __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "t", "j", "a", "v", "p", "duration")
+    __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "prof", "duration")
+    HEAD, T, J_, A_, V_, P_ = slice(0, 5), slice(5, 12), slice(12, 19), slice(19, 27), slice(27, 35), slice(35, 43)
 
     def __init__(self, s0, L, v0, v1, A, J, vpeak):
         self.s0, self.L, self.v0, self.v1, self.A, self.J, self.vpeak = s0, L, v0, v1, A, J, vpeak
@@ -83,21 +86,22 @@ class Segment:
         else:
             return False
         prof = traj.profiles[0][0]
-        self.t, self.j, self.a, self.v, self.p = prof.t, prof.j, prof.a, prof.v, prof.p
         self.duration = float(traj.duration)
+        self.prof = array("d", [self.s0, self.L, self.v0, self.v1, self.duration]
+                          + prof.t + prof.j + prof.a + prof.v + prof.p)
         return True
 
     @property
     def tcum(self):
         """Start times of the phases and the end of the last (8)."""
-        return np.concatenate([[0.0], np.cumsum(self.t)])
+        return np.concatenate([[0.0], np.cumsum(self.prof[Segment.T])])
 
     def state(self):
         """(A, J, vpeak and the fitted profile), for :meth:`restore`."""
-        return (self.A, self.J, self.vpeak, self.t, self.j, self.a, self.v, self.p, self.duration)
+        return (self.A, self.J, self.vpeak, self.prof, self.duration)
 
     def restore(self, state):
-        (self.A, self.J, self.vpeak, self.t, self.j, self.a, self.v, self.p, self.duration) = state
+        self.A, self.J, self.vpeak, self.prof, self.duration = state
 
     def at(self, tt):
         """(p, v, a, j) at local times tt (clipped to the segment)."""
@@ -106,7 +110,7 @@ class Segment:
         tt = np.minimum(np.maximum(np.asarray(tt, float), 0.0), self.duration)
         k = np.minimum(np.maximum(np.searchsorted(tcum, tt, side="right") - 1, 0), 6)
         dt = tt - tcum[k]
-        jk, ak, vk, pk = (np.asarray(x)[k] for x in (self.j, self.a, self.v, self.p))
+        jk, ak, vk, pk = (np.asarray(self.prof[x])[k] for x in (Segment.J_, Segment.A_, Segment.V_, Segment.P_))
         a = ak + jk * dt
         v = vk + ak * dt + jk * dt * dt / 2
         p = pk + vk * dt + ak * dt * dt / 2 + jk * dt ** 3 / 6
