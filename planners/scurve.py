@@ -202,25 +202,30 @@ class _Planner:
         if last is None or len(last[0]) != n + 1:
             last = (np.full(n + 1, np.nan),) + (np.full(n, np.nan),) * 3 + (np.full(n + 1, np.nan),) * 2
         pvc, pL, pA, pJ, pb, pf = last
-        seg = ((Lr != pL) | (A != pA) | (J != pJ)).tolist()
-        new_vc = (v_c != pvc).tolist()
+        seg = (Lr != pL) | (A != pA) | (J != pJ)
         vc, L_, A_, J_ = v_c.tolist(), Lr.tolist(), A.tolist(), J.tolist()
         b = pb.tolist()
-        b[n], carry = vc[n], vc[n] != b[n]
-        for i in range(n - 1, -1, -1):
-            if carry or seg[i] or new_vc[i]:
-                r = reachable(b[i + 1], L_[i], A_[i], J_[i], vc[i])
-                r = r if r < vc[i] else vc[i]            # min(v_c[i], r)
-                carry, b[i] = r != b[i], r
-        new_b = (np.array(b) != pb).tolist()
+        b[n] = vc[n]
+
+        def back(i):
+            r = reachable(b[i + 1], L_[i], A_[i], J_[i], vc[i])
+            r = r if r < vc[i] else vc[i]            # min(v_c[i], r)
+            changed, b[i] = r != b[i], r
+            return changed
+
+        _sweep(np.nonzero(seg | (v_c[:n] != pvc[:n]))[0][::-1].tolist(), b[n] != pb[n], n - 1, -1, back)
+        b_new = np.array(b)
         f = pf.tolist()
-        f[0], carry = b[0], b[0] != f[0]
-        for i in range(n):
-            if carry or seg[i] or new_b[i + 1]:
-                r = reachable(f[i], L_[i], A_[i], J_[i], b[i + 1])
-                r = r if r < b[i + 1] else b[i + 1]
-                carry, f[i + 1] = r != f[i + 1], r
-        self._passes = (v_c.copy(), Lr, A.copy(), J.copy(), np.array(b), np.array(f))
+        f[0] = b[0]
+
+        def fwd(i):
+            r = reachable(f[i], L_[i], A_[i], J_[i], b[i + 1])
+            r = r if r < b[i + 1] else b[i + 1]
+            changed, f[i + 1] = r != f[i + 1], r
+            return changed
+
+        _sweep(np.nonzero(seg | (b_new[1:] != pb[1:]))[0].tolist(), f[0] != pf[0], 0, n, fwd)
+        self._passes = (v_c.copy(), Lr, A.copy(), J.copy(), b_new, np.array(f))
         return np.array(f)
 
     def fit_peak(self, seg: Segment, vcap: float, fmax: float):
@@ -342,16 +347,15 @@ class _Planner:
         vcap = np.full(nseg, self.limits.feed_max)
         repairs = 0
         checker = Checker(self)
-        # key → (segment, Check) of the last round only: every key component only decreases
-        # over the rounds, so a key absent from one round never comes back (keeping all rounds
-        # held ~10⁶ segments on a 10⁵-line program)
-        cache = {}
+        # a segment whose end feeds, A, J and cap are those of the last round keeps its fit and
+        # check; the others are fitted and checked together
+        got, r = [None] * nseg, np.zeros((nseg, 3))
+        last = np.full((5, nseg), np.nan)
         for rnd in range(max_rounds):
             v = self.consistent(v_c, Ls, A, J)
-            keys = list(zip(range(nseg), v[:-1].tolist(), v[1:].tolist(), A.tolist(), J.tolist(), vcap.tolist()))
-            got = [cache.get(key) for key in keys]
-            new = [i for i in range(nseg) if got[i] is None]
-            # unchanged segments keep their fit and check; the new ones are fitted and checked together
+            now = np.array([v[:-1], v[1:], A, J, vcap])
+            new = np.nonzero((now != last).any(axis=0))[0].tolist()
+            last = now
             fresh = [Segment(s_c[i], Ls[i], v[i], v[i + 1], A[i], J[i], vcap[i]) for i in new]
             checks = drive([self.seg_ok(seg, i, vcap[i]) for i, seg in zip(new, fresh)], checker)
             for i, seg, chk in zip(new, fresh, checks):
@@ -360,8 +364,8 @@ class _Planner:
                         f"scurve: ruckig found no profile for segment {i} (s = {s_c[i]:.6g}…"
                         f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
                 got[i] = (seg, chk)
-            cache = dict(zip(keys, got))
-            bad = np.nonzero((np.array([g[1].r for g in got]) > 1.0).any(axis=1))[0].tolist()
+                r[i] = chk.r
+            bad = np.nonzero((r > 1.0).any(axis=1))[0].tolist()
             if not bad:
                 return [g[0] for g in got], {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
                                              "critical_points_mm": s_c.tolist()}
@@ -369,6 +373,24 @@ class _Planner:
             drive([self.repair(i, got[i][0], got[i][1], v, v_c, A, J, vcap) for i in bad], checker)
         raise PlanningError(f"scurve: axis-limit repair did not converge in {max_rounds} rounds "
                             f"({len(bad)} segment(s) still violate)")
+
+
+def _sweep(dirty, carry, start, stop, update):
+    """Run update(i) for i from start towards stop (exclusive) where the inputs of i changed:
+    i in ``dirty`` (in sweep order), or the previous entry's output changed (``carry`` for
+    the first); update returns whether its output changed. The rest keep their last values."""
+    step = 1 if stop > start else -1
+    i, k = start, 0
+    while i != stop:
+        if not carry:
+            # skip to the next dirty entry not yet passed
+            while k < len(dirty) and (dirty[k] - i) * step < 0:
+                k += 1
+            if k == len(dirty):
+                return
+            i = dirty[k]
+        carry = update(i)
+        i += step
 
 
 def sample(segs, path, T, planner, info) -> Profile:
