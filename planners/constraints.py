@@ -311,15 +311,17 @@ class PathTable:
         d3 = (1 - w) * A3 + w * B3
         return d1, d2, d3
 
-    def _locate(self, s):
+    def _locate(self, s, search=None):
         """(row i, weight w, spacing h): s lies between rows i and i+1 of its piece.
-        A corner itself counts to the piece after it (callers stay inside pieces)."""
+        A corner itself counts to the piece after it (callers stay inside pieces).
+        ``search(a, s)``: np.searchsorted(a, s, side="right") by another way (the s-curve's
+        checks search windows of the grid: scurve_batch)."""
+        search = search or (lambda a, x: np.searchsorted(a, x, side="right"))
         s = np.clip(np.asarray(s, float), 0.0, self.length)
-        p = np.clip(np.searchsorted(self.edges, s, side="right") - 1, 0, len(self.hs) - 1)
+        p = np.clip(search(self.edges, s) - 1, 0, len(self.hs) - 1)
         if self.refined:
             # the sorted grid holds each join twice: the last row ≤ s, kept inside s's piece
-            i = np.clip(np.searchsorted(self.s, s, side="right") - 1, self.offset[p],
-                        self.offset[p] + self.counts[p] - 2)
+            i = np.clip(search(self.s, s) - 1, self.offset[p], self.offset[p] + self.counts[p] - 2)
             h = self.s[i + 1] - self.s[i]
             return i, (s - self.s[i]) / h, h
         h = self.hs[p]

@@ -222,9 +222,10 @@ class Checker:
         order = np.argsort(seg, kind="stable")
         return t[order], seg[order]
 
-    def derivs(self, s):
-        """x′, x″, x‴ of the checked axes at s as (axes, n): PathTable._interp's operations."""
-        i, w, h = self.pl.table._locate(s)
+    def derivs(self, s, starts):
+        """x′, x″, x‴ of the checked axes at s (grouped by segment from ``starts``) as (axes, n):
+        PathTable._interp's operations."""
+        i, w, h = self.pl.table._locate(s, _window_search(starts))
         w2, w3 = w ** 2, w ** 3
         h00, h10 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w
         h01, h11 = -2 * w3 + 3 * w2, w3 - w2
@@ -245,12 +246,12 @@ class Checker:
         s0 = st.s0[idx]
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(s0 + p, s0 + 1e-9, (st.s0 + st.L)[idx] - 1e-9)
-        D1, D2, D3 = self.derivs(s)
+        starts = np.searchsorted(idx, segs)
+        D1, D2, D3 = self.derivs(s, starts)
         # constraints.time_derivs with the axes first (the same products in the same order)
         xv = D1 * v
         xa = D2 * v * v + D1 * a
         xj = D3 * v ** 3 + 3 * D2 * v * a + D1 * j
-        starts = np.searchsorted(idx, segs)
         jrow = _abs_max(xj)
         peak = lambda rowmax: np.maximum.reduceat(rowmax, starts)
         mv, ma, mj = peak(_abs_max(xv)), peak(_abs_max(xa)), peak(jrow)
@@ -316,6 +317,24 @@ class Checker:
         jrow_r = jrow.copy()
         jrow_r[U] = _abs_max(np.maximum(np.abs(hi), np.abs(lo)))
         return reads, jrow_r
+
+
+def _window_search(starts):
+    """np.searchsorted(a, q, side="right") for queries grouped by segment (``starts``), each
+    group searched among the rows between its smallest and largest query: a whole-grid search
+    per sample strayed over a 10⁶-row grid (cache misses) and cost more than the arithmetic.
+    The last row ≤ q lies between the last rows ≤ the group's extremes, so it is the same."""
+    def search(a, q):
+        lo = np.searchsorted(a, np.minimum.reduceat(q, starts), side="right") - 1
+        hi = np.searchsorted(a, np.maximum.reduceat(q, starts), side="right") - 1
+        if lo[0] < 0 or np.any(np.diff(lo) < 0):      # not in increasing windows: search all
+            return np.searchsorted(a, q, side="right")
+        # the windows' rows, each once and in order (a window may reach into the next)
+        first = np.maximum(lo, np.concatenate([[-1], np.maximum.accumulate(hi)[:-1]]) + 1)
+        n = np.maximum(hi - first + 1, 0)
+        rows = np.repeat(first - (np.cumsum(n) - n), n) + np.arange(int(n.sum()))
+        return rows[np.searchsorted(a[rows], q, side="right") - 1] + 1
+    return search
 
 
 def _abs_max(x):

@@ -377,3 +377,25 @@ def test_segments_the_precheck_rejects_have_no_ruckig_profile():
         fits.append((d / seg.L, got))
     # both sides of the threshold were tried
     assert any(r > 2 for r, _ in fits) and any(got for _, got in fits)
+
+
+def test_window_search_equals_searchsorted_on_grouped_queries():
+    """The checks' grid search (each segment's samples among the rows between its extremes)
+    against np.searchsorted: a grid holding joins twice, queries on rows (joins too), between
+    them and at the grid's ends, groups that share rows and groups out of order (searched whole)."""
+    from planners.scurve_batch import _window_search
+    rng = np.random.default_rng(4)
+    grid = np.sort(np.concatenate([rng.uniform(0, 100, 3000), np.repeat(rng.uniform(0, 100, 40), 2), [0.0, 100.0]]))
+    for shuffle in (False, True):
+        for _ in range(20):
+            lows = np.sort(rng.uniform(-1, 100, 30))
+            if shuffle:
+                lows = rng.permutation(lows)
+            groups = []
+            for lo in lows:
+                hi = lo + rng.uniform(0, 3)
+                on_rows = grid[(grid >= lo) & (grid <= hi)][:5]
+                groups.append(np.clip(np.concatenate([rng.uniform(lo, hi, rng.integers(1, 40)), on_rows, [lo, hi]]), 0, 100))
+            q = np.concatenate(groups)
+            starts = np.cumsum([0] + [len(g) for g in groups[:-1]])
+            assert np.array_equal(_window_search(starts)(grid, q), np.searchsorted(grid, q, side="right"))
