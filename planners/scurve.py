@@ -266,11 +266,14 @@ class _Planner:
         join leaves no room: the segment's J has to come down, as for any other violation)."""
         f = [1.0, 1.0]
         for end, read, jmax, jmin in chk.reads:
-            # the continuous jerk of the read's sign next to the join leaves this much room
-            same = np.where(read > 0, jmax, -jmin)
-            room = np.maximum(self.check.j - same, 0.0)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                need = float(np.nanmin(np.sqrt(room / np.abs(read))))
+            # per axis √(room / |read|), where the continuous jerk of the read's sign next to the
+            # join leaves this much room (plain floats: numpy's call overhead was most of it)
+            need = math.nan
+            for r, hi, lo in zip(read.tolist(), jmax.tolist(), jmin.tolist()):
+                room = max(self.check.j - (hi if r > 0 else -lo), 0.0)
+                x = math.sqrt(room / abs(r)) if r != 0 else (math.inf if room > 0 else math.nan)
+                if x < need or need != need:          # the smallest, NaN ignored (np.nanmin)
+                    need = x
             if need < 0.5:            # the continuous jerk fills the limit: lower J instead
                 return None
             f[end] = min(f[end], min(0.98 * need, 0.98))

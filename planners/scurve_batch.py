@@ -55,9 +55,9 @@ class Check:
     def reads(self):
         # picked out of the chunk's arrays when asked: only a repair through the joins reads them
         out = []
-        for end, which, read, jmax, jmin in self._src:
-            p = int(np.searchsorted(which, self._k))
-            if p < len(which) and which[p] == self._k:
+        for end, where, read, jmax, jmin in self._src:
+            p = where[self._k]
+            if p >= 0:
                 out.append((end, read[p], jmax[:, p], jmin[:, p]))
         return out
 
@@ -266,9 +266,9 @@ class Checker:
         averaged by a quadratic B-spline kernel (support 3T, peak 0.75/T), so the jump Δx″v² of
         the acceleration at a join adds up to JUMP_READ_FACTOR·Δx″v²/T, with its sign, to the
         continuous jerk within 3T of it (without it a segment next to a join passes its own check
-        and not the one at T). Returns ([(end, the segments with a read there, their reads, the
-        max and min of their jerk near that end)] for Check.reads, per sample the largest |jerk|
-        with the reads added, or None: no read)."""
+        and not the one at T). Returns ([(end, per segment its row in the next three or −1,
+        the reads, the max and min of the jerk near that end)] for Check.reads, and per sample
+        the largest |jerk| with the reads added, or None: no read)."""
         pl = self.pl
         T, joins, d2 = pl.T, pl.joins, pl.join_d2
         reads, groups = [], []
@@ -293,7 +293,10 @@ class Checker:
                 xn = xj[:, rows]
                 jmax, jmin = np.maximum.reduceat(xn, first, axis=1), np.minimum.reduceat(xn, first, axis=1)
                 groups.append((rows, rseg, slots))
-                reads += [(end, which, read, jmax[:, which], jmin[:, which]) for which, read in slots]
+                for which, read in slots:
+                    where = np.full(len(segs), -1)          # segment → its row in this slot's arrays
+                    where[which] = np.arange(len(which))
+                    reads.append((end, where, read, jmax[:, which], jmin[:, which]))
         if not reads:
             return reads, None
         # the jerk with the reads added on the samples next to a join, in the per-segment
@@ -305,11 +308,11 @@ class Checker:
         U = np.nonzero(mark)[0]
         pos = np.cumsum(mark) - 1                 # sample → its place in U
         hi, lo = xj[:, U], xj[:, U]
+        slot = iter(reads)
         for rows, rseg, slots in groups:
-            for which, read in slots:
-                slot_of = np.full(len(segs), -1)
-                slot_of[which] = np.arange(len(which))
-                k = slot_of[rseg]
+            for _ in slots:
+                _, where, read, _, _ = next(slot)
+                k = where[rseg]
                 on = k >= 0
                 at, r = pos[rows[on]], read[k[on]].T
                 hi[:, at] += np.maximum(r, 0)

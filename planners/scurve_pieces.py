@@ -24,10 +24,17 @@ def reachable(v0, L, A, J, vmax):
     """Largest v1 ≤ vmax that can be reached from v0 (either way) within L."""
     if min_distance(v0, vmax, A, J) <= L:
         return vmax
+    # bisection on min_distance(v0, mid, A, J) ≤ L, written out (the same operations): a
+    # repair round calls this ~10⁴ times on a long program
     lo, hi = v0, vmax
+    knee = A * A / J
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if min_distance(v0, mid, A, J) <= L:
+        if mid == lo or mid == hi:      # converged: every further step repeats this one
+            break
+        dv = abs(mid - v0)
+        d = (v0 + mid) * math.sqrt(dv / J) if dv <= knee else 0.5 * (v0 + mid) * (dv / A + A / J)
+        if d <= L:
             lo = mid
         else:
             hi = mid

@@ -399,3 +399,21 @@ def test_window_search_equals_searchsorted_on_grouped_queries():
             q = np.concatenate(groups)
             starts = np.cumsum([0] + [len(g) for g in groups[:-1]])
             assert np.array_equal(_window_search(starts)(grid, q), np.searchsorted(grid, q, side="right"))
+
+
+def test_reachable_equals_the_plain_bisection_on_min_distance():
+    """reachable()'s written-out bisection (stopping once converged) against 60 plain halvings
+    of [v0, vmax] on min_distance ≤ L."""
+    rng = np.random.default_rng(12)
+    for _ in range(3000):
+        v0, vmax = rng.uniform(0, 300) * (rng.uniform() > 0.1), rng.uniform(0, 300)
+        A, J = rng.uniform(100, 1e4), rng.uniform(1e3, 5e5)
+        L = scurve_pieces.min_distance(v0, vmax, A, J) * rng.uniform(0.01, 1.2)
+        ref = vmax
+        if scurve_pieces.min_distance(v0, vmax, A, J) > L:
+            lo, hi = v0, vmax
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if scurve_pieces.min_distance(v0, mid, A, J) <= L else (lo, mid)
+            ref = lo
+        assert scurve_pieces.reachable(v0, L, A, J, vmax) == ref
