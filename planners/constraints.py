@@ -198,6 +198,20 @@ def join_jumps(path, table, machine):
     return out
 
 
+def linspaces(a, b, n) -> np.ndarray:
+    """np.linspace(a[k], b[k], n[k]) for every k (n ≥ 2), concatenated: numpy's values (k·step
+    + a, the end set to b; k/div·Δ + a where the step underflows) without a call per interval."""
+    a, b, n = np.asarray(a, float), np.asarray(b, float), np.asarray(n, np.int64)
+    first = np.cumsum(n) - n
+    ph = np.repeat(np.arange(len(n)), n)
+    k = (np.arange(int(n.sum())) - first[ph]).astype(float)
+    delta, div = b - a, (n - 1).astype(float)
+    step = delta / div
+    y = np.where(step[ph] == 0, k / div[ph] * delta[ph], k * step[ph]) + a[ph]
+    y[first + n - 1] = b
+    return y
+
+
 class PathTable:
     """Derivative tables on an arc-length grid, for fast repeated checks.
 
@@ -222,24 +236,17 @@ class PathTable:
         # still gets points of its own (a 0.04 mm G64 blend arc)
         self.edges = np.array([0.0] + breakpoints(path) + [L])
         per_mm = max(1.0 / ds, (min_points - 1) / L)
-        grids, self.offset, self.hs = [], [], []
-        n0 = 0
-        for a, b in zip(self.edges[:-1], self.edges[1:]):
-            n = max(8, int(math.ceil((b - a) * per_mm)) + 1)
-            g = np.linspace(a, b, n)
-            grids.append(g)
-            self.offset.append(n0)
-            self.hs.append(g[1] - g[0])
-            n0 += n
-        self.offset, self.hs = np.array(self.offset), np.array(self.hs)
-        self.counts = np.array([len(g) for g in grids])
-        self.s = np.concatenate(grids)
+        a, b = self.edges[:-1], self.edges[1:]
+        self.counts = np.maximum(8, np.ceil((b - a) * per_mm).astype(np.int64) + 1)
+        self.s = linspaces(a, b, self.counts)
+        self.offset = np.cumsum(self.counts) - self.counts
+        self.hs = self.s[self.offset + 1] - self.s[self.offset]
         if refine:
             inner = self._refine(path)
         else:
             # evaluate one-sidedly: the end points of each piece a hair inside it
-            inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
-                                    zip(grids, self.edges[:-1], self.edges[1:])])
+            piece = np.repeat(np.arange(len(self.counts)), self.counts)
+            inner = np.clip(self.s, (a + 1e-9)[piece], (b - 1e-9)[piece])
             self.cart = cartesian_derivs(path, inner)
         self.joint = (joint_derivs(machine, path, inner, cart=self.cart, fit_scale=fit_scale)
                       if machine is not None else None)

@@ -183,10 +183,13 @@ class _Planner:
     def second_derivative_jumps(self, corners):
         """G1 joins where P″ jumps: critical points with the feed that keeps the jerk read at
         T within 0.4 of the checked limit (see constraints.second_derivative_jumps)."""
+        jumps = second_derivative_jumps(self.path, self.table, self.machine if self.joint else None, corners)
+        # the FLF at every join in one np.interp (one call per join was most of this on a CAM program)
+        Fj = np.interp([sj for sj, _ in jumps], self.grid, self.F).tolist() if jumps else []
         out = []
-        for sj, jump in second_derivative_jumps(self.path, self.table, self.machine if self.joint else None, corners):
+        for (sj, jump), fj in zip(jumps, Fj):
             vj = math.sqrt(0.4 * self.check.j * self.T / jump) if jump > 0 else self.limits.feed_max
-            out.append((sj, min(vj, float(np.interp(sj, self.grid, self.F)))))
+            out.append((sj, min(vj, fj)))
         return out
 
     # -- segments -----------------------------------------------------------------

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constraints import JUMP_READ_FACTOR
+from .constraints import JUMP_READ_FACTOR, linspaces
 from .scurve_pieces import Segment
 
 CHUNK_POINTS = 16_384     # samples per numpy pass: its ~20 temporaries stay in cache (65536: +15 % CPU)
@@ -125,19 +125,11 @@ class Joined:
 
 def phase_grid(a, b, T):
     """np.linspace(a, b, min(4000, max(16, ⌈(b − a)/T⌉))) of every phase [a, b] with b > a,
-    concatenated, and the phases' sample counts: numpy's linspace values (k·step + a, the end
-    set to b; k/div·Δ + a where the step underflows), without a Python call per phase."""
+    concatenated, and the phases' sample counts."""
     keep = b > a
     a, b = a[keep], b[keep]
     n = np.minimum(4000, np.maximum(16, np.ceil((b - a) / T))).astype(np.int64)
-    first = np.cumsum(n) - n
-    ph = np.repeat(np.arange(len(n)), n)
-    k = (np.arange(int(n.sum())) - first[ph]).astype(float)
-    delta, div = b - a, (n - 1).astype(float)
-    step = delta / div
-    y = np.where(step[ph] == 0, k / div[ph] * delta[ph], k * step[ph]) + a[ph]
-    y[first + n - 1] = b
-    return y, n
+    return linspaces(a, b, n), n
 
 
 class Checker:
