@@ -278,7 +278,7 @@ class PathTable:
             cell = np.repeat(need, k - 1)           # k − 1 new rows per cell at fractions i/k
             frac = (np.arange(len(cell)) - np.repeat(np.cumsum(k - 1) - (k - 1), k - 1) + 1) / np.repeat(k, k - 1)
             S, piece, cart = self._add_rows(path, S, piece, cart, S[cell] + h[cell] * frac, piece[cell], inner)
-        self.s, self.cart = S, cart
+        self.s, self.cart, self.row_piece = S, cart, piece
         self.counts = np.bincount(piece, minlength=len(self.counts))
         self.offset = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
         return inner(S, piece)
@@ -325,12 +325,16 @@ class PathTable:
         checks search windows of the grid: scurve_batch)."""
         search = search or (lambda a, x: np.searchsorted(a, x, side="right"))
         s = np.clip(np.asarray(s, float), 0.0, self.length)
-        p = np.clip(search(self.edges, s) - 1, 0, len(self.hs) - 1)
         if self.refined:
-            # the sorted grid holds each join twice: the last row ≤ s, kept inside s's piece
-            i = np.clip(search(self.s, s) - 1, self.offset[p], self.offset[p] + self.counts[p] - 2)
+            # the sorted grid holds each join twice: the last row ≤ s, kept inside s's piece,
+            # which is the row's own (a piece's rows run from its start to its end, and at a
+            # join the second row starts the next piece, as the search of the edges has it)
+            r = search(self.s, s) - 1
+            p = self.row_piece[r]
+            i = np.clip(r, self.offset[p], self.offset[p] + self.counts[p] - 2)
             h = self.s[i + 1] - self.s[i]
             return i, (s - self.s[i]) / h, h
+        p = np.clip(search(self.edges, s) - 1, 0, len(self.hs) - 1)
         h = self.hs[p]
         x = (s - self.edges[p]) / h
         k = np.clip(x.astype(np.int64), 0, self.counts[p] - 2)

@@ -267,12 +267,9 @@ class Checker:
         for end, s_end, v_end in ((0, st.s0[segs], st.v0[segs]), (1, st.s0[segs] + st.L[segs], st.v1[segs])):
             k = np.searchsorted(joins, s_end)
             slots = []
-            for n in (k - 1, k):          # a join within 1 µm (merged critical points)
-                nn = np.clip(n, 0, max(len(joins) - 1, 0))
-                ok = (n >= 0) & (n < len(joins)) & (v_end > 0)
-                if len(joins):
-                    ok &= np.abs(joins[nn] - s_end) < 1e-3
-                which = np.nonzero(ok)[0]
+            for n in (k - 1, k) if len(joins) else ():      # a join within 1 µm (merged critical points)
+                nn = np.minimum(np.maximum(n, 0), len(joins) - 1)
+                which = np.nonzero((n == nn) & (v_end > 0) & (np.abs(joins[nn] - s_end) < 1e-3))[0]
                 if len(which):
                     # v² as the scalar power of the per-segment form (an array's square can differ in the last bit)
                     vsq = np.array([x ** 2 for x in v_end[which].tolist()])

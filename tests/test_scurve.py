@@ -417,3 +417,22 @@ def test_reachable_equals_the_plain_bisection_on_min_distance():
                 lo, hi = (mid, hi) if scurve_pieces.min_distance(v0, mid, A, J) <= L else (lo, mid)
             ref = lo
         assert scurve_pieces.reachable(v0, L, A, J, vmax) == ref
+
+
+@pytest.mark.parametrize("name", ["benchmarks/paths/corpus/pocket_kossel.ngc", "benchmarks/paths/corpus/butterfly_keops.json",
+                                  "benchmarks/paths/corpus/cam_dense_keops.ngc"])
+def test_refined_table_locates_the_piece_of_the_edges(name):
+    """PathTable._locate on a refined table takes the piece of the row it finds: the same row
+    as clipping that row into the piece the edges give (random points, every edge, the ends)."""
+    from planners.constraints import PathTable
+    from planners.paths import resolve_path
+    tab = PathTable(resolve_path(name), None, ds=0.05, fit_scale=True, refine=True)
+    assert tab.refined
+    s = np.concatenate([np.random.default_rng(3).uniform(0, tab.length, 20000), tab.edges,
+                        np.nextafter(tab.edges, 0), np.nextafter(tab.edges, np.inf), tab.s, [0.0, tab.length]])
+    s = np.clip(s, 0.0, tab.length)
+    p = np.clip(np.searchsorted(tab.edges, s, side="right") - 1, 0, len(tab.hs) - 1)
+    i_ref = np.clip(np.searchsorted(tab.s, s, side="right") - 1, tab.offset[p], tab.offset[p] + tab.counts[p] - 2)
+    i, w, h = tab._locate(s)
+    assert np.array_equal(i, i_ref)
+    assert np.array_equal(h, tab.s[i_ref + 1] - tab.s[i_ref]) and np.array_equal(w, (s - tab.s[i_ref]) / h)
