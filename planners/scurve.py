@@ -292,7 +292,7 @@ class _Planner:
         """One round's repair of segment i (its Check ``chk``) that broke a limit: its join feeds
         (a violation through the joins' reads only), else TII 2022's J, then A, then its feeds;
         updates the arrays in place. A generator for scurve_batch.drive."""
-        f = self.join_feed_factors(chk) if np.all(chk.r0 <= 1.0) else None
+        f = self.join_feed_factors(chk) if chk.ok0 else None
         if f is not None:
             # only the joins' reads at T break the limit: lower the feed at those joins
             v_c[i] = min(v_c[i], v[i] * f[0])
@@ -303,7 +303,7 @@ class _Planner:
         def ok(f, attr, full):
             setattr(seg, attr, full * f)
             c = yield from self.seg_ok(seg, i, vcap[i])
-            return c is not None and bool(np.all(c.r <= 1.0))
+            return c is not None and c.ok
 
         # TII 2022 axis repair: lower J, then A, to the largest value without violation
         for attr in ("J", "A"):
@@ -324,7 +324,7 @@ class _Planner:
             r = chk.r
         else:
             c = yield from self.seg_ok(seg, i, vcap[i])
-            if c is not None and np.all(c.r <= 1.0):
+            if c is not None and c.ok:
                 return
             r = (c if c is not None else (yield "check", seg)).r
         # a violation of the feed itself: scale the segment's feeds down

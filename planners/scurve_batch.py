@@ -43,13 +43,14 @@ def drive(gens, checker):
 
 class Check:
     """A segment's peak [v, a, j] ratios with (``r``) and without (``r0``) the reads at T of the
-    joins at its ends, and ``reads``: per read (end, signed read per axis, max and min of the
-    continuous jerk within 3T of that end)."""
+    joins at its ends, whether each is within the limits (``ok``, ``ok0``: all ratios ≤ 1), and
+    ``reads``: per read (end, signed read per axis, max and min of the continuous jerk within
+    3T of that end)."""
 
-    __slots__ = ("r", "r0", "_src", "_k")
+    __slots__ = ("r", "r0", "ok", "ok0", "_src", "_k")
 
-    def __init__(self, r, r0, src, k):
-        self.r, self.r0, self._src, self._k = r, r0, src, k
+    def __init__(self, r, r0, ok, ok0, src, k):
+        self.r, self.r0, self.ok, self.ok0, self._src, self._k = r, r0, ok, ok0, src, k
 
     @property
     def reads(self):
@@ -251,7 +252,8 @@ class Checker:
         mjr = mj if jrow_r is None else peak(jrow_r)
         r0 = np.column_stack([mv / lim.v, ma / lim.a, mj / lim.j])
         r = np.column_stack([mv / lim.v, ma / lim.a, mjr / lim.j])
-        return [Check(r[k], r0[k], reads, k) for k in range(len(segs))]
+        ok, ok0 = (r <= 1.0).all(axis=1).tolist(), (r0 <= 1.0).all(axis=1).tolist()
+        return [Check(r[k], r0[k], ok[k], ok0[k], reads, k) for k in range(len(segs))]
 
     def _reads(self, st, segs, tt, idx, xj, jrow):
         """The reads at T of the joins at the segments' ends: a third difference at T is the jerk
