@@ -362,8 +362,10 @@ class _Planner:
             now = np.array([v[:-1], v[1:], A, J, vcap])
             new = np.nonzero((now != last).any(axis=0))[0].tolist()
             last = now
-            fresh = [Segment(s_c[i], Ls[i], v[i], v[i + 1], A[i], J[i], vcap[i]) for i in new]
-            checks = drive([self.seg_ok(seg, i, vcap[i]) for i, seg in zip(new, fresh)], checker)
+            # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic
+            sl, Ll, vl, Al, Jl, cl = (x.tolist() for x in (s_c, Ls, v, A, J, vcap))
+            fresh = [Segment(sl[i], Ll[i], vl[i], vl[i + 1], Al[i], Jl[i], cl[i]) for i in new]
+            checks = drive([self.seg_ok(seg, i, cl[i]) for i, seg in zip(new, fresh)], checker)
             for i, seg, chk in zip(new, fresh, checks):
                 if chk is None:
                     raise PlanningError(
