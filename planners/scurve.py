@@ -27,9 +27,9 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
 The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
 lands on s = L at rest.
 
-The 1-D pieces (a ruckig segment, reachable feeds, phase sample times) are planners.scurve_pieces;
-the segment checks, run for all the segments of a round at once, planners.scurve_batch (the
-peak fit and the repair are generators whose tests scurve_batch.drive runs in lockstep).
+The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve_pieces; the segment
+checks, run for all the segments of a round at once, planners.scurve_batch (the peak fit and
+the repair are generators whose tests scurve_batch.drive runs in lockstep).
 Size: ~400 lines: the FLF, the critical points, the peak fit and the repair loop of one
 method (TII 2022), kept together.
 """
@@ -40,7 +40,7 @@ import time
 
 import numpy as np
 
-from .constraints import (PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
+from .constraints import (PathTable, PlanningError, check_limits, check_path,
                           chord_feed_cap, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile

@@ -64,8 +64,9 @@ class Check:
 
 
 class Stack:
-    """Many fitted segments' profiles in flat arrays: per segment 7 phase jerks, 8 boundary
-    states a, v, p (ruckig's), and ``tcum`` (N, 8), the phases' start times and the end."""
+    """Many fitted segments in arrays: s0, L, v0, v1, dur per segment, flat 7 phase jerks and
+    8 boundary states a, v, p per segment (ruckig's), and ``tcum`` (N, 8), the phases' start
+    times and the end."""
 
     def __init__(self, segs):
         rows = np.frombuffer(b"".join([g.prof for g in segs]), float).reshape(len(segs), 43)
@@ -176,13 +177,12 @@ class Checker:
         st, T = Stack(segs), self.pl.T
         # samples per segment as the phases give them (≥ 16 each), to cut the chunks
         d = np.diff(st.tcum, axis=1)
-        est = np.where(d > 0, np.minimum(4000, np.maximum(16, np.ceil(d / T))) + 1, 0).sum(axis=1) + 2
-        ends = np.searchsorted(np.cumsum(est), np.arange(1, int(est.sum() // CHUNK_POINTS) + 2) * CHUNK_POINTS)
-        out, c = [], 0
-        for e in np.unique(np.minimum(np.maximum(ends + 1, 1), len(segs))).tolist():
-            if e > c:
-                out += self._check_chunk(st, np.arange(c, e))
-                c = e
+        est = np.cumsum(np.where(d > 0, np.minimum(4000, np.maximum(16, np.ceil(d / T))) + 1, 0).sum(axis=1) + 2)
+        cuts = np.searchsorted(est, np.arange(CHUNK_POINTS, est[-1], CHUNK_POINTS), side="right") + 1
+        bounds = np.unique(np.concatenate([[0], np.minimum(cuts, len(segs)), [len(segs)]])).tolist()
+        out = []
+        for c, e in zip(bounds[:-1], bounds[1:]):
+            out += self._check_chunk(st, np.arange(c, e))
         return out
 
     def times(self, st, segs):
@@ -232,6 +232,7 @@ class Checker:
         return d1, d2, d3
 
     def _check_chunk(self, st, segs):
+        """:class:`Check` of the segments ``segs`` of the stack ``st``."""
         pl = self.pl
         lim = pl.check
         tt, idx = self.times(st, segs)
