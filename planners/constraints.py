@@ -19,7 +19,7 @@ and difference q(X(h)) on a 5-point stencil in h.  X(h) agrees with the path to 
 so these are the derivatives of q(s) at s, with O(h²) truncation (h = 0.02 mm → ~1e-4
 relative on q‴ at 1 mm radius, round-off ~1e-8).
 
-Size: ~430 lines: the constraint set, the derivatives it is read from and their tables belong
+Size: ~440 lines: the constraint set, the derivatives it is read from and their tables belong
 together (every planner imports them as one); the table's refinement is the part to split off
 if it grows.
 """

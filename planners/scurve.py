@@ -30,7 +30,7 @@ lands on s = L at rest.
 The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve_pieces; the segment
 checks, run for all the segments of a round at once, planners.scurve_batch (the peak fit and
 the repair are generators whose tests scurve_batch.drive runs in lockstep).
-Size: ~400 lines: the FLF, the critical points, the peak fit and the repair loop of one
+Size: ~430 lines: the FLF, the critical points, the peak fit and the repair loop of one
 method (TII 2022), kept together.
 """
 from __future__ import annotations
