@@ -19,7 +19,7 @@ and difference q(X(h)) on a 5-point stencil in h.  X(h) agrees with the path to 
 so these are the derivatives of q(s) at s, with O(h²) truncation (h = 0.02 mm → ~1e-4
 relative on q‴ at 1 mm radius, round-off ~1e-8).
 
-Size: ~430 lines: the constraint set, the derivatives it is read from and their tables belong
+Size: ~440 lines: the constraint set, the derivatives it is read from and their tables belong
 together (every planner imports them as one); the table's refinement is the part to split off
 if it grows.
 """
@@ -198,6 +198,20 @@ def join_jumps(path, table, machine):
     return out
 
 
+def linspaces(a, b, n) -> np.ndarray:
+    """np.linspace(a[k], b[k], n[k]) for every k (n ≥ 2), concatenated: numpy's values (k·step
+    + a, the end set to b; k/div·Δ + a where the step underflows) without a call per interval."""
+    a, b, n = np.asarray(a, float), np.asarray(b, float), np.asarray(n, np.int64)
+    first = np.cumsum(n) - n
+    ph = np.repeat(np.arange(len(n)), n)
+    k = (np.arange(int(n.sum())) - first[ph]).astype(float)
+    delta, div = b - a, (n - 1).astype(float)
+    step = delta / div
+    y = np.where(step[ph] == 0, k / div[ph] * delta[ph], k * step[ph]) + a[ph]
+    y[first + n - 1] = b
+    return y
+
+
 class PathTable:
     """Derivative tables on an arc-length grid, for fast repeated checks.
 
@@ -222,24 +236,17 @@ class PathTable:
         # still gets points of its own (a 0.04 mm G64 blend arc)
         self.edges = np.array([0.0] + breakpoints(path) + [L])
         per_mm = max(1.0 / ds, (min_points - 1) / L)
-        grids, self.offset, self.hs = [], [], []
-        n0 = 0
-        for a, b in zip(self.edges[:-1], self.edges[1:]):
-            n = max(8, int(math.ceil((b - a) * per_mm)) + 1)
-            g = np.linspace(a, b, n)
-            grids.append(g)
-            self.offset.append(n0)
-            self.hs.append(g[1] - g[0])
-            n0 += n
-        self.offset, self.hs = np.array(self.offset), np.array(self.hs)
-        self.counts = np.array([len(g) for g in grids])
-        self.s = np.concatenate(grids)
+        a, b = self.edges[:-1], self.edges[1:]
+        self.counts = np.maximum(8, np.ceil((b - a) * per_mm).astype(np.int64) + 1)
+        self.s = linspaces(a, b, self.counts)
+        self.offset = np.cumsum(self.counts) - self.counts
+        self.hs = self.s[self.offset + 1] - self.s[self.offset]
         if refine:
             inner = self._refine(path)
         else:
             # evaluate one-sidedly: the end points of each piece a hair inside it
-            inner = np.concatenate([np.clip(g, a + 1e-9, b - 1e-9) for g, a, b in
-                                    zip(grids, self.edges[:-1], self.edges[1:])])
+            piece = np.repeat(np.arange(len(self.counts)), self.counts)
+            inner = np.clip(self.s, (a + 1e-9)[piece], (b - 1e-9)[piece])
             self.cart = cartesian_derivs(path, inner)
         self.joint = (joint_derivs(machine, path, inner, cart=self.cart, fit_scale=fit_scale)
                       if machine is not None else None)
@@ -271,7 +278,7 @@ class PathTable:
             cell = np.repeat(need, k - 1)           # k − 1 new rows per cell at fractions i/k
             frac = (np.arange(len(cell)) - np.repeat(np.cumsum(k - 1) - (k - 1), k - 1) + 1) / np.repeat(k, k - 1)
             S, piece, cart = self._add_rows(path, S, piece, cart, S[cell] + h[cell] * frac, piece[cell], inner)
-        self.s, self.cart = S, cart
+        self.s, self.cart, self.row_piece = S, cart, piece
         self.counts = np.bincount(piece, minlength=len(self.counts))
         self.offset = np.concatenate([[0], np.cumsum(self.counts)[:-1]])
         return inner(S, piece)
@@ -311,17 +318,23 @@ class PathTable:
         d3 = (1 - w) * A3 + w * B3
         return d1, d2, d3
 
-    def _locate(self, s):
+    def _locate(self, s, search=None):
         """(row i, weight w, spacing h): s lies between rows i and i+1 of its piece.
-        A corner itself counts to the piece after it (callers stay inside pieces)."""
+        A corner itself counts to the piece after it (callers stay inside pieces).
+        ``search(a, s)``: np.searchsorted(a, s, side="right") by another way (the s-curve's
+        checks search windows of the grid: scurve_batch)."""
+        search = search or (lambda a, x: np.searchsorted(a, x, side="right"))
         s = np.clip(np.asarray(s, float), 0.0, self.length)
-        p = np.clip(np.searchsorted(self.edges, s, side="right") - 1, 0, len(self.hs) - 1)
         if self.refined:
-            # the sorted grid holds each join twice: the last row ≤ s, kept inside s's piece
-            i = np.clip(np.searchsorted(self.s, s, side="right") - 1, self.offset[p],
-                        self.offset[p] + self.counts[p] - 2)
+            # the sorted grid holds each join twice: the last row ≤ s, kept inside s's piece,
+            # which is the row's own (a piece's rows run from its start to its end, and at a
+            # join the second row starts the next piece, as the search of the edges has it)
+            r = search(self.s, s) - 1
+            p = self.row_piece[r]
+            i = np.clip(r, self.offset[p], self.offset[p] + self.counts[p] - 2)
             h = self.s[i + 1] - self.s[i]
             return i, (s - self.s[i]) / h, h
+        p = np.clip(search(self.edges, s) - 1, 0, len(self.hs) - 1)
         h = self.hs[p]
         x = (s - self.edges[p]) / h
         k = np.clip(x.astype(np.int64), 0, self.counts[p] - 2)

@@ -27,8 +27,10 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
 The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
 lands on s = L at rest.
 
-The 1-D pieces (a ruckig segment, reachable feeds, phase sample times) are planners.scurve_pieces.
-Size: ~430 lines: the FLF, the critical points, the segment check and the repair loop of one
+The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve_pieces; the segment
+checks, run for all the segments of a round at once, planners.scurve_batch (the peak fit and
+the repair are generators whose tests scurve_batch.drive runs in lockstep).
+Size: ~430 lines: the FLF, the critical points, the peak fit and the repair loop of one
 method (TII 2022), kept together.
 """
 from __future__ import annotations
@@ -37,15 +39,13 @@ import math
 import time
 
 import numpy as np
-from ruckig import InputParameter, Ruckig, Trajectory
-from scipy.optimize import minimize_scalar
 
-from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits, check_path,
-                          chord_feed_cap, corner_list, ik_along, joint_derivs, peak_ratios,
-                          second_derivative_jumps, time_derivs)
+from .constraints import (PathTable, PlanningError, check_limits, check_path,
+                          chord_feed_cap, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile
-from .scurve_pieces import Segment, phase_samples, reachable
+from .scurve_batch import Checker, Joined, drive
+from .scurve_pieces import Segment, reachable, solver
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
@@ -82,7 +82,7 @@ class _Planner:
     def __init__(self, path, machine, limits, joint: bool, margin: float, grid_mm: float):
         self.path, self.machine, self.limits, self.joint = path, machine, limits, joint
         self.T = machine.servo_period_s
-        self.otg, self.inp, self.traj = Ruckig(1), InputParameter(1), Trajectory(1)
+        self.otg, self.inp, self.traj = solver()
         lim = limits.joint if joint else limits.cartesian
         # plan the check against slightly tightened limits: the metrics read jerk as a third
         # difference at T, which can exceed the continuous peak by a fraction of a percent
@@ -105,7 +105,7 @@ class _Planner:
         g, piece = self.table.s, np.repeat(np.arange(len(self.table.counts)), self.table.counts)
         fine = (np.diff(g) < 0.999 * self.table.hs[piece[:-1]]) & (piece[1:] == piece[:-1])
         self.fine_s = np.unique(np.concatenate([g[:-1][fine], g[1:][fine]]))
-        self._reachable = {}            # memo of reachable() across the repair rounds
+        self._passes = None             # consistent()'s inputs and passes of the last round
 
     def F_at(self, s):
         """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
@@ -142,6 +142,9 @@ class _Planner:
         for i, d in zip(mins, near):
             if d < 2 * m * h:      # a corner's own dip: it stops there
                 continue
+            # imported here: scipy.optimize takes ~0.5 s to import, and a G-code path of lines
+            # and arcs often has no FLF minimum away from its joins
+            from scipy.optimize import minimize_scalar
             lo, hi = g[max(i - 1, 0)], g[min(i + 1, n - 1)]
             r = minimize_scalar(lambda x: float(self.F_at(x)[0]), bounds=(lo, hi), method="bounded",
                                 options={"xatol": 1e-6})
@@ -180,56 +183,64 @@ class _Planner:
     def second_derivative_jumps(self, corners):
         """G1 joins where P″ jumps: critical points with the feed that keeps the jerk read at
         T within 0.4 of the checked limit (see constraints.second_derivative_jumps)."""
+        jumps = second_derivative_jumps(self.path, self.table, self.machine if self.joint else None, corners)
+        # the FLF at every join in one np.interp (one call per join was most of this on a CAM program)
+        Fj = np.interp([sj for sj, _ in jumps], self.grid, self.F).tolist() if jumps else []
         out = []
-        for sj, jump in second_derivative_jumps(self.path, self.table, self.machine if self.joint else None, corners):
+        for (sj, jump), fj in zip(jumps, Fj):
             vj = math.sqrt(0.4 * self.check.j * self.T / jump) if jump > 0 else self.limits.feed_max
-            out.append((sj, min(vj, float(np.interp(sj, self.grid, self.F)))))
+            out.append((sj, min(vj, fj)))
         return out
 
     # -- segments -----------------------------------------------------------------
-    def consistent(self, v, Ls, A, J):
-        # Both passes in plain floats with the memo read inline (10⁵ segments a round).
-        # Each repair round changes a few segments: the rest of both passes repeats the same
-        # bisections, which made every round cost the whole path again, hence the memo.
-        # The memo keeps the last round's keys only (all rounds: ~10⁷ keys on a 10⁵-line program).
-        v = v.tolist()
-        Lr, A, J = (Ls * (1 - 1e-9)).tolist(), A.tolist(), J.tolist()
-        old, memo = self._reachable, {}
-        for i in range(len(Lr) - 1, -1, -1):
-            key = (v[i + 1], Lr[i], A[i], J[i], v[i])
-            r = memo.get(key)
-            if r is None:
-                r = old.get(key)
-                memo[key] = r = reachable(*key) if r is None else r
-            if r < v[i]:                     # min(v[i], r)
-                v[i] = r
-        for i in range(len(Lr)):
-            key = (v[i], Lr[i], A[i], J[i], v[i + 1])
-            r = memo.get(key)
-            if r is None:
-                r = old.get(key)
-                memo[key] = r = reachable(*key) if r is None else r
-            if r < v[i + 1]:
-                v[i + 1] = r
-        self._reachable = memo
-        return np.array(v)
+    def consistent(self, v_c, Ls, A, J):
+        """The feeds v_c at the critical points lowered until every segment can change between
+        its end feeds within its length: a backward, then a forward pass of reachable()."""
+        # Each repair round changes a few segments: an entry whose inputs (its segment, v_c and
+        # the feed it is reached from) are those of the last call keeps its last value, so a
+        # round costs the stretches that changed, not the whole path again (10⁵ segments)
+        n = len(Ls)
+        Lr = Ls * (1 - 1e-9)
+        last = self._passes
+        if last is None or len(last[0]) != n + 1:
+            last = (np.full(n + 1, np.nan),) + (np.full(n, np.nan),) * 3 + (np.full(n + 1, np.nan),) * 2
+        pvc, pL, pA, pJ, pb, pf = last
+        seg = (Lr != pL) | (A != pA) | (J != pJ)
+        vc, L_, A_, J_ = v_c.tolist(), Lr.tolist(), A.tolist(), J.tolist()
+        b = pb.tolist()
+        b[n] = vc[n]
 
-    def fit_peak(self, seg: Segment, vcap: float) -> bool:
-        """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection)."""
+        def back(i):
+            r = reachable(b[i + 1], L_[i], A_[i], J_[i], vc[i])
+            r = r if r < vc[i] else vc[i]            # min(v_c[i], r)
+            changed, b[i] = r != b[i], r
+            return changed
+
+        _sweep(np.nonzero(seg | (v_c[:n] != pvc[:n]))[0][::-1].tolist(), b[n] != pb[n], n - 1, -1, back)
+        b_new = np.array(b)
+        f = pf.tolist()
+        f[0] = b[0]
+
+        def fwd(i):
+            r = reachable(f[i], L_[i], A_[i], J_[i], b[i + 1])
+            r = r if r < b[i + 1] else b[i + 1]
+            changed, f[i + 1] = r != f[i + 1], r
+            return changed
+
+        _sweep(np.nonzero(seg | (b_new[1:] != pb[1:]))[0].tolist(), f[0] != pf[0], 0, n, fwd)
+        self._passes = (v_c.copy(), Lr, A.copy(), J.copy(), b_new, np.array(f))
+        return np.array(f)
+
+    def fit_peak(self, seg: Segment, vcap: float, fmax: float):
+        """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection); ``fmax`` is
+        the FLF's largest value over the segment. A generator for scurve_batch.drive: it yields
+        ("flf", seg) per test of the feed against the FLF and returns whether ruckig fitted."""
         lo = max(seg.v0, seg.v1, 1e-6)
-        i0, i1 = np.searchsorted(self.grid, [seg.s0, seg.s0 + seg.L])
-        fmax = float(self.F[i0:i1 + 1].max()) if i1 >= i0 else lo
         hi = max(lo, min(vcap, fmax))
-
-        def under_flf():
-            tt = np.linspace(0, seg.duration, 48)
-            p, vv, _, _ = seg.at(tt)
-            return bool(np.all(vv <= np.interp(seg.s0 + p, self.grid, self.F) + 1e-6))
-
         seg.vpeak = hi
         if not seg.compute(self.otg, self.inp, self.traj):
             return False
-        if under_flf() or hi == lo:
+        if hi == lo or (yield "flf", seg):
             return True
         good = lo
         for _ in range(PEAK_BISECTION_ITERS):
@@ -237,7 +248,7 @@ class _Planner:
                 break
             mid = 0.5 * (good + hi)
             seg.vpeak = mid
-            if seg.compute(self.otg, self.inp, self.traj) and under_flf():
+            if seg.compute(self.otg, self.inp, self.traj) and (yield "flf", seg):
                 good = mid
             else:
                 hi = mid
@@ -246,118 +257,93 @@ class _Planner:
 
     def ratios(self, seg: Segment, reads: bool = True) -> np.ndarray:
         """Peak [v, a, j] ratios of the checked axes over the segment (against the check limits),
-        with the reads at T of the joins at its ends (:meth:`join_reads`) unless ``reads`` is off."""
-        tt, xv, xa, xj = self.sampled(seg)
-        if reads:
-            hi, lo = xj, xj
-            for _, near, read in self.join_reads(seg, tt):
-                hi, lo = hi + np.outer(near, np.maximum(read, 0)), lo + np.outer(near, np.minimum(read, 0))
-            xj = np.maximum(np.abs(hi), np.abs(lo))
-        return peak_ratios(xv, xa, xj, self.check)
+        with the reads at T of the joins at its ends (scurve_batch.Checker) unless ``reads`` is off."""
+        c = Checker(self).check([seg])[0]
+        return c.r if reads else c.r0
 
-    def sampled(self, seg: Segment):
-        """(times, velocity, acceleration, jerk) of the checked axes over the segment."""
-        # every jerk phase sampled on its own (≥ 16 points, ≤ T apart): a short jerk phase
-        # in a long segment fell between uniform samples (helix: Cartesian jerk 1.24 slipped by)
-        tt = np.unique(np.concatenate([phase_samples(seg.tcum, self.T), [0.0, seg.duration]]))
-        # at a phase's end at() reads the next phase's jerk: a time just inside it gives the
-        # left limit (where the jerk flips sign, the two sides of a joint jerk differ)
-        d = np.diff(seg.tcum)
-        tt = np.unique(np.concatenate([tt, (seg.tcum[1:] - 1e-9 * d)[d > 0]]))
-        p, v, a, j = seg.at(tt)
-        lo, hi = np.searchsorted(self.fine_s, [seg.s0, seg.s0 + seg.L])
-        if hi > lo:
-            # the times of the refined rows inside the segment (p(t) is monotone): a jerk peak
-            # narrower than a period's travel falls between samples ≤ T apart
-            tt = np.unique(np.concatenate([tt, np.interp(self.fine_s[lo:hi] - seg.s0, p, tt)]))
-            p, v, a, j = seg.at(tt)
-        # evaluate just inside the segment: at a corner the derivatives are one-sided
-        s = np.clip(seg.s0 + p, seg.s0 + 1e-9, seg.s0 + seg.L - 1e-9)
-        D = (None,) + (self.table.joints(s) if self.joint else self.table.cartesian(s))
-        xv, xa, xj = time_derivs(D[1], D[2], D[3], v, a, j)
-        return tt, xv, xa, xj
-
-    def join_reads(self, seg, tt):
-        """[(end 0 or 1, samples within 3T of it, signed read per axis)] for the segment's ends
-        at a join. A third difference at T is the jerk averaged by a quadratic B-spline kernel
-        (support 3T, peak 0.75/T), so the jump Δx″v² of the acceleration at the join adds up to
-        JUMP_READ_FACTOR·Δx″v²/T, with its sign, to an average of the continuous jerk next to
-        it (without this term a segment next to a join passes its own check and not the one at T)."""
-        out = []
-        for end, s_end, v_end in ((0, seg.s0, seg.v0), (1, seg.s0 + seg.L, seg.v1)):
-            k = int(np.searchsorted(self.joins, s_end))
-            for n in (k - 1, k):          # a join within 1 µm (merged critical points)
-                if 0 <= n < len(self.joins) and abs(self.joins[n] - s_end) < 1e-3 and v_end > 0:
-                    near = tt <= 3 * self.T if end == 0 else tt >= seg.duration - 3 * self.T
-                    out.append((end, near, JUMP_READ_FACTOR * self.join_d2[n] * v_end ** 2 / self.T))
-        return out
-
-    def join_feed_factors(self, seg) -> list[float]:
+    def join_feed_factors(self, chk) -> list[float]:
         """Per end, the factor on its feed that brings the join's read plus the continuous jerk
         next to it within the limit (the read scales as v²; the continuous jerk is kept, which
         errs low), in [0.49, 0.98]: for a segment that violates only through its joins' reads.
         None where that would take more than halving the feed (the continuous jerk next to the
         join leaves no room: the segment's J has to come down, as for any other violation)."""
-        tt, _, _, xj = self.sampled(seg)
         f = [1.0, 1.0]
-        for end, near, read in self.join_reads(seg, tt):
-            # the continuous jerk of the read's sign next to the join leaves this much room
-            same = np.where(read > 0, xj[near].max(axis=0), -xj[near].min(axis=0))
-            room = np.maximum(self.check.j - same, 0.0)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                need = float(np.nanmin(np.sqrt(room / np.abs(read))))
+        for end, read, jmax, jmin in chk.reads:
+            # per axis √(room / |read|), where the continuous jerk of the read's sign next to the
+            # join leaves this much room (plain floats: numpy's call overhead was most of it)
+            need = math.nan
+            for r, hi, lo in zip(read.tolist(), jmax.tolist(), jmin.tolist()):
+                room = max(self.check.j - (hi if r > 0 else -lo), 0.0)
+                x = math.sqrt(room / abs(r)) if r != 0 else (math.inf if room > 0 else math.nan)
+                if x < need or need != need:          # the smallest, NaN ignored (np.nanmin)
+                    need = x
             if need < 0.5:            # the continuous jerk fills the limit: lower J instead
                 return None
             f[end] = min(f[end], min(0.98 * need, 0.98))
         return f
 
-    def seg_ok(self, seg, vcap) -> bool:
-        return self.fit_peak(seg, vcap) and bool(np.all(self.ratios(seg) <= 1.0))
+    def seg_ok(self, seg, i, vcap):
+        """Fit segment i's peak, then check it: a generator returning its Check (None: no fit)."""
+        if not (yield from self.fit_peak(seg, vcap, self.fmax[i])):
+            return None
+        return (yield "check", seg)
 
-    def repair(self, i, seg, v, v_c, A, J, vcap):
-        """One round's repair of segment i that broke a limit: its join feeds (a violation
-        through the joins' reads only), else TII 2022's J, then A, then its feeds; updates the
-        arrays in place."""
-        f = self.join_feed_factors(seg) if np.all(self.ratios(seg, reads=False) <= 1.0) else None
+    def repair(self, i, seg, chk, v, v_c, A, J, vcap):
+        """One round's repair of segment i (its Check ``chk``) that broke a limit: its join feeds
+        (a violation through the joins' reads only), else TII 2022's J, then A, then its feeds;
+        updates the arrays in place. A generator for scurve_batch.drive."""
+        f = self.join_feed_factors(chk) if chk.ok0 else None
         if f is not None:
             # only the joins' reads at T break the limit: lower the feed at those joins
             v_c[i] = min(v_c[i], v[i] * f[0])
             v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f[1])
             return
+        fitted = seg.state()
+
+        def ok(f, attr, full):
+            setattr(seg, attr, full * f)
+            c = yield from self.seg_ok(seg, i, vcap[i])
+            return c is not None and c.ok
+
         # TII 2022 axis repair: lower J, then A, to the largest value without violation
         for attr in ("J", "A"):
             full = getattr(seg, attr)
-
-            def ok(f, attr=attr, full=full):
-                setattr(seg, attr, full * f)
-                return self.seg_ok(seg, vcap[i])
-
-            if ok(0.05):
+            if (yield from ok(0.05, attr, full)):
                 lo, hi = 0.05, 1.0
                 while hi - lo > 0.01:
                     mid = 0.5 * (lo + hi)
-                    lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+                    lo, hi = (mid, hi) if (yield from ok(mid, attr, full)) else (lo, mid)
                 setattr(seg, attr, full * lo)
                 break
             setattr(seg, attr, full)
         A[i], J[i] = seg.A, seg.J
         seg.A, seg.J = A[i], J[i]
-        if not self.seg_ok(seg, vcap[i]):
-            # a violation of the feed itself: scale the segment's feeds down
-            r = self.ratios(seg)
-            # a cruise at constant feed has zero a and j ratios: they bound nothing (the
-            # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
-            bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
-                      r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
-            f = float(np.clip(0.98 * min(bounds), 0.3, 0.95))
-            vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
-            v_c[i] = min(v_c[i], v[i] * f)
-            v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
+        if (seg.A, seg.J) == (fitted[0], fitted[1]):
+            # neither lowered: the refit at the same A, J is the round's fit (ruckig is deterministic)
+            seg.restore(fitted)
+            r = chk.r
+        else:
+            c = yield from self.seg_ok(seg, i, vcap[i])
+            if c is not None and c.ok:
+                return
+            r = (c if c is not None else (yield "check", seg)).r
+        # a violation of the feed itself: scale the segment's feeds down
+        # a cruise at constant feed has zero a and j ratios: they bound nothing (the
+        # same inf numpy's 0 ** -0.5 gave, without its divide-by-zero warning)
+        bounds = (1 / r[0] if r[0] > 0 else math.inf, r[1] ** -0.5 if r[1] > 0 else math.inf,
+                  r[2] ** (-1 / 3) if r[2] > 0 else math.inf)
+        f = float(min(max(0.98 * min(bounds), 0.3), 0.95))
+        vcap[i] = max(seg.vpeak, seg.v0, seg.v1) * f
+        v_c[i] = min(v_c[i], v[i] * f)
+        v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
 
     def run(self, max_rounds: int = 60):
         s_c, v_c = self.critical_points()
         Ls = np.diff(s_c)
         nseg = len(Ls)
+        # the FLF's largest value over each segment (the ceiling of its peak feed)
+        i0, i1 = np.searchsorted(self.grid, s_c[:-1]), np.searchsorted(self.grid, s_c[:-1] + Ls)
+        self.fmax = [float(self.F[a:b + 1].max()) for a, b in zip(i0.tolist(), i1.tolist())]
         # the s-curve's own A, J: the Cartesian limits, tightened by the margin where those
         # are the checked limits (an axis-aligned stretch reads s⃛ = J on one axis)
         c = self.limits.cartesian
@@ -366,48 +352,62 @@ class _Planner:
         J = np.full(nseg, c.j * shrink)
         vcap = np.full(nseg, self.limits.feed_max)
         repairs = 0
-        # key → (segment, ratios) of the last round only: every key component only decreases
-        # over the rounds, so a key absent from one round never comes back (keeping all rounds
-        # held ~10⁶ segments on a 10⁵-line program)
-        cache = {}
+        checker = Checker(self)
+        # a segment whose end feeds, A, J and cap are those of the last round keeps its fit and
+        # check; the others are fitted and checked together
+        got, r = [None] * nseg, np.zeros((nseg, 3))
+        last = np.full((5, nseg), np.nan)
         for rnd in range(max_rounds):
             v = self.consistent(v_c, Ls, A, J)
-            segs, bad, kept = [], [], {}
-            for i in range(nseg):
-                key = (i, v[i], v[i + 1], A[i], J[i], vcap[i])
-                if key in cache:                      # unchanged since the last round
-                    seg, r = cache[key]
-                else:
-                    seg = Segment(s_c[i], Ls[i], v[i], v[i + 1], A[i], J[i], vcap[i])
-                    if not self.fit_peak(seg, vcap[i]):
-                        raise PlanningError(
-                            f"scurve: ruckig found no profile for segment {i} (s = {s_c[i]:.6g}…"
-                            f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
-                    r = self.ratios(seg)
-                kept[key] = (seg, r)
-                segs.append(seg)
-                if np.any(r > 1.0):
-                    bad.append((i, r))
-            cache = kept
+            now = np.array([v[:-1], v[1:], A, J, vcap])
+            new = np.nonzero((now != last).any(axis=0))[0].tolist()
+            last = now
+            # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic
+            sl, Ll, vl, Al, Jl, cl = (x.tolist() for x in (s_c, Ls, v, A, J, vcap))
+            fresh = [Segment(sl[i], Ll[i], vl[i], vl[i + 1], Al[i], Jl[i], cl[i]) for i in new]
+            checks = drive([self.seg_ok(seg, i, cl[i]) for i, seg in zip(new, fresh)], checker)
+            for i, seg, chk in zip(new, fresh, checks):
+                if chk is None:
+                    raise PlanningError(
+                        f"scurve: ruckig found no profile for segment {i} (s = {s_c[i]:.6g}…"
+                        f"{s_c[i + 1]:.6g} mm, {v[i]:.6g} → {v[i + 1]:.6g} mm/s)")
+                got[i] = (seg, chk)
+                r[i] = chk.r
+            bad = np.nonzero((r > 1.0).any(axis=1))[0].tolist()
             if not bad:
-                return segs, {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
-                              "critical_points_mm": s_c.tolist()}
-            for i, _ in bad:
-                repairs += 1
-                self.repair(i, segs[i], v, v_c, A, J, vcap)
+                return [g[0] for g in got], {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
+                                             "critical_points_mm": s_c.tolist()}
+            repairs += len(bad)
+            drive([self.repair(i, got[i][0], got[i][1], v, v_c, A, J, vcap) for i in bad], checker)
         raise PlanningError(f"scurve: axis-limit repair did not converge in {max_rounds} rounds "
                             f"({len(bad)} segment(s) still violate)")
 
 
+def _sweep(dirty, carry, start, stop, update):
+    """Run update(i) for i from start towards stop (exclusive) where the inputs of i changed:
+    i in ``dirty`` (in sweep order), or the previous entry's output changed (``carry`` for
+    the first); update returns whether its output changed. The rest keep their last values."""
+    step = 1 if stop > start else -1
+    i, k = start, 0
+    while i != stop:
+        if not carry:
+            # skip to the next dirty entry not yet passed
+            while k < len(dirty) and (dirty[k] - i) * step < 0:
+                k += 1
+            if k == len(dirty):
+                return
+            i = dirty[k]
+        carry = update(i)
+        i += step
+
+
 def sample(segs, path, T, planner, info) -> Profile:
     """Join the segments and sample s(t) at exact multiples of T, ending at s = L at rest."""
-    prof = Profile.from_pieces(planner, T, segs, path, info)
+    joined = Joined(segs)
+    prof = Profile.from_pieces(planner, T, [joined], path, info)
     # times where the jerk changes (phase ends), for planners that start from this profile (pso)
-    starts = np.concatenate([[0.0], np.cumsum([g.duration for g in segs])])
-    sw = [float(starts[i] + c) for i, g in enumerate(segs)
-          for c, dt in zip(g.tcum[1:], np.diff(g.tcum)) if dt > 1e-12]
-    rest = [float(starts[i]) for i, g in enumerate(segs) if g.v0 == 0.0] + [float(starts[-1])]
-    prof.info.update(jerk_switch_times_s=[0.0] + sw, rest_times_s=rest)
+    sw, rest = joined.switch_times()
+    prof.info.update(jerk_switch_times_s=[0.0] + sw, rest_times_s=rest + [joined.duration])
     return prof
 
 

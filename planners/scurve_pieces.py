@@ -1,12 +1,15 @@
 """The 1-D pieces of the s-curve (planners.scurve): how far a jerk-limited feed change needs,
-the largest feed reachable in a length, the sample times of a profile's phases, and one ruckig
-profile between two critical points (`Segment`)."""
+the largest feed reachable in a length, and one ruckig profile between two critical points
+(`Segment`)."""
 from __future__ import annotations
 
 import math
+from array import array
 
 import numpy as np
-from ruckig import Result
+from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+_OK = (Result.Working, Result.Finished)
 
 
 def min_distance(v0, v1, A, J):
@@ -21,51 +24,59 @@ def reachable(v0, L, A, J, vmax):
     """Largest v1 ≤ vmax that can be reached from v0 (either way) within L."""
     if min_distance(v0, vmax, A, J) <= L:
         return vmax
+    # bisection on min_distance(v0, mid, A, J) ≤ L, written out (the same operations): a
+    # repair round calls this ~10⁴ times on a long program
     lo, hi = v0, vmax
+    knee = A * A / J
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if min_distance(v0, mid, A, J) <= L:
+        if mid == lo or mid == hi:      # converged: every further step repeats this one
+            break
+        dv = abs(mid - v0)
+        d = (v0 + mid) * math.sqrt(dv / J) if dv <= knee else 0.5 * (v0 + mid) * (dv / A + A / J)
+        if d <= L:
             lo = mid
         else:
             hi = mid
     return lo
 
 
-def phase_samples(tcum, T):
-    """np.linspace(a, b, min(4000, max(16, ⌈(b − a)/T⌉))) of every phase [a, b] with b > a,
-    concatenated: the same values as numpy's linspace (k·step + a, the end set to b; k/div·Δ
-    + a where the step underflows), without a Python call per phase."""
-    a, b = tcum[:-1], tcum[1:]
-    keep = b > a
-    a, b = a[keep], b[keep]
-    n = np.minimum(4000, np.maximum(16, np.ceil((b - a) / T))).astype(np.int64)
-    first = np.cumsum(n) - n
-    ph = np.repeat(np.arange(len(n)), n)
-    k = (np.arange(int(n.sum())) - first[ph]).astype(float)
-    delta, div = b - a, (n - 1).astype(float)
-    step = delta / div
-    y = np.where(step[ph] == 0, k / div[ph] * delta[ph], k * step[ph]) + a[ph]
-    y[first + n - 1] = b
-    return y
+def solver():
+    """(Ruckig, InputParameter, Trajectory) for :meth:`Segment.compute`: one axis from position 0
+    at a = 0 to a = 0, never backwards (min velocity 0); compute sets the rest per segment (the
+    fixed inputs are set once: a segment check fits ~10⁵ profiles on a long program)."""
+    inp = InputParameter(1)
+    inp.current_position = [0.0]
+    inp.current_acceleration = [0.0]
+    inp.target_acceleration = [0.0]
+    inp.min_velocity = [0.0]
+    return Ruckig(1), inp, Trajectory(1)
 
 
 class Segment:
-    """One ruckig profile between two critical points, as arrays of its seven phases."""
+    """One ruckig profile between two critical points. ``prof`` holds s0, L, v0, v1, the duration,
+    the seven phases' durations and jerks and the eight boundary states a, v, p (ruckig's) as
+    one buffer of 43 doubles: the checks stack many segments' buffers into one array
+    (planners.scurve_batch) at the cost of a copy."""
 
-    __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "tcum", "j", "a", "v", "p", "duration")
+    __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "prof", "duration")
+    HEAD, T, J_, A_, V_, P_ = slice(0, 5), slice(5, 12), slice(12, 19), slice(19, 27), slice(27, 35), slice(35, 43)
 
     def __init__(self, s0, L, v0, v1, A, J, vpeak):
         self.s0, self.L, self.v0, self.v1, self.A, self.J, self.vpeak = s0, L, v0, v1, A, J, vpeak
         self.duration = None
 
     def compute(self, otg, inp, traj) -> bool:
-        inp.current_position = [0.0]
+        """Fit the profile with the solver of :func:`solver`; False if ruckig finds none."""
+        # None exists below half the shortest change: after the feed last passes (v0 + v1)/2 it
+        # stays above it for at least the time a jerk-limited change of |v1 − v0|/2 ending at
+        # a = 0 takes, which covers ≥ min_distance/2. Ruckig's failure (an exception that
+        # formats its input) costs ~20 µs and the repair's tests at J or A × 0.05 often fail
+        if min_distance(self.v0, self.v1, self.A, self.J) > 2.0 * self.L * (1 + 1e-6) + 1e-9:
+            return False
         inp.current_velocity = [self.v0]
-        inp.current_acceleration = [0.0]
         inp.target_position = [self.L]
         inp.target_velocity = [self.v1]
-        inp.target_acceleration = [0.0]
-        inp.min_velocity = [0.0]
         inp.max_acceleration = [self.A]
         inp.max_jerk = [self.J]
         # a segment that needs all its length to reach v1 = its peak (the consistency pass
@@ -77,25 +88,37 @@ class Segment:
                 res = otg.calculate(inp, traj)
             except Exception:  # ruckig.RuckigError: no profile for these inputs
                 continue
-            if res in (Result.Working, Result.Finished):
+            if res in _OK:
                 break
         else:
             return False
         prof = traj.profiles[0][0]
-        self.tcum = np.concatenate([[0.0], np.cumsum(prof.t)])
-        self.j, self.a = np.array(prof.j), np.array(prof.a)
-        self.v, self.p = np.array(prof.v), np.array(prof.p)
         self.duration = float(traj.duration)
+        self.prof = array("d", [self.s0, self.L, self.v0, self.v1, self.duration]
+                          + prof.t + prof.j + prof.a + prof.v + prof.p)
         return True
+
+    @property
+    def tcum(self):
+        """Start times of the phases and the end of the last (8)."""
+        return np.concatenate([[0.0], np.cumsum(self.prof[Segment.T])])
+
+    def state(self):
+        """(A, J, vpeak and the fitted profile), for :meth:`restore`."""
+        return (self.A, self.J, self.vpeak, self.prof, self.duration)
+
+    def restore(self, state):
+        self.A, self.J, self.vpeak, self.prof, self.duration = state
 
     def at(self, tt):
         """(p, v, a, j) at local times tt (clipped to the segment)."""
         # np.minimum/np.maximum: np.clip's Python wrapper cost more than the arithmetic here
+        tcum = self.tcum
         tt = np.minimum(np.maximum(np.asarray(tt, float), 0.0), self.duration)
-        k = np.minimum(np.maximum(np.searchsorted(self.tcum, tt, side="right") - 1, 0), 6)
-        dt = tt - self.tcum[k]
-        j = self.j[k]
-        a = self.a[k] + j * dt
-        v = self.v[k] + self.a[k] * dt + j * dt * dt / 2
-        p = self.p[k] + self.v[k] * dt + self.a[k] * dt * dt / 2 + j * dt ** 3 / 6
-        return p, v, a, j
+        k = np.minimum(np.maximum(np.searchsorted(tcum, tt, side="right") - 1, 0), 6)
+        dt = tt - tcum[k]
+        jk, ak, vk, pk = (np.asarray(self.prof[x])[k] for x in (Segment.J_, Segment.A_, Segment.V_, Segment.P_))
+        a = ak + jk * dt
+        v = vk + ak * dt + jk * dt * dt / 2
+        p = pk + vk * dt + ak * dt * dt / 2 + jk * dt ** 3 / 6
+        return p, v, a, jk

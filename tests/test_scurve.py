@@ -8,6 +8,7 @@ from planners.verify import command_metrics
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
 from planners import scurve, scurve_pieces
+from planners.scurve_batch import Checker
 from planners.paths import Arc, Line, SegmentPath
 
 KEOPS = load_machine("keops")
@@ -205,7 +206,7 @@ def test_cruise_over_an_axis_velocity_limit_is_repaired_without_a_numpy_warning(
 
 def test_phase_samples_equal_numpy_linspace_per_phase():
     """The limit check's sample times: the per-phase np.linspace of the first version, bit for bit."""
-    from planners.scurve_pieces import phase_samples
+    from planners.scurve_batch import phase_grid
     rng = np.random.default_rng(5)
     T = 1e-3
     for _ in range(300):
@@ -213,7 +214,7 @@ def test_phase_samples_equal_numpy_linspace_per_phase():
         tcum = np.concatenate([[0.0], np.cumsum(d)]) * rng.uniform(0.5, 2)
         ref = np.concatenate([np.linspace(a, b, int(min(4000, max(16, math.ceil((b - a) / T)))))
                               for a, b in zip(tcum[:-1], tcum[1:]) if b > a] or [np.zeros(0)])
-        assert np.array_equal(phase_samples(tcum, T), ref)
+        assert np.array_equal(phase_grid(tcum[:-1], tcum[1:], T)[0], ref)
 
 
 def test_path_table_interpolation_equals_the_written_out_hermite_terms():
@@ -234,16 +235,26 @@ def test_path_table_interpolation_equals_the_written_out_hermite_terms():
 
 
 def test_consistent_equals_the_plain_two_passes():
-    """consistent() (plain floats, memo inline) against the two passes written with reachable()."""
+    """consistent() (recomputing what changed since the last call only) against the two passes
+    written with reachable()."""
     rng = np.random.default_rng(9)
     pl = scurve._Planner.__new__(scurve._Planner)
-    pl._reachable = {}
+    pl._passes = None
     n = 60
     Ls = rng.uniform(0.01, 3.0, n)
     A, J = np.full(n, 2000.0) * rng.uniform(0.3, 1, n), np.full(n, 5e4) * rng.uniform(0.3, 1, n)
-    for _ in range(3):                           # rounds share the memo
-        v_c = rng.choice([0.0, 5.0, 40.0, 200.0], n + 1)
-        v_c[0] = v_c[-1] = 0.0
+    v_c = rng.choice([0.0, 5.0, 40.0, 200.0], n + 1)
+    v_c[0] = v_c[-1] = 0.0
+    for rnd in range(5):
+        # later rounds lower a few feeds and one segment's A, as a repair round does (the
+        # passes reuse the last call's values where nothing changed), or start afresh
+        if rnd in (1, 2, 4):
+            v_c, A = v_c.copy(), A.copy()
+            v_c[rng.integers(1, n, 3)] *= 0.5
+            A[rng.integers(n)] *= 0.7
+        elif rnd == 3:
+            v_c = rng.choice([0.0, 5.0, 40.0, 200.0], n + 1)
+            v_c[0] = v_c[-1] = 0.0
         ref = v_c.copy()
         for i in range(n - 1, -1, -1):
             ref[i] = min(ref[i], scurve_pieces.reachable(ref[i + 1], Ls[i] * (1 - 1e-9), A[i], J[i], ref[i]))
@@ -258,8 +269,7 @@ def test_a_segment_that_needs_its_whole_length_to_reach_its_end_feed_has_a_profi
     v0, v1, A, J = 20.72508930578312, 255.555002407372, 9950.0, 497500.0
     L = scurve_pieces.min_distance(v0, v1, A, J) * (1 + 1e-9)
     seg = scurve_pieces.Segment(0.0, L, v0, v1, A, J, v1)
-    from ruckig import InputParameter, Ruckig, Trajectory
-    assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
+    assert seg.compute(*scurve_pieces.solver())
     assert seg.duration == pytest.approx((v1 - v0) / A + A / J, rel=1e-6)
     assert seg.at(np.linspace(0, seg.duration, 101))[1].max() <= v1 * (1 + 1e-9)
 
@@ -298,13 +308,14 @@ def test_the_read_at_T_of_a_line_arc_join_is_the_closed_form():
     pl = scurve._Planner(path, KEOPS, KEOPS.limits, False, 0.005, 0.05)
     assert pl.joins.tolist() == [30.0]
     assert pl.join_d2[0] == pytest.approx([0.0, 1 / R, 0.0], abs=1e-6)
-    from ruckig import InputParameter, Ruckig, Trajectory
     seg = scurve_pieces.Segment(0.0, 30.0, 0.0, v, 9950.0, 497500.0, v)
-    assert seg.compute(Ruckig(1), InputParameter(1), Trajectory(1))
-    tt = np.linspace(0, seg.duration, 2001)
-    [(end, near, read)] = pl.join_reads(seg, tt)
+    assert seg.compute(*scurve_pieces.solver())
+    [(end, read, jmax, jmin)] = Checker(pl).check([seg])[0].reads
     T = KEOPS.servo_period_s
-    assert end == 1 and near.sum() == np.count_nonzero(tt >= seg.duration - 3 * T)
+    assert end == 1
+    # the continuous jerk within 3T of the end: none, the feed reaches v1 after 2√(v1/J) ≈ 18 ms
+    # (≈ 0.36 mm of the 30) and cruises to the end
+    assert np.array_equal(jmax, [0.0, 0.0, 0.0]) and np.array_equal(jmin, [0.0, 0.0, 0.0])
     # (the arc side is read 1e-9 mm inside it: x″ has turned by 1e-9/R there, 1e-3 of 2.4e6)
     assert read == pytest.approx([0.0, 0.75 * v * v / (R * T), 0.0], rel=1e-8, abs=1e-2)
     # 0.75·1600/(2·2.5e-4) = 2.4e6 > J: the join alone breaks the limit, the segment does not
@@ -339,3 +350,89 @@ def test_scurve_joint_is_joint_feasible_where_the_joint_jerk_peaks_between_sampl
     p = plan("scurve_joint", path, m)
     r = command_metrics(m, path.point(p.s), p.T, p.s)
     assert r["feasible"], r["joint_peak_ratio"]
+
+
+def test_segments_the_precheck_rejects_have_no_ruckig_profile():
+    """Segment.compute skips ruckig where min_distance > 2L (no jerk-limited profile covers less
+    than half the shortest change): it fits exactly where ruckig, asked directly, does."""
+    from ruckig import Result
+    rng = np.random.default_rng(11)
+    otg, inp, traj = scurve_pieces.solver()
+    fits = []
+    for _ in range(400):
+        v0, v1 = rng.uniform(0, 300, 2) * rng.choice([0.0, 1.0], 2, p=[0.2, 0.8])
+        A, J = rng.uniform(100, 1e4), rng.uniform(1e3, 5e5)
+        d = scurve_pieces.min_distance(v0, v1, A, J)
+        if d == 0:
+            continue
+        seg = scurve_pieces.Segment(0.0, d / rng.uniform(0.3, 4.0), v0, v1, A, J, max(v0, v1) * rng.uniform(1, 2))
+        got = seg.compute(otg, inp, traj)
+        inp.current_velocity, inp.target_position, inp.target_velocity = [v0], [seg.L], [v1]
+        inp.max_acceleration, inp.max_jerk, inp.max_velocity = [A], [J], [seg.vpeak]
+        try:
+            res = otg.calculate(inp, traj)
+        except Exception:
+            res = None
+        assert got == (res in (Result.Working, Result.Finished)), (v0, v1, A, J, seg.L)
+        fits.append((d / seg.L, got))
+    # both sides of the threshold were tried
+    assert any(r > 2 for r, _ in fits) and any(got for _, got in fits)
+
+
+def test_window_search_equals_searchsorted_on_grouped_queries():
+    """The checks' grid search (each segment's samples among the rows between its extremes)
+    against np.searchsorted: a grid holding joins twice, queries on rows (joins too), between
+    them and at the grid's ends, groups that share rows and groups out of order (searched whole)."""
+    from planners.scurve_batch import _window_search
+    rng = np.random.default_rng(4)
+    grid = np.sort(np.concatenate([rng.uniform(0, 100, 3000), np.repeat(rng.uniform(0, 100, 40), 2), [0.0, 100.0]]))
+    for shuffle in (False, True):
+        for _ in range(20):
+            lows = np.sort(rng.uniform(-1, 100, 30))
+            if shuffle:
+                lows = rng.permutation(lows)
+            groups = []
+            for lo in lows:
+                hi = lo + rng.uniform(0, 3)
+                on_rows = grid[(grid >= lo) & (grid <= hi)][:5]
+                groups.append(np.clip(np.concatenate([rng.uniform(lo, hi, rng.integers(1, 40)), on_rows, [lo, hi]]), 0, 100))
+            q = np.concatenate(groups)
+            starts = np.cumsum([0] + [len(g) for g in groups[:-1]])
+            assert np.array_equal(_window_search(starts)(grid, q), np.searchsorted(grid, q, side="right"))
+
+
+def test_reachable_equals_the_plain_bisection_on_min_distance():
+    """reachable()'s written-out bisection (stopping once converged) against 60 plain halvings
+    of [v0, vmax] on min_distance ≤ L."""
+    rng = np.random.default_rng(12)
+    for _ in range(3000):
+        v0, vmax = rng.uniform(0, 300) * (rng.uniform() > 0.1), rng.uniform(0, 300)
+        A, J = rng.uniform(100, 1e4), rng.uniform(1e3, 5e5)
+        L = scurve_pieces.min_distance(v0, vmax, A, J) * rng.uniform(0.01, 1.2)
+        ref = vmax
+        if scurve_pieces.min_distance(v0, vmax, A, J) > L:
+            lo, hi = v0, vmax
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if scurve_pieces.min_distance(v0, mid, A, J) <= L else (lo, mid)
+            ref = lo
+        assert scurve_pieces.reachable(v0, L, A, J, vmax) == ref
+
+
+@pytest.mark.parametrize("name", ["benchmarks/paths/corpus/pocket_kossel.ngc", "benchmarks/paths/corpus/butterfly_keops.json",
+                                  "benchmarks/paths/corpus/cam_dense_keops.ngc"])
+def test_refined_table_locates_the_piece_of_the_edges(name):
+    """PathTable._locate on a refined table takes the piece of the row it finds: the same row
+    as clipping that row into the piece the edges give (random points, every edge, the ends)."""
+    from planners.constraints import PathTable
+    from planners.paths import resolve_path
+    tab = PathTable(resolve_path(name), None, ds=0.05, fit_scale=True, refine=True)
+    assert tab.refined
+    s = np.concatenate([np.random.default_rng(3).uniform(0, tab.length, 20000), tab.edges,
+                        np.nextafter(tab.edges, 0), np.nextafter(tab.edges, np.inf), tab.s, [0.0, tab.length]])
+    s = np.clip(s, 0.0, tab.length)
+    p = np.clip(np.searchsorted(tab.edges, s, side="right") - 1, 0, len(tab.hs) - 1)
+    i_ref = np.clip(np.searchsorted(tab.s, s, side="right") - 1, tab.offset[p], tab.offset[p] + tab.counts[p] - 2)
+    i, w, h = tab._locate(s)
+    assert np.array_equal(i, i_ref)
+    assert np.array_equal(h, tab.s[i_ref + 1] - tab.s[i_ref]) and np.array_equal(w, (s - tab.s[i_ref]) / h)
