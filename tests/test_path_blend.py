@@ -106,8 +106,8 @@ def test_blended_polylines_are_contiguous_g1_and_within_tolerance(pts, tol):
         assert dev <= tol * (1 + 1e-9)
         # the arc's middle is R(sec(θ/2) − 1) from the corner it replaces
         mid = arc.eval(np.array([arc.length / 2]), 0)[0][0]
-        # (a nearly straight corner's arc has R ~ 10⁷ mm: its points carry R·ε of rounding,
-        # which numpy's alignment-dependent SIMD sums move by ~1e-9 mm from run to run)
+        # (a nearly straight corner's arc has R ~ 10⁷ mm: its points carry R·ε of rounding; one
+        # run of the fast tier read 1.08e-9 mm there, a re-run passed)
         assert np.linalg.norm(mid - lines[i].end) == pytest.approx(
             dev, rel=1e-6, abs=1e-9 + 8 * np.finfo(float).eps * arc.radius)
         # tangent to both lines
