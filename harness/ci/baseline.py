@@ -37,6 +37,10 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     ("planning_time_ratio", {"max_factor": 1.5, "min_excess": 0.1}),
     ("execution_time_s", {"rel": 0.005}),
     ("feasible", {"exact": True}),
+    # optimal's Cartesian peaks are not limits it keeps, and its solution from copp's start
+    # (Clarabel, then IPOPT) moved them by 8.7e-5 relative under other numpy SIMD (kossel
+    # repro_part; tests/test_reproducibility.py): ±0.1 % there, its joint peaks stay at ±1e-6
+    ("*/optimal*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
     ("*peak_ratio.*", {"abs": 1e-6}),
     ("*violation_time_s.*", {"abs": 1e-6}),
     ("max_chord_error_um", {"rel": 0.005, "abs": 1e-3}),          # geometry: no quantisation
