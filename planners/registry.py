@@ -52,6 +52,7 @@ BUILTIN_GUARANTEES = {
     "pso": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
     "toppra": {"joint": ["velocity"], "cartesian": ["feed"]},
     "optimal": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
+    "copp": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
 }
 
 
