@@ -242,16 +242,20 @@ class _Planner:
             return False
         if hi == lo or (yield "flf", seg):
             return True
-        good = lo
+        good, kept = lo, None
         for _ in range(PEAK_BISECTION_ITERS):
             if hi - good < PEAK_BISECTION_TOL:
                 break
             mid = 0.5 * (good + hi)
             seg.vpeak = mid
             if seg.compute(self.otg, self.inp, self.traj) and (yield "flf", seg):
-                good = mid
+                good, kept = mid, seg.state()
             else:
                 hi = mid
+        if kept is not None:
+            # the fit at ``good`` was made in the loop (ruckig is deterministic): keep it
+            seg.restore(kept)
+            return True
         seg.vpeak = good
         return seg.compute(self.otg, self.inp, self.traj)
 
@@ -299,11 +303,15 @@ class _Planner:
             v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f[1])
             return
         fitted = seg.state()
+        passed = {}         # (A, J) → the fit that passed its check there
 
         def ok(f, attr, full):
             setattr(seg, attr, full * f)
             c = yield from self.seg_ok(seg, i, vcap[i])
-            return c is not None and c.ok
+            if c is not None and c.ok:
+                passed[seg.A, seg.J] = seg.state()
+                return True
+            return False
 
         # TII 2022 axis repair: lower J, then A, to the largest value without violation
         for attr in ("J", "A"):
@@ -318,6 +326,10 @@ class _Planner:
             setattr(seg, attr, full)
         A[i], J[i] = seg.A, seg.J
         seg.A, seg.J = A[i], J[i]
+        if (seg.A, seg.J) in passed:
+            # the A, J found passed their test: its fit and check would be the same again
+            seg.restore(passed[seg.A, seg.J])
+            return
         if (seg.A, seg.J) == (fitted[0], fitted[1]):
             # neither lowered: the refit at the same A, J is the round's fit (ruckig is deterministic)
             seg.restore(fitted)
@@ -358,6 +370,7 @@ class _Planner:
         got, r = [None] * nseg, np.zeros((nseg, 3))
         last = np.full((5, nseg), np.nan)
         for rnd in range(max_rounds):
+            checker.memo.clear()        # the repairs reuse this round's answers, no older ones
             v = self.consistent(v_c, Ls, A, J)
             now = np.array([v[:-1], v[1:], A, J, vcap])
             new = np.nonzero((now != last).any(axis=0))[0].tolist()
