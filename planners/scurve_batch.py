@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constraints import JUMP_READ_FACTOR, linspaces
+from .constraints import JUMP_READ_FACTOR
 from .scurve_pieces import Segment
 
 CHUNK_POINTS = 16_384     # samples per numpy pass: its ~20 temporaries stay in cache (65536: +15 % CPU)
@@ -125,13 +125,62 @@ class Joined:
         return sw.tolist(), self.starts[:-1][self.st.v0 == 0.0].tolist()
 
 
-def phase_grid(a, b, T):
-    """np.linspace(a, b, min(4000, max(16, ⌈(b − a)/T⌉))) of every phase [a, b] with b > a,
-    concatenated, and the phases' sample counts."""
-    keep = b > a
-    a, b = a[keep], b[keep]
-    n = np.minimum(4000, np.maximum(16, np.ceil((b - a) / T))).astype(np.int64)
-    return linspaces(a, b, n), n
+class _Layout:
+    """Sample times grouped by segment (see :meth:`Checker.samples`): ``t``, ``idx`` (the
+    segment) and ``block`` per sample; ``end`` per segment (past its samples, the last
+    ``nfine`` of them left for the refined rows); per block (8 per segment: its 7 phases, then
+    a tail of 0, the duration and the refined rows) the phase's start ``lo`` and the end ``hi``
+    below which Stack.at reads that phase (a tail: −inf), and the phase's j, a, v, p."""
+
+    def __init__(self, st, segs, T, nfine):
+        m = len(segs)
+        tc = st.tcum[segs]
+        a, b = tc[:, :-1], tc[:, 1:]
+        d = b - a
+        nz = d > 0
+        n = np.where(nz, np.minimum(4000, np.maximum(16, np.ceil(d / T))), 0).astype(np.int64)
+        # a phase's end is sampled unless the next phase of nonzero duration starts there (the
+        # same time and values), and 0 unless a phase starts there
+        nxt = np.minimum.accumulate(np.where(nz, np.arange(7), 7)[:, ::-1], axis=1)[:, ::-1]
+        after = np.concatenate([nxt[:, 1:], np.full((m, 1), 7)], axis=1)
+        a_next = np.take_along_axis(np.concatenate([a, np.full((m, 1), np.nan)], axis=1), after, axis=1)
+        keep_b = nz & (a_next != b)
+        keep0 = ~(nz.any(axis=1) & (np.take_along_axis(a, np.minimum(nxt[:, :1], 6), axis=1)[:, 0] == 0.0))
+        size = np.zeros((m, 8), np.int64)
+        size[:, :7] = np.where(nz, n + keep_b, 0)          # n − 1 grid points, [b], just inside b
+        size[:, 7] = keep0 + 1 + nfine                    # [0], the duration, the refined rows
+        first = np.cumsum(size.ravel()) - size.ravel()
+        blk = np.repeat(np.arange(8 * m), size.ravel())
+        k = (np.arange(len(blk)) - first[blk]).astype(float)
+        # the grid points as numpy.linspace gives them (constraints.linspaces): k·step + a, or
+        # k/div·Δ + a where the step underflows
+        pad = lambda x, v: np.concatenate([x, np.full((m, 1), v, x.dtype)], axis=1).ravel()
+        A, D, div = pad(a, 0.0), pad(d, 0.0), pad(n - 1, 1).astype(float)
+        step = D / div
+        t = k * step[blk] + A[blk]
+        under = nz.ravel() & (step.reshape(m, 8)[:, :7] == 0).ravel()
+        if under.any():
+            z = np.nonzero(np.repeat(pad(under.reshape(m, 7), False), size.ravel()))[0]
+            t[z] = k[z] / div[blk[z]] * D[blk[z]] + A[blk[z]]
+        at = first.reshape(m, 8)[:, :7] + n - 1             # just after the grid
+        t[at[keep_b]] = b[keep_b]
+        t[(at + keep_b)[nz]] = (b - 1e-9 * d)[nz]
+        tail = first.reshape(m, 8)[:, 7]
+        t[tail] = 0.0
+        t[tail + keep0] = st.dur[segs]
+        self.t, self.block = t, blk
+        self.end = np.cumsum(size.sum(axis=1))            # past each segment's samples
+        self.idx = np.repeat(segs, self.end - np.concatenate([[0], self.end[:-1]]))
+        # Stack.at finds phase p for times in [tcum[p], tcum[p + 1]) (the last: to the end) that
+        # its clip to [0, duration] leaves alone: with phases of no negative duration
+        sane = (d >= 0).all(axis=1)[:, None]
+        hi = np.concatenate([b[:, :6], np.full((m, 1), np.inf)], axis=1)
+        hi = np.minimum(hi, np.nextafter(st.dur[segs], np.inf)[:, None])
+        self.lo = A
+        self.hi = pad(np.where(sane, hi, -np.inf), -np.inf)
+        row = np.minimum(segs[:, None] * 8 + np.arange(8), len(st.a) - 1).ravel()
+        jrow = np.minimum(segs[:, None] * 7 + np.arange(8), len(st.j) - 1).ravel()
+        self.j, self.a0, self.v0, self.p0 = st.j[jrow], st.a[row], st.v[row], st.p[row]
 
 
 class Checker:
@@ -201,35 +250,37 @@ class Checker:
             out += self._check_chunk(st, np.arange(c, e))
         return out
 
-    def times(self, st, segs):
-        """Sample times of the segments ``segs`` and their segment index, grouped by segment
-        (in no order within one; a time may repeat: only maxima are taken): every jerk phase on
-        its own (≥ 16 points, ≤ T apart), just inside each phase's end (at a phase's end at()
-        reads the next phase's jerk) and at the refined rows of the table."""
-        T, fine = self.pl.T, self.pl.fine_s
-        tc = st.tcum[segs]
-        a, b = tc[:, :-1], tc[:, 1:]
-        y, n = phase_grid(a.ravel(), b.ravel(), T)
-        d = b - a
-        rows, _ = np.nonzero(d > 0)
-        t = np.concatenate([y, np.zeros(len(segs)), st.dur[segs], (b - 1e-9 * d)[d > 0]])
-        seg = np.concatenate([np.repeat(segs[rows], n), segs, segs, segs[rows]])
-        lo, hi = np.searchsorted(fine, st.s0[segs]), np.searchsorted(fine, st.s0[segs] + st.L[segs])
-        with_fine = np.nonzero(hi > lo)[0]
-        if len(with_fine):
+    def samples(self, st, segs):
+        """The check's samples of the segments ``segs``, grouped by segment (in no order within
+        one; a time may repeat: only maxima are taken): (t, segment, p, v, a, j). The times:
+        every jerk phase on its own (≥ 16 points, ≤ T apart), just inside each phase's end (at a
+        phase's end at() reads the next phase's jerk), 0, the duration and the refined rows of
+        the table. A phase's last point that is the next phase's first is taken once."""
+        fine = self.pl.fine_s
+        flo, fhi = np.searchsorted(fine, st.s0[segs]), np.searchsorted(fine, st.s0[segs] + st.L[segs])
+        L = _Layout(st, segs, self.pl.T, fhi - flo)
+        t, idx, ph = L.t, L.idx, L.block
+        for k in np.nonzero(fhi > flo)[0].tolist():
             # the times of the refined rows inside a segment (p(t) is monotone, the times sorted
             # and unique as np.interp needs them): a jerk peak narrower than a period's travel
             # falls between samples ≤ T apart
-            extra_t, extra_seg = [t], [seg]
-            for k in with_fine.tolist():
-                g = segs[k]
-                tg = np.unique(t[seg == g])
-                p = st.at(np.full(len(tg), g), tg)[0]
-                extra_t.append(np.interp(fine[lo[k]:hi[k]] - st.s0[g], p, tg))
-                extra_seg.append(np.full(hi[k] - lo[k], g))
-            t, seg = np.concatenate(extra_t), np.concatenate(extra_seg)
-        order = np.argsort(seg, kind="stable")
-        return t[order], seg[order]
+            g, e = segs[k], L.end[k] - (fhi[k] - flo[k])
+            tg = np.unique(t[L.end[k - 1] if k else 0:e])
+            pg = st.at(np.full(len(tg), g), tg)[0]
+            t[e:L.end[k]] = np.interp(fine[flo[k]:fhi[k]] - st.s0[g], pg, tg)
+        # Stack.at's operations, with the phase each time was made for where it is the one at()
+        # finds; the others (0, the duration, the refined rows, a time rounded onto a phase's
+        # end) go through Stack.at itself
+        lo = L.lo[ph]
+        ok = (t >= lo) & (t < L.hi[ph])
+        dt = t - lo
+        j, a0, v0, p0 = L.j[ph], L.a0[ph], L.v0[ph], L.p0[ph]
+        a = a0 + j * dt
+        v = v0 + a0 * dt + j * dt * dt / 2
+        p = p0 + v0 * dt + a0 * dt * dt / 2 + j * dt ** 3 / 6
+        bad = np.nonzero(~ok)[0]
+        p[bad], v[bad], a[bad], j[bad] = st.at(idx[bad], t[bad])
+        return t, idx, p, v, a, j
 
     def derivs(self, s, starts):
         """x′, x″, x‴ of the checked axes at s (grouped by segment from ``starts``) as (axes, n):
@@ -251,8 +302,7 @@ class Checker:
         """:class:`Check` of the segments ``segs`` of the stack ``st``."""
         pl = self.pl
         lim = pl.check
-        tt, idx = self.times(st, segs)
-        p, v, a, j = st.at(idx, tt)
+        tt, idx, p, v, a, j = self.samples(st, segs)
         s0 = st.s0[idx]
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(s0 + p, s0 + 1e-9, (st.s0 + st.L)[idx] - 1e-9)

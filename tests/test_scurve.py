@@ -205,16 +205,24 @@ def test_cruise_over_an_axis_velocity_limit_is_repaired_without_a_numpy_warning(
 
 
 def test_phase_samples_equal_numpy_linspace_per_phase():
-    """The limit check's sample times: the per-phase np.linspace of the first version, bit for bit."""
-    from planners.scurve_batch import phase_grid
+    """The limit check's sample times: per segment the per-phase np.linspace of the first
+    version, just inside each phase's end, 0 and the duration, as a set, bit for bit."""
+    from types import SimpleNamespace
+
+    from planners.scurve_batch import _Layout
     rng = np.random.default_rng(5)
-    T = 1e-3
-    for _ in range(300):
-        d = rng.choice([0.0, 1e-9, 3e-4, 2e-3, 0.4, 7.0], size=7) * rng.uniform(0.5, 1.5, 7)
-        tcum = np.concatenate([[0.0], np.cumsum(d)]) * rng.uniform(0.5, 2)
-        ref = np.concatenate([np.linspace(a, b, int(min(4000, max(16, math.ceil((b - a) / T)))))
-                              for a, b in zip(tcum[:-1], tcum[1:]) if b > a] or [np.zeros(0)])
-        assert np.array_equal(phase_grid(tcum[:-1], tcum[1:], T)[0], ref)
+    T, m = 1e-3, 300
+    d = rng.choice([0.0, 1e-9, 3e-4, 2e-3, 0.4, 7.0], size=(m, 7)) * rng.uniform(0.5, 1.5, (m, 7))
+    tcum = np.concatenate([np.zeros((m, 1)), np.cumsum(d, axis=1)], axis=1) * rng.uniform(0.5, 2, (m, 1))
+    dur = tcum[:, -1] * (1 + rng.choice([0.0, 1e-16, -1e-16], m))
+    st = SimpleNamespace(tcum=tcum, dur=dur, j=np.zeros(7 * m), a=np.zeros(8 * m), v=np.zeros(8 * m),
+                         p=np.zeros(8 * m))
+    lay = _Layout(st, np.arange(m), T, np.zeros(m, np.int64))
+    for g in range(m):
+        ref = [np.linspace(a, b, int(min(4000, max(16, math.ceil((b - a) / T))))) for a, b in
+               zip(tcum[g, :-1], tcum[g, 1:]) if b > a]
+        ref += [[b - 1e-9 * (b - a) for a, b in zip(tcum[g, :-1], tcum[g, 1:]) if b > a], [0.0, dur[g]]]
+        assert np.array_equal(np.unique(lay.t[lay.idx == g]), np.unique(np.concatenate(ref)))
 
 
 def test_path_table_interpolation_equals_the_written_out_hermite_terms():
