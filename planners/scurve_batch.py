@@ -127,7 +127,7 @@ class Joined:
 
 class _Layout:
     """Sample times grouped by segment (see :meth:`Checker.samples`): ``t``, ``idx`` (the
-    segment) and ``block`` per sample; ``end`` per segment (past its samples, the last
+    segment), ``loc`` (its place in segs) and ``block`` per sample; ``end`` per segment (past its samples, the last
     ``nfine`` of them left for the refined rows); per block (8 per segment: its 7 phases, then
     a tail of 0, the duration and the refined rows) the phase's start ``lo`` and the end ``hi``
     below which Stack.at reads that phase (a tail: −inf), and the phase's j, a, v, p."""
@@ -170,7 +170,8 @@ class _Layout:
         t[tail + keep0] = st.dur[segs]
         self.t, self.block = t, blk
         self.end = np.cumsum(size.sum(axis=1))            # past each segment's samples
-        self.idx = np.repeat(segs, self.end - np.concatenate([[0], self.end[:-1]]))
+        self.loc = np.repeat(np.arange(m), self.end - np.concatenate([[0], self.end[:-1]]))
+        self.idx = segs[self.loc]
         # Stack.at finds phase p for times in [tcum[p], tcum[p + 1]) (the last: to the end) that
         # its clip to [0, duration] leaves alone: with phases of no negative duration
         sane = (d >= 0).all(axis=1)[:, None]
@@ -252,7 +253,8 @@ class Checker:
 
     def samples(self, st, segs):
         """The check's samples of the segments ``segs``, grouped by segment (in no order within
-        one; a time may repeat: only maxima are taken): (t, segment, p, v, a, j). The times:
+        one; a time may repeat: only maxima are taken): (t, segment, p, v, a, j, the segment's
+        place in ``segs``). The times:
         every jerk phase on its own (≥ 16 points, ≤ T apart), just inside each phase's end (at a
         phase's end at() reads the next phase's jerk), 0, the duration and the refined rows of
         the table. A phase's last point that is the next phase's first is taken once."""
@@ -280,7 +282,7 @@ class Checker:
         p = p0 + v0 * dt + a0 * dt * dt / 2 + j * dt ** 3 / 6
         bad = np.nonzero(~ok)[0]
         p[bad], v[bad], a[bad], j[bad] = st.at(idx[bad], t[bad])
-        return t, idx, p, v, a, j
+        return t, idx, p, v, a, j, L.loc
 
     def derivs(self, s, starts):
         """x′, x″, x‴ of the checked axes at s (grouped by segment from ``starts``) as (axes, n):
@@ -302,11 +304,11 @@ class Checker:
         """:class:`Check` of the segments ``segs`` of the stack ``st``."""
         pl = self.pl
         lim = pl.check
-        tt, idx, p, v, a, j = self.samples(st, segs)
+        tt, idx, p, v, a, j, loc = self.samples(st, segs)
         s0 = st.s0[idx]
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(s0 + p, s0 + 1e-9, (st.s0 + st.L)[idx] - 1e-9)
-        starts = np.searchsorted(idx, segs)
+        starts = np.searchsorted(loc, np.arange(len(segs)))
         D1, D2, D3 = self.derivs(s, starts)
         # constraints.time_derivs with the axes first (the same products in the same order)
         xv = D1 * v
@@ -315,14 +317,14 @@ class Checker:
         jrow = _abs_max(xj)
         peak = lambda rowmax: np.maximum.reduceat(rowmax, starts)
         mv, ma, mj = peak(_abs_max(xv)), peak(_abs_max(xa)), peak(jrow)
-        reads, jrow_r = self._reads(st, segs, tt, idx, xj, jrow)
+        reads, jrow_r = self._reads(st, segs, tt, loc, xj, jrow)
         mjr = mj if jrow_r is None else peak(jrow_r)
         r0 = np.column_stack([mv / lim.v, ma / lim.a, mj / lim.j])
         r = np.column_stack([mv / lim.v, ma / lim.a, mjr / lim.j])
         ok, ok0 = (r <= 1.0).all(axis=1).tolist(), (r0 <= 1.0).all(axis=1).tolist()
         return [Check(r[k], r0[k], ok[k], ok0[k], reads, k) for k in range(len(segs))]
 
-    def _reads(self, st, segs, tt, idx, xj, jrow):
+    def _reads(self, st, segs, tt, loc, xj, jrow):
         """The reads at T of the joins at the segments' ends: a third difference at T is the jerk
         averaged by a quadratic B-spline kernel (support 3T, peak 0.75/T), so the jump Δx″v² of
         the acceleration at a join adds up to JUMP_READ_FACTOR·Δx″v²/T, with its sign, to the
@@ -332,7 +334,8 @@ class Checker:
         the largest |jerk| with the reads added, or None: no read)."""
         pl = self.pl
         T, joins, d2 = pl.T, pl.joins, pl.join_d2
-        reads, groups = [], []
+        dur = st.dur[segs][loc]
+        reads, near = [], {}
         for end, s_end, v_end in ((0, st.s0[segs], st.v0[segs]), (1, st.s0[segs] + st.L[segs], st.v1[segs])):
             k = np.searchsorted(joins, s_end)
             slots = []
@@ -345,12 +348,11 @@ class Checker:
                     slots.append((which, JUMP_READ_FACTOR * d2[nn[which]] * vsq[:, None] / T))
             if slots:
                 # the samples within 3T of this end (each segment has one at least: its end)
-                rows = np.nonzero(tt <= 3 * T if end == 0 else tt >= st.dur[idx] - 3 * T)[0]
-                rseg = np.searchsorted(segs, idx[rows])
-                first = np.searchsorted(rseg, np.arange(len(segs)))
+                near[end] = tt <= 3 * T if end == 0 else tt >= dur - 3 * T
+                rows = np.nonzero(near[end])[0]
+                first = np.searchsorted(loc[rows], np.arange(len(segs)))
                 xn = xj[:, rows]
                 jmax, jmin = np.maximum.reduceat(xn, first, axis=1), np.minimum.reduceat(xn, first, axis=1)
-                groups.append((rows, rseg, slots))
                 for which, read in slots:
                     where = np.full(len(segs), -1)          # segment → its row in this slot's arrays
                     where[which] = np.arange(len(which))
@@ -358,23 +360,17 @@ class Checker:
         if not reads:
             return reads, None
         # the jerk with the reads added on the samples next to a join, in the per-segment
-        # order (end 0, then 1): each read where it applies (elsewhere it adds ±0 and no
-        # |value| changes)
-        mark = np.zeros(len(tt), bool)
-        for rows, _, _ in groups:
-            mark[rows] = True
-        U = np.nonzero(mark)[0]
-        pos = np.cumsum(mark) - 1                 # sample → its place in U
-        hi, lo = xj[:, U], xj[:, U]
-        slot = iter(reads)
-        for rows, rseg, slots in groups:
-            for _ in slots:
-                _, where, read, _, _ = next(slot)
-                k = where[rseg]
-                on = k >= 0
-                at, r = pos[rows[on]], read[k[on]].T
-                hi[:, at] += np.maximum(r, 0)
-                lo[:, at] += np.minimum(r, 0)
+        # order (end 0, then 1): each read where it applies, ±0 elsewhere (no |value| changes)
+        U = np.nonzero(near[0] | near[1] if len(near) == 2 else next(iter(near.values())))[0]
+        lu = loc[U]
+        hi = xj[:, U]
+        lo = hi.copy()
+        for end, where, read, _, _ in reads:
+            k = where[lu]
+            r = read[np.maximum(k, 0)].T
+            on = near[end][U] & (k >= 0)
+            hi += np.where(on, np.maximum(r, 0), 0.0)
+            lo += np.where(on, np.minimum(r, 0), 0.0)
         jrow_r = jrow.copy()
         jrow_r[U] = _abs_max(np.maximum(np.abs(hi), np.abs(lo)))
         return reads, jrow_r
