@@ -284,10 +284,36 @@ class Checker:
         p[bad], v[bad], a[bad], j[bad] = st.at(idx[bad], t[bad])
         return t, idx, p, v, a, j, L.loc
 
-    def derivs(self, s, starts):
+    def locate(self, st, s, loc, segs, starts):
+        """PathTable._locate(s) of the samples s (of the segments ``segs[loc]``, grouped from
+        ``starts``). On a refined table: first the row a uniform piece would hold, kept where the
+        grid's rows confirm it (row ≤ s < next row, inside the piece: it is the last row ≤ s, as
+        the search finds it); the others searched."""
+        tab = self.pl.table
+        if not tab.refined:
+            return tab._locate(s, _window_search(starts))
+        grid = tab.s
+        s = np.clip(s, 0.0, tab.length)
+        mid = np.searchsorted(grid, st.s0[segs] + 0.5 * st.L[segs], side="right") - 1
+        pc = tab.row_piece[np.clip(mid, 0, len(grid) - 1)]
+        i0, n0 = tab.offset[pc], tab.counts[pc]
+        x = (s - tab.edges[pc][loc]) / tab.hs[pc][loc]
+        # fmax/fmin: a NaN guess (a piece of no length) becomes a row, then fails the test
+        i = np.fmin(np.fmax(np.floor(x), 0), (n0 - 2)[loc]).astype(np.int64) + i0[loc]
+        lo, hi = grid[i], grid[i + 1]
+        bad = np.nonzero(~((lo <= s) & (s < hi)))[0]
+        if len(bad):
+            r = np.searchsorted(grid, s[bad], side="right") - 1
+            p = tab.row_piece[r]
+            i[bad] = np.clip(r, tab.offset[p], tab.offset[p] + tab.counts[p] - 2)
+            lo[bad], hi[bad] = grid[i[bad]], grid[i[bad] + 1]
+        h = hi - lo
+        return i, (s - lo) / h, h
+
+    def derivs(self, st, s, loc, segs, starts):
         """x′, x″, x‴ of the checked axes at s (grouped by segment from ``starts``) as (axes, n):
         PathTable._interp's operations."""
-        i, w, h = self.pl.table._locate(s, _window_search(starts))
+        i, w, h = self.locate(st, s, loc, segs, starts)
         w2, w3 = w ** 2, w ** 3
         h00, h10 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w
         h01, h11 = -2 * w3 + 3 * w2, w3 - w2
@@ -309,7 +335,7 @@ class Checker:
         # evaluate just inside the segment: at a corner the derivatives are one-sided
         s = np.clip(s0 + p, s0 + 1e-9, (st.s0 + st.L)[idx] - 1e-9)
         starts = np.searchsorted(loc, np.arange(len(segs)))
-        D1, D2, D3 = self.derivs(s, starts)
+        D1, D2, D3 = self.derivs(st, s, loc, segs, starts)
         # constraints.time_derivs with the axes first (the same products in the same order)
         xv = D1 * v
         xa = D2 * v * v + D1 * a
