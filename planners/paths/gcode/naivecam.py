@@ -84,12 +84,15 @@ def _linkable(start, chain, p, path_mode) -> bool:
     q = path_mode[2] if path_mode[0] == "blend" else 0.0
     if q == 0 or len(chain) > MAX_CHAIN or tuple(p) == tuple(start):
         return False
-    M = [p[i] - start[i] for i in range(3)]
-    mm = M[0] * M[0] + M[1] * M[1] + M[2] * M[2]
+    # the per-axis lists and generator written out (the same operations; sum() kept, whose
+    # float summation changed in Python 3.12): a 10⁵-line program calls this per move
+    s0, s1, s2 = start
+    M0, M1, M2 = p[0] - s0, p[1] - s1, p[2] - s2
+    mm = M0 * M0 + M1 * M1 + M2 * M2
     for P, _ in chain:
-        d = [P[i] - start[i] for i in range(3)]
-        t = min(max((M[0] * d[0] + M[1] * d[1] + M[2] * d[2]) / mm, 0.0), 1.0)
-        if math.sqrt(sum((d[i] - t * M[i]) ** 2 for i in range(3))) > q:
+        d0, d1, d2 = P[0] - s0, P[1] - s1, P[2] - s2
+        t = min(max((M0 * d0 + M1 * d1 + M2 * d2) / mm, 0.0), 1.0)
+        if math.sqrt(sum(((d0 - t * M0) ** 2, (d1 - t * M1) ** 2, (d2 - t * M2) ** 2))) > q:
             return False
     return True
 
