@@ -286,10 +286,15 @@ class _Planner:
             f[end] = min(f[end], min(0.98 * need, 0.98))
         return f
 
-    def seg_ok(self, seg, i, vcap):
-        """Fit segment i's peak, then check it: a generator returning its Check (None: no fit)."""
+    def seg_ok(self, seg, i, vcap, known=None):
+        """Fit segment i's peak, then check it: a generator returning its Check (None: no fit).
+        ``known``: (a fitted profile, its Check): a check depends on the profile alone, so a fit
+        to that same profile takes that Check (a repair's first tests at J or A × 0.05 often
+        fit the round's profile again: a cruise, or a change that A and J do not limit)."""
         if not (yield from self.fit_peak(seg, vcap, self.fmax[i])):
             return None
+        if known is not None and seg.prof == known[0]:
+            return known[1]
         return (yield "check", seg)
 
     def repair(self, i, seg, chk, v, v_c, A, J, vcap):
@@ -307,7 +312,7 @@ class _Planner:
 
         def ok(f, attr, full):
             setattr(seg, attr, full * f)
-            c = yield from self.seg_ok(seg, i, vcap[i])
+            c = yield from self.seg_ok(seg, i, vcap[i], (fitted[3], chk))
             if c is not None and c.ok:
                 passed[seg.A, seg.J] = seg.state()
                 return True
@@ -370,7 +375,6 @@ class _Planner:
         got, r = [None] * nseg, np.zeros((nseg, 3))
         last = np.full((5, nseg), np.nan)
         for rnd in range(max_rounds):
-            checker.memo.clear()        # the repairs reuse this round's answers, no older ones
             v = self.consistent(v_c, Ls, A, J)
             now = np.array([v[:-1], v[1:], A, J, vcap])
             new = np.nonzero((now != last).any(axis=0))[0].tolist()

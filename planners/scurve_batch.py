@@ -195,31 +195,15 @@ class Checker:
         # and one np.take of all of them costs less than a gather per table
         tab = pl.table.joint if pl.joint else pl.table.cart
         self.tabT = np.ascontiguousarray(np.concatenate(tab[1:], axis=1).T)
-        self.memo = {}
 
     def answer(self, reqs):
-        """Answers to [(kind, segment)] requests (see :func:`drive`), in order.
-
-        An answer depends on the fitted profile only (``Segment.prof``), so it is kept in
-        ``memo`` (the owner clears it): a repair's first tests at J and A × 0.05 often fit the
-        round's profile again (a cruise, or a change that A and J do not limit)."""
+        """Answers to [(kind, segment)] requests (see :func:`drive`), in order."""
         out = [None] * len(reqs)
-        memo = self.memo
         for kind, fn in (("flf", self.under_flf), ("check", self.check)):
-            ks, keys, todo = [], [], []
-            for k, (kd, seg) in enumerate(reqs):
-                if kd == kind:
-                    key = (kind, bytes(seg.prof))
-                    got = memo.get(key)
-                    if got is None:
-                        ks.append(k)
-                        keys.append(key)
-                        todo.append(seg)
-                    else:
-                        out[k] = got
-            if todo:
-                for k, key, val in zip(ks, keys, fn(todo)):
-                    out[k] = memo[key] = val
+            ks = [k for k, r in enumerate(reqs) if r[0] == kind]
+            if ks:
+                for k, val in zip(ks, fn([reqs[k][1] for k in ks])):
+                    out[k] = val
         return out
 
     def under_flf(self, segs):
