@@ -47,10 +47,19 @@ class Check:
     ``reads``: per read (end, signed read per axis, max and min of the continuous jerk within
     3T of that end)."""
 
-    __slots__ = ("r", "r0", "ok", "ok0", "_src", "_k")
+    __slots__ = ("_rr", "ok", "ok0", "_src", "_k")
 
-    def __init__(self, r, r0, ok, ok0, src, k):
-        self.r, self.r0, self.ok, self.ok0, self._src, self._k = r, r0, ok, ok0, src, k
+    def __init__(self, rr, ok, ok0, src, k):
+        self._rr, self.ok, self.ok0, self._src, self._k = rr, ok, ok0, src, k
+
+    # rows of the chunk's (r, r0) arrays, taken when asked: most checks are only asked ok
+    @property
+    def r(self):
+        return self._rr[0][self._k]
+
+    @property
+    def r0(self):
+        return self._rr[1][self._k]
 
     @property
     def reads(self):
@@ -332,7 +341,8 @@ class Checker:
         r0 = np.column_stack([mv / lim.v, ma / lim.a, mj / lim.j])
         r = np.column_stack([mv / lim.v, ma / lim.a, mjr / lim.j])
         ok, ok0 = (r <= 1.0).all(axis=1).tolist(), (r0 <= 1.0).all(axis=1).tolist()
-        return [Check(r[k], r0[k], ok[k], ok0[k], reads, k) for k in range(len(segs))]
+        rr = (r, r0)
+        return [Check(rr, ok[k], ok0[k], reads, k) for k in range(len(segs))]
 
     def _reads(self, st, segs, tt, loc, xj, jrow):
         """The reads at T of the joins at the segments' ends: a third difference at T is the jerk
