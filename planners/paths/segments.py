@@ -292,23 +292,26 @@ class SegmentPath(Path):
             parts = [self._derivs(s[k:k + _CHUNK], order) for k in range(0, len(s), _CHUNK)]
             return [np.concatenate([p[d] for p in parts]) for d in range(order + 1)]
         i = self.segment_index(s)
-        t = np.minimum(s - self.seg_start[i], self._lens[i])[:, None]
-        arc = self._is_arc[i][:, None]
-        k = self._k[i][:, None]
+        t = np.minimum(s - self.seg_start[i], self._lens[i])
+        arc = self._is_arc[i]
+        k = self._k[i]
         phi = t * k
         c, sn = np.cos(phi), np.sin(phi)
-        a, b, hn = self._a[i], self._b[i], self._hn[i]
-        d = self._dir[i]
-        P = self._origin[i] + np.where(arc, c * a + sn * b + phi * hn, t * d)
-        out = [P]
-        if order >= 1:
-            out.append(np.where(arc, k * (-sn * a + c * b + hn), d))
-        if order >= 2:
-            out.append(np.where(arc, k**2 * (-c * a - sn * b), 0.0))
-        if order >= 3:
-            out.append(np.where(arc, k**3 * (sn * a - c * b), 0.0))
+        k2, k3 = k ** 2, k ** 3
+        out = [np.empty((len(s), 3)) for _ in range(order + 1)]
+        # one axis at a time on (N,) arrays (the same operations as on (N, 3) ones broadcast
+        # against (N, 1): numpy ran those in inner loops of 3, twice the time)
+        for x in range(3):
+            a, b, hn, d = self._a[i, x], self._b[i, x], self._hn[i, x], self._dir[i, x]
+            out[0][:, x] = self._origin[i, x] + np.where(arc, c * a + sn * b + phi * hn, t * d)
+            if order >= 1:
+                out[1][:, x] = np.where(arc, k * (-sn * a + c * b + hn), d)
+            if order >= 2:
+                out[2][:, x] = np.where(arc, k2 * (-c * a - sn * b), 0.0)
+            if order >= 3:
+                out[3][:, x] = np.where(arc, k3 * (sn * a - c * b), 0.0)
         if self._spiral.any():
-            self._spiral_rows(out, i, t[:, 0], order)
+            self._spiral_rows(out, i, t, order)
         return out
 
     def _spiral_rows(self, out, i: np.ndarray, t: np.ndarray, order: int) -> None:
