@@ -1,33 +1,30 @@
-"""`optimal` — minimum time with joint velocity, acceleration and jerk limits (CasADi + IPOPT).
+"""`optimal` — minimum time with joint velocity, acceleration and jerk limits.
 
 The jerk-limited reference on the shared constraint set (joint v, a, j; F_max; the chord-error
-feed cap).  Formulation (direct multiple shooting, exact integration):
+feed cap; the G1-join reads).  Two transcriptions:
 
-* the path is split at exact-stop corners; each piece is a rest-to-rest problem of its own
-  (at a corner ṡ = s̈ = 0, so the pieces do not interact);
-* per piece N intervals, their durations scaled together per phase (between G1 joins) by one
-  variable: states s, ṡ, s̈ at the nodes, constant jerk s⃛ on each interval, so s(t) is a cubic
-  spline and the dynamics are exact; nodes one per `node_period_s` and, where the path turns,
-  one per NODE_RADII curvature radii of travel (turn_nodes);
-* at every node: |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A, |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J (the jerk of both
-  intervals that meet there), ṡ ≤ feed cap(s); q′, q″, q‴ and the cap are B-spline
-  interpolants of a PathTable refined at lobe tips, so IPOPT sees exact derivatives;
-* the feed cap also holds the G1-join caps (constraints.second_derivative_jumps);
-* objective Σh, warm start from `copp`'s TOPP3-SOCP profile (feasible at T; else the
-  `scurve_joint` one), slowed down by 2 %: IPOPT starts inside the constraint set (from the
-  jerk-infeasible `toppra` profile it lost itself in restoration on kossel's test_part).
+* the default, COPP's TOPP3-SOCP over arc length (planners/topp3.py, copp-py + Clarabel):
+  stations ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by
+  tangents (a restriction: the time never grows from one linearisation to the next), solved
+  until a linearisation gains < LIN_TOL, checked at T and repaired where a difference window
+  reads above a limit.  info["lower_bound_s"] is its station relaxation: the time before the
+  repairs, with the limits held at the stations only (a bound of this transcription from its
+  local solution, not a certificate of the continuous problem: IPOPT's time-domain NLP found
+  1.7668 s on keops/bird against a station relaxation of 1.76725 s);
+* the time-domain NLP (CasADi + IPOPT, planners/optimal_nlp.py): direct multiple shooting with
+  constant jerk on each interval, the limits at the nodes.  It runs where the SOCP has no
+  solution (from `scurve_joint`'s profile), or from the SOCP's profile with ``polish=True``;
+  the faster of it and its start is returned (info["source"]).
 
-The solution is sampled at T exactly and checked with the independent metrics; if a
+The NLP's solution is sampled at T exactly and checked with the independent metrics; if a
 discretisation effect pushes a joint ratio above 1 the problem is re-solved: on a grid twice
 as fine (from the seed again) where the node budget had spread the nodes ≥ 3× thinner than
 `node_period_s` (up to MAX_NODES_REFINED per piece), else from the last solution, in the
 pieces where a limit read above 1: with the margin doubled on each limit read above 1 (each
 piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
 at each interval's midpoint too.  Still above after `retries`, the pieces are slowed down
-uniformly until they pass (_slowed_down).  The faster of that solution and the warm start is
-returned (info["source"]).  info["lower_bound_s"] = T₁·(1 − m) of the first solve (a bound of
-the node relaxation, from IPOPT's local optimum) and info["gap"].  (Why refining comes first
-and why margins are per piece and per limit: the measurements in docs/TUNING.md.)
+uniformly until they pass (_slowed_down).  (Why refining comes first and why margins are per
+piece and per limit: the measurements in docs/TUNING.md.)
 """
 from __future__ import annotations
 
@@ -39,6 +36,7 @@ import numpy as np
 from .constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
                           table_feed_cap)
 from .optimal_nlp import LIMIT_KINDS, IpoptFailure, _Piece
+from . import topp3
 from .profile import Profile
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
@@ -56,6 +54,10 @@ NODE_RADII = 0.1
 # Where IPOPT fails from the warm start slowed by warm_stretch, it starts again from this
 # (rand_tilted_weights_keops: Infeasible_Problem_Detected from 1.02, solved from 1.1)
 RETRY_STRETCH = 1.1
+# The SOCP's linearisations go on until one gains < LIN_TOL of a piece's time (`copp` stops at
+# 1e-3), at most MAX_LINEARISATIONS solves
+LIN_TOL = 1e-5
+MAX_LINEARISATIONS = 12
 
 
 def broken_limits(machine, path, prof, pcs, limits) -> set:
@@ -159,24 +161,81 @@ def sample_cubic(pieces_sol, T, path, info) -> Profile:
     return prof
 
 
-def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: float = 1e-3,
-         max_nodes_per_piece: int = 600, warm=None, warm_stretch: float = 1.02,
-         retries: int = 3) -> Profile:
-    """Minimum-time jerk-limited reference (CasADi + IPOPT), warm-started from ``warm`` (a
-    Profile; default `copp`'s, else `scurve_joint`'s) slowed down by ``warm_stretch``; where
-    IPOPT fails from there, once more from RETRY_STRETCH (a start further inside the
-    constraints).  The faster of the solution and the start is returned, both checked at T."""
+def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool = False,
+         margin: float = 0.005, node_period_s: float = 1e-3, max_nodes_per_piece: int = 600,
+         warm_stretch: float = 1.02, retries: int = 3) -> Profile:
+    """Minimum-time jerk-limited reference: the TOPP3-SOCP solved to convergence (stations
+    ≤ ``grid_mm`` apart) or `scurve_joint`'s profile where that is faster, both within the
+    limits at T; with ``polish``, the IPOPT NLP from there (module docstring)."""
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
     check_limits(limits, "optimal")
     check_path(path, "optimal")
+    from .scurve import plan_joint
+    candidates, notes = [], {}
+    try:
+        socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm, LIN_TOL, MAX_LINEARISATIONS))
+        candidates.append(socp)
+        notes["socp_s"] = socp.execution_time_s
+    except PlanningError as e:
+        socp, notes["socp"] = None, str(e)
+    candidates.append(plan_joint(path, machine, limits))
+    prof = _fastest_within_limits(candidates, machine, path, notes)
+    if polish:
+        prof = _polish(path, machine, limits, prof, margin, node_period_s, max_nodes_per_piece,
+                       warm_stretch, retries)
+    _bound(prof, socp)
+    prof.planning_time_s = time.perf_counter() - t0
+    return prof
+
+
+def _fastest_within_limits(candidates, machine, path, notes) -> Profile:
+    """The fastest profile within the joint limits and F_max at T, as `optimal`'s, its origin in
+    info["source"]: the SOCP's, or `scurve_joint`'s where that is faster (kossel's short G64
+    blends: the SOCP adds the worst read of a join's q″ jump to the continuous jerk, the s-curve
+    checks the read at T) or the SOCP has no solution."""
+    from planners.verify import command_metrics
+    ok = []
+    for p in candidates:
+        r = command_metrics(machine, path.point(p.s), p.T, p.s)
+        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
+            ok.append(p)
+    if not ok:
+        raise PlanningError(f"optimal: neither the SOCP's nor scurve_joint's profile is within the limits at T"
+                            f"{'; SOCP: ' + notes['socp'] if 'socp' in notes else ''}")
+    best = min(ok, key=lambda p: p.execution_time_s)
+    source = "socp" if best.planner == "optimal" else best.planner
+    return dataclasses.replace(best, planner="optimal", info=dict(best.info, source=source, **notes))
+
+
+def _bound(prof, socp) -> None:
+    """info["lower_bound_s"] and info["gap"]: the SOCP's station relaxation (or the NLP's node
+    relaxation, the lower), where it is one: where a profile of another transcription is faster
+    than it, it bounds nothing and info["bound"] says so."""
+    b = [x for x in (socp.info["station_relaxation_s"] if socp is not None else None,
+                     prof.info.get("lower_bound_s") if prof.info.get("source") == "nlp" else None) if x]
+    if not b:
+        prof.info.pop("lower_bound_s", None)
+        return
+    if min(b) > prof.execution_time_s:
+        prof.info.pop("lower_bound_s", None)
+        prof.info["bound"] = f"none: the station relaxation {min(b):.6g} s is above this {prof.info['source']} profile"
+        return
+    prof.info["lower_bound_s"] = min(b)
+    prof.info["gap"] = prof.execution_time_s / min(b) - 1
+
+
+def _polish(path, machine, limits, warm, margin=0.005, node_period_s=1e-3, max_nodes_per_piece=600,
+            warm_stretch=1.02, retries=3) -> Profile:
+    """The NLP from ``warm`` slowed down by ``warm_stretch``; where IPOPT fails from there, once
+    more from RETRY_STRETCH (a start further inside the constraints).  The faster of the
+    solution and the start is returned, both checked at T."""
     T = machine.servo_period_s
     table = PathTable(path, machine, refine=True)
     cap = table_feed_cap(path, table, limits, T)
     joins = join_jumps(path, table, machine)
     pcs = rest_pieces(path)
     _check_node_budget(path, joins, pcs)
-    warm = _seed(path, machine, limits) if warm is None else warm
     turn = turn_nodes(path, table)
     prof, failure = None, None
     for stretch in sorted({warm_stretch, max(warm_stretch, RETRY_STRETCH)}):
@@ -190,27 +249,13 @@ def plan(path, machine, limits=None, *, margin: float = 0.005, node_period_s: fl
             failure = e
             if not isinstance(e, IpoptFailure):
                 break
-    prof = _faster_of(prof, warm, machine, path, failure)
-    prof.planning_time_s = time.perf_counter() - t0
-    return prof
-
-
-def _seed(path, machine, limits) -> Profile:
-    """The warm start: COPP's TOPP3-SOCP profile (spatial grid, stations refined at lobe tips,
-    checked at T; a convex problem per linearisation, so it does not lose itself where IPOPT
-    does), else the s-curve with its joint-space repair."""
-    from .copp_ref import plan as copp_plan
-    try:
-        return copp_plan(path, machine, limits)
-    except PlanningError:
-        from .scurve import plan_joint
-        return plan_joint(path, machine, limits)
+    return _faster_of(prof, warm, machine, path, failure)
 
 
 def _faster_of(prof, warm, machine, path, failure) -> Profile:
-    """The NLP's solution or, where the warm start is within the limits at T and faster (the NLP
-    failed, or its slow-down cost more than it gained), the warm start as `optimal`'s answer,
-    saying so in info["source"]."""
+    """The NLP's solution or, where its start is within the limits at T and faster (the NLP
+    failed, or its slow-down cost more than it gained), the start as `optimal`'s answer, saying
+    so in info["source"]."""
     from planners.verify import command_metrics
     r = command_metrics(machine, path.point(warm.s), warm.T, warm.s)
     warm_ok = r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6
@@ -219,11 +264,8 @@ def _faster_of(prof, warm, machine, path, failure) -> Profile:
         return prof
     if not warm_ok:
         raise failure
-    info = dict(warm.info, source=f"warm start ({warm.planner})",
+    info = dict(warm.info, source=warm.info.get("source", f"warm start ({warm.planner})"),
                 nlp=str(failure) if prof is None else f"{prof.execution_time_s:.6g} s")
-    if prof is not None:
-        info["lower_bound_s"] = prof.info["lower_bound_s"]
-        info["gap"] = warm.execution_time_s / prof.info["lower_bound_s"] - 1
     return dataclasses.replace(warm, planner="optimal", info=info)
 
 

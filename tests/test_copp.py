@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import ruckig
 
-import planners.copp_ref as copp_ref
+import planners.topp3 as topp3
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
 from planners.paths import Line, SegmentPath, resolve_path
@@ -91,9 +91,44 @@ def test_bad_grid(grid):
 def test_solver_failure_names_the_piece(monkeypatch):
     """A failure of COPP's solver is a PlanningError naming the rest-to-rest piece and the cause."""
     def fail(*_a, **_k):
-        raise copp_ref.copp.CoppError("topp3_socp reported a failure in Clarabel solver with status MaxIterations")
-    monkeypatch.setattr(copp_ref.copp.solver.topp3_socp, "solve", fail)
+        raise topp3.copp.CoppError("topp3_socp reported a failure in Clarabel solver with status MaxIterations")
+    monkeypatch.setattr(topp3.copp.solver.topp3_socp, "solve_expert", fail)
     c = KEOPS.home
     path = SegmentPath([Line(c, c + np.array([10.0, 0, 0])), Line(c + np.array([10.0, 0, 0]), c + np.array([10.0, 8, 0]))])
     with pytest.raises(PlanningError, match=r"copp: no solution of piece 0 \(s = 0…10 mm\): CoppError: .*MaxIterations"):
         plan("copp", path, KEOPS)
+
+
+def test_a_stop_inside_a_piece_gets_s_double_dot_zero():
+    """Five stations of kossel/test_part's SOCP profile around a blend join where it stops
+    (a = 3·10⁻¹⁰) with a round-off b = −6·10⁻⁸: copp's time map is NaN there; with s̈ = 0 at the
+    stop (_stops_at_rest) it is finite, and nothing else moves."""
+    s = np.array([0.0, 0.011100381273053017, 0.022200762546106034, 0.03168135703579367, 0.0411619515254813])
+    a = np.array([0.006523849746075891, 0.001763219172480894, 2.9998583642125146e-10,
+                  0.0007065829169277021, 0.0017255190110691658])
+    b = np.array([-0.2700278489204022, -0.1588430570958467, -6.31863824898243e-08, 0.07452942078401634,
+                  0.03294654976291122])
+    prof = topp3.copp.Profile3rd(a, b, (0, 0))
+    with pytest.raises(topp3.copp.CoppError, match="NaN"):
+        topp3.copp.interpolation.s_to_t_topp3(s, prof)
+    fixed = topp3._stops_at_rest(prof)
+    assert fixed.b[2] == 0.0 and np.array_equal(np.delete(fixed.b, 2), np.delete(b, 2))
+    assert np.array_equal(fixed.a, a)
+    tf, _ = topp3.copp.interpolation.s_to_t_topp3(s, fixed)
+    assert math.isfinite(tf) and tf > 0
+    moving = topp3.copp.Profile3rd(a + 0.01, b, (0, 0))
+    assert topp3._stops_at_rest(moving) is moving
+
+
+def test_repair_windows_reach_the_speed_valleys_and_merge():
+    """A window covers its changed stations and the margin either side, then reaches out to
+    the next local minimum of a on each side (a braking phase is never cut); windows that
+    meet are merged."""
+    grid = np.arange(100.0)
+    a = 1.0 + np.cos(grid * 2 * np.pi / 25)          # valleys at 13, 38, 63, 88 (and the ends)
+    changed = np.zeros(100, bool)
+    changed[[30, 80]] = True
+    assert topp3._windows(changed, grid, a, 2.0, 1) == [(13, 38), (63, 88)]
+    changed[[45]] = True                             # 45 ± 10 spans the valley at 38: merged
+    assert topp3._windows(changed, grid, a, 10.0, 1) == [(13, 99)]
+    assert topp3._windows(np.zeros(100, bool), grid, a, 2.0, 1) == []

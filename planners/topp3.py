@@ -1,0 +1,437 @@
+"""TOPP3-SOCP on a station grid (COPP's transcription, copp-py + Clarabel), checked and repaired
+at T: the engine of the planners `copp` (COPP's settings) and `optimal` (solved to convergence,
+with the bound of its station relaxation).
+
+Wang, Hu, Li, Yu, Yan, Liang & Jin, "Online time-optimal trajectory planning along parametric
+toolpaths with strict constraint satisfaction and certifiable feasibility guarantee", Int. J.
+Machine Tools and Manufacture 215 (2026) 104355; the `copp-py` package (Rust core, Clarabel).
+The constraint set is the planners' one: joint velocity, acceleration and jerk limits, the
+feed caps (F_max, the programmed feed, the chord-error cap F_clim of TII 2022) and at a G1
+join the jerk its jump of q″ reads as at T.
+
+Per rest-to-rest piece (split at exact-stop corners) COPP works on a station grid over arc
+length with a = ṡ² and b = s̈ at the stations, b linear in s between them (so s⃛ = ṡ·c with
+c = db/ds constant on an interval).  Velocity and acceleration limits are linear in (a, b); the
+jerk limit √a·(q‴a + 3q″b + q′c) ≤ J is linearised around a reference profile a_lin by a
+tangent of J/√a, which lies below it: a solution of the linearised problem keeps the jerk
+limit at the stations, and stays feasible when the next problem is linearised around it, so
+the time never grows from one linearisation to the next (sequential convex programming).  The
+first reference is TOPP2-RA's jerk-free profile; the linearisations go on until a solve gains
+< lin_tol of the time.  The feed caps are bounds a ≤ cap² at the stations.  At a G1 join (a
+station) |jerk| + κṡ² ≤ J with κ = JUMP_READ_FACTOR·Δq″/T, for the one-sided derivatives
+either side: κa = √a·κ√a, and −κ√a is replaced by its tangent at a_lin (√a is concave, so the
+tangent row is the stricter).
+
+Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s, keops'
+a, b and jerk lie 10⁵ apart and Clarabel returned a profile far from the optimum (bird 2.45 s,
+scaled 1.50 s before the joins' rows).
+
+Stations: ≤ grid_mm apart, every segment end and G1 join on the grid, refined at curvature
+peaks; q′, q″, q‴ at each station from the IK's stencil (constraints.joint_derivs), not
+interpolated.  The limits hold at the stations.  Between them (a(s) is quadratic there and
+bulges over a bound held at both ends: keops/bird read the joint acceleration 1.004 × its
+limit) the check at T can read above them: the profile is sampled at T and checked; where a
+difference window reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at
+the stations under the window and one either side, and only a window of stations around
+those is solved again, its ends held at the last solution's a and b (a whole piece's solve
+is ~40 interior-point iterations of ~60 ms at 7000 stations, a window's a fraction of it),
+up to MAX_REPAIRS rounds; pieces still above a limit then are stretched uniformly in time.
+A profile still above a limit after that is returned as it is (info["above_at_T"] counts
+its windows): the harness's check reports it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import copp_py as copp
+import numpy as np
+
+from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
+                          check_path, feed_cap, join_jumps, joint_derivs, rest_pieces)
+from .profile import Profile
+from .verify import FEASIBLE_TOL
+
+# stations ≤ REFINE_RADII curvature radii apart (the jerk between stations at lobe tips and
+# blend arcs read above the limit where they were sparser), no closer than REFINE_MIN_MM
+# (Clarabel stopped on insufficient progress at 2·10⁻⁵ mm)
+REFINE_RADII = 0.5
+REFINE_MIN_MM = 1e-3
+# rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
+# read, doubled each round (windows next to a G1 join read above again by less each time);
+# then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit
+MAX_REPAIRS = 8
+TIGHTEN_EXTRA = 1e-3
+MAX_STRETCHES = 8
+LIMIT_COLUMNS = ("velocity", "acceleration", "jerk", "feed")
+STOP_A = 1e-6
+INSUFFICIENT_PROGRESS_OK = copp.clarabel.ClarabelOptions(allow_insufficient_progress=True)
+# a repair re-solves the stations whose limits were tightened and, either side, the travel of
+# WINDOW_TU time units t_u = A/J (a jerk-limited change of speed takes ~2 t_u) at the fastest
+# of them, at least WINDOW_STATIONS stations, its ends held at the last solution; where that
+# window has no solution (too short to slow down in) it is widened WINDOW_GROWTH times,
+# up to the whole piece
+WINDOW_TU = 3.0
+WINDOW_STATIONS = 40
+WINDOW_GROWTH = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """How the engine runs: ``name`` (the planner, in messages and on the Profile), stations
+    ≤ ``grid_mm`` apart, linearisations until a solve gains < ``lin_tol`` of the piece's time,
+    at most ``max_linearisations`` solves."""
+    name: str
+    grid_mm: float = 0.1
+    lin_tol: float = 1e-3
+    max_linearisations: int = 4
+
+
+def _grid(path, table, joins, s0, s1, grid_mm):
+    """Stations ≤ grid_mm apart (≥ 19 intervals a piece, ≥ 4 a segment: a 0.04 mm G64 blend arc
+    is resolved) with every segment end and G1 join of the piece on it, then cells split to
+    ≤ REFINE_RADII curvature radii (at their ends), none below REFINE_MIN_MM."""
+    step = min(grid_mm, (s1 - s0) / 19)
+    inner = [sj for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6]
+    edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
+                                      inner, [s0, s1]]))
+    parts = [np.linspace(a, b, max(5, int(math.ceil((b - a) / step - 1e-9)) + 1))[:-1]
+             for a, b in zip(edges[:-1], edges[1:])]
+    grid = np.concatenate(parts + [[s1]])
+    for _ in range(6):
+        _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
+        kap = np.linalg.norm(np.cross(P1, P2), axis=1)
+        h = np.diff(grid)
+        k = np.minimum(np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII), 16)
+        need = np.nonzero((k > 1) & (h > REFINE_MIN_MM))[0]
+        if len(need) == 0:
+            break
+        new = np.concatenate([grid[i] + h[i] * np.arange(1, int(k[i])) / k[i] for i in need])
+        grid = np.sort(np.concatenate([grid, new]))
+    return grid
+
+
+def _join_rows(machine, path, grid, joins, T_scaled):
+    """[(station, q′, q″, q‴ either side (2, 3), κ per joint)] of the G1 joins on the grid,
+    T in scaled time: the jump Δq″ reads at T as a jerk κṡ², κ = JUMP_READ_FACTOR·Δq″/T."""
+    out = []
+    for sj, dq2 in joins:
+        i = int(np.searchsorted(grid, sj))
+        if 0 < i < len(grid) - 1 and abs(grid[i] - sj) < 1e-9:
+            _, D1, D2, D3 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))
+            out.append((i, D1, D2, D3, JUMP_READ_FACTOR * np.asarray(dq2) / T_scaled))
+    return out
+
+
+class _Piece:
+    """One rest-to-rest piece as a COPP problem in scaled time (t_u = A/J)."""
+
+    def __init__(self, k, table, path, machine, limits, s0, s1, grid_mm, joins):
+        self.k, self.s0, self.s1 = k, s0, s1
+        J, T = limits.joint, machine.servo_period_s
+        self.tu = J.a / J.j
+        self.grid = _grid(path, table, joins, s0, s1, grid_mm)
+        self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
+        e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
+        cart = cartesian_derivs(path, e)
+        cap = feed_cap(path, self.grid, limits, T, kappa=np.linalg.norm(np.cross(cart[1], cart[2]), axis=1))
+        self.cap2 = (cap * self.tu) ** 2
+        self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
+        self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
+        for i, *_, kappa in self.joins:        # the read κṡ² alone within J
+            self.cap2[i] = min(self.cap2[i], self.lims[2] / kappa.max())
+        # per station the fraction of each limit (LIMIT_COLUMNS) it is held to: 1 until the
+        # check at T reads the limit above 1 in a window over the station (tighten)
+        self.factor = np.ones((len(self.grid), len(LIMIT_COLUMNS)))
+        self.changed = np.zeros(len(self.grid), bool)
+        self.prof = self.span = None
+        self.insufficient_progress = 0
+
+    def where(self) -> str:
+        return f"piece {self.k} (s = {self.s0:.6g}…{self.s1:.6g} mm)"
+
+    def _robot(self, a_lin=None):
+        """The constraints; with a_lin, the G1 joins' rows linearised around it."""
+        n = len(self.grid)
+        rob = copp.Robot(3, capacity=n)
+        rob.append_s(self.grid - self.s0)
+        q, d1, d2, d3 = self.deriv
+        rob.set_q(q, d1, d2, 0, dddq=d3)
+        f = self.factor
+        v, a, j = (np.outer(f[:, m], np.full(3, lim)) for m, lim in enumerate(self.lims))
+        rob.add_velocity_limits(v, -v, start_idx_s=0, length=n)
+        rob.add_acceleration_limits(a, -a, start_idx_s=0, length=n)
+        rob.add_jerk_limits(j, -j, start_idx_s=0, length=n)
+        rob.constraints.add_constraint_1st((self.cap2 * f[:, 3] ** 2)[:, None], 0)
+        for i, D1, D2, D3, kappa in (self.joins if a_lin is not None else ()):
+            # ±(q‴a + 3q″b + q′c) + κ√a ≤ J/√a with κ√a ≥ its tangent at r² = a_lin (≤ the cap)
+            r = math.sqrt(max(min(a_lin[i], self.cap2[i]), 1e-12))
+            rows = [(sg * d3 + kap / (2 * r), sg * 3 * d2, sg * d1, kap * r / 2)
+                    for d1, d2, d3, kap in zip(D1.ravel(), D2.ravel(), D3.ravel(), np.tile(kappa, 2))
+                    for sg in (1.0, -1.0)]
+            ga, gb, gc, gd = (np.array([[row[m] for row in rows]]) for m in range(4))
+            rob.constraints.add_constraint_3rd(ga, gb, gc, gd, np.full_like(ga, j[i, 0]), i)
+        return rob
+
+    def solve(self, settings):
+        """(TOPP3 profile, node times in scaled time).  The first time: linearised around
+        TOPP2-RA's profile, then around each solution (settings.lin_tol, .max_linearisations);
+        after a tightening (``changed``: the stations whose factors moved), the windows around
+        them only, from the last solution."""
+        if self.prof is None:
+            prob2 = copp.solver.topp2_ra.Problem(self._robot().constraints, (0, len(self.grid) - 1), (0.0, 0.0))
+            a_lin = np.minimum(copp.solver.topp2_ra.solve(prob2), self.cap2)
+            best = None
+            for _ in range(settings.max_linearisations):
+                prof = self._socp(self._robot(a_lin), a_lin)
+                tf, ts = self._times(prof)
+                done = best is not None and (best[0] - tf) / tf < settings.lin_tol
+                if best is None or tf < best[0]:
+                    best = (tf, prof, ts)
+                if done:
+                    break
+                a_lin = prof.a
+            self.prof = best[1]
+        else:
+            self.prof = self._resolve_windows()
+        self.changed[:] = False
+        return self.prof, self._times(self.prof)[1]
+
+    def _times(self, prof):
+        tf, ts = copp.interpolation.s_to_t_topp3(self.grid - self.s0, prof)
+        if not np.isfinite(tf):
+            raise copp.CoppError(f"the profile's time is {tf}")
+        return tf, ts
+
+    def _resolve_windows(self):
+        """The last solution with each window around the changed stations solved again, its
+        ends held at that solution's a and b (_windows); a window without a solution is widened
+        WINDOW_GROWTH times, up to the whole piece."""
+        old = self.prof
+        a, b = old.a.copy(), old.b.copy()
+        ns = list(old.num_stationary)
+        n = len(self.grid)
+        rob = self._robot(np.minimum(a, self.cap2 * self.factor[:, 3] ** 2))
+        # in scaled time √a is the travel per t_u
+        margin = WINDOW_TU * math.sqrt(max(float(a[self.changed].max(initial=0.0)), 0.0))
+        for lo, hi in _windows(self.changed, self.grid, a, margin, WINDOW_STATIONS):
+            while True:
+                a_lin = np.minimum(a[lo:hi + 1], self.cap2[lo:hi + 1] * self.factor[lo:hi + 1, 3] ** 2)
+                try:
+                    prof = self._socp(rob, a_lin, lo, (a[lo], a[hi]), (b[lo], b[hi]),
+                                      (1 if lo == 0 else 0, 1 if hi == n - 1 else 0))
+                    break
+                except copp.CoppError:
+                    if lo == 0 and hi == n - 1:
+                        raise
+                    w = WINDOW_GROWTH * (hi - lo)
+                    lo, hi = max(lo - w, 0), min(hi + w, n - 1)
+            a[lo:hi + 1], b[lo:hi + 1] = prof.a, prof.b
+            if lo == 0:
+                ns[0] = prof.num_stationary[0]
+            if hi == n - 1:
+                ns[1] = prof.num_stationary[1]
+        return copp.Profile3rd(a, b, tuple(ns))
+
+    def _socp(self, rob, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=1):
+        """TOPP3-SOCP's profile over stations lo … lo + len(a_lin) − 1; where Clarabel stops on
+        insufficient progress (pocket_kossel: feeds 10⁻³ of F_max at 4 µm blend arcs next to
+        ones at F_max), its last iterate, which the check at T judges like any other."""
+        prob = copp.solver.topp3_socp.Problem(rob.constraints, a_lin, idx_s_start=lo, a_boundary=a_ends,
+                                              b_boundary=b_ends, num_stationary_max=stationary)
+        # one solve that accepts insufficient progress (a rejected one, then a second that
+        # accepts it, doubled pocket_keops' time)
+        res = copp.solver.topp3_socp.solve_expert(prob, INSUFFICIENT_PROGRESS_OK)
+        if res.profile is None:
+            raise copp.CoppError(f"topp3_socp stopped with Clarabel status {res.solver_status}")
+        if res.solver_status == copp.core.ClarabelSolverStatus.INSUFFICIENT_PROGRESS:
+            self.insufficient_progress += 1
+        return _stops_at_rest(res.profile)
+
+    def tighten(self, col, s_lo, s_hi, ratio, new, extra) -> None:
+        """In ``new`` (the next factors): limit ``col`` at the stations under [s_lo, s_hi] and
+        one either side held to its present fraction / (ratio·(1 + extra))."""
+        g = self.grid
+        i0 = max(int(np.searchsorted(g, s_lo, side="right")) - 2, 0)
+        i1 = min(int(np.searchsorted(g, s_hi, side="left")) + 2, len(g))
+        want = self.factor[i0:i1, col] / (ratio * (1 + extra))
+        new[i0:i1, col] = np.minimum(new[i0:i1, col], want)
+
+
+def _stops_at_rest(prof):
+    """The profile with s̈ = 0 where it stops inside the piece (a ≤ STOP_A of its largest a):
+    where ṡ touches 0, s̈ is 0, and the solver's round-off there (b = −6·10⁻⁸ at a = 3·10⁻¹⁰ on a
+    blend join of kossel's test_part) made copp's time map NaN."""
+    a, b = prof.a, prof.b
+    stop = a <= STOP_A * a.max(initial=0.0)
+    stop[0] = stop[-1] = False
+    if not stop.any():
+        return prof
+    b = b.copy()
+    b[stop] = 0.0
+    return copp.Profile3rd(a, b, prof.num_stationary)
+
+
+def _windows(changed, grid, a, margin_mm, margin_stations):
+    """[(first, last station)] covering each run of changed stations and margin_mm (at least
+    margin_stations stations) either side, extended out to the next valley of the speed (a
+    local minimum of a: a time-optimal profile is on some limit from valley to valley, so a
+    window ending inside a braking phase left no room to brake earlier, and an acceleration
+    limit tightened there had no solution), overlapping windows merged."""
+    idx = np.nonzero(changed)[0]
+    n = len(grid)
+    if len(idx) == 0:
+        return []
+    valleys = np.concatenate([[0], np.nonzero((a[1:-1] <= a[:-2]) & (a[1:-1] <= a[2:]))[0] + 1, [n - 1]])
+    lo = np.minimum(np.searchsorted(grid, grid[idx] - margin_mm, side="left"), idx - margin_stations)
+    hi = np.maximum(np.searchsorted(grid, grid[idx] + margin_mm, side="right") - 1, idx + margin_stations)
+    lo = valleys[np.searchsorted(valleys, np.clip(lo, 0, n - 1), side="right") - 1]
+    hi = valleys[np.searchsorted(valleys, np.clip(hi, 0, n - 1), side="left")]
+    out = [[int(lo[0]), int(hi[0])]]
+    for a0, b0 in zip(lo[1:], hi[1:]):
+        if a0 <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], int(b0))
+        else:
+            out.append([int(a0), int(b0)])
+    return [tuple(w) for w in out]
+
+
+class _Topp3Span:
+    """A solved piece as one piece of `Profile.from_pieces`: s(t) by copp's own inverse of its
+    time map; ṡ, s̈, s⃛ from the model: between stations a(x) = a_k + 2b_k·x + (b_{k+1} − b_k)/Δs·x²,
+    in the stationary blocks at the ends s − s_end = C·τ³ (copp's constant-jerk start and stop)."""
+
+    def __init__(self, piece, prof, ts):
+        self.prof, self.tu, self.ts = prof, piece.tu, ts
+        self.s0, self.s = piece.s0, piece.grid - piece.s0
+        self.a, self.b, self.ns = prof.a, prof.b, prof.num_stationary
+        self.lam = 1.0                                   # a uniform time stretch (_stretch)
+
+    @property
+    def duration(self):
+        return float(self.ts[-1]) * self.tu * self.lam
+
+    def _cubic(self, i_node, s_end, tau):
+        """ṡ, s̈, s⃛ of s = s_end + C·τ³ reaching station i_node at its a."""
+        C = self.a[i_node] ** 1.5 / (27.0 * (self.s[i_node] - s_end) ** 2)
+        return 3 * C * tau ** 2, 6 * C * tau, np.full_like(tau, 6 * C)
+
+    def at(self, tt):
+        tu = self.tu * self.lam
+        u = np.clip(np.asarray(tt, float) / tu, 0.0, self.ts[-1])       # scaled time
+        uu, inv = np.unique(u, return_inverse=True)                      # copp wants them increasing
+        s = copp.interpolation.t_to_s_topp3_samples(self.s, self.prof, self.ts, uu)[inv]
+        n = len(self.s) - 1
+        k = np.clip(np.searchsorted(self.ts, u, side="right") - 1, 0, n - 1)
+        x = s - self.s[k]
+        c = (self.b[k + 1] - self.b[k]) / (self.s[k + 1] - self.s[k])
+        sd = np.sqrt(np.maximum(self.a[k] + 2 * self.b[k] * x + c * x * x, 0.0))
+        sdd, sddd = self.b[k] + c * x, c * sd
+        h0, h1 = self.ns
+        if h0:
+            m = k < h0
+            sd[m], sdd[m], sddd[m] = self._cubic(h0, self.s[0], u[m])
+        if h1:
+            m = k >= n - h1
+            sd[m], sdd[m], sddd[m] = self._cubic(n - h1, self.s[-1], u[m] - self.ts[-1])
+        return s, sd / tu, sdd / tu ** 2, sddd / tu ** 3
+
+
+def _sample(pieces, T, path, info, settings) -> Profile:
+    """The pieces solved (those not solved since they were tightened) and sampled at T."""
+    for p in pieces:
+        if p.span is None:
+            try:
+                p.span = _Topp3Span(p, *p.solve(settings))
+            except (copp.CoppError, ValueError) as e:
+                raise PlanningError(f"{settings.name}: no solution of {p.where()}: {type(e).__name__}: {e}") from None
+    return Profile.from_pieces(settings.name, T, [p.span for p in pieces], path, info)
+
+
+def _reads_above(prof, machine, path, limits):
+    """[(limit column, first sample of the window, its width in samples, ratio)] of every window
+    that reads a limit above 1 at T: joint v, a, j by differences of the IK'd samples (as
+    planners.verify reads them), the feed against F_max."""
+    from planners.verify import differences
+    T, lim = prof.T, limits.joint
+    D = differences(machine.ik(path.point(prof.s)), T)
+    reads = [np.abs(D["velocity"]).max(axis=1) / lim.v, np.abs(D["acceleration"]).max(axis=1) / lim.a,
+             np.abs(D["jerk"]).max(axis=1) / lim.j, np.diff(prof.s) / T / limits.feed_max]
+    return [(col, int(i), max(col, 1), float(r[i])) for col, r in enumerate(reads)
+            for i in np.nonzero(r > 1 + FEASIBLE_TOL)[0]]
+
+
+def _tighten(prof, pieces, above, extra) -> None:
+    """Each limit read above at the stations under its window (_Piece.tighten); the pieces
+    whose factors changed are to be solved again."""
+    s = prof.s
+    new = [p.factor.copy() for p in pieces]
+    starts = np.array([p.s0 for p in pieces])
+    for col, i, width, ratio in above:
+        lo, hi = s[i], s[min(i + width, len(s) - 1)]
+        for g in range(max(int(np.searchsorted(starts, lo, side="right")) - 1, 0),
+                       int(np.searchsorted(starts, hi, side="right"))):
+            pieces[g].tighten(col, lo, hi, ratio, new[g], extra)
+    for p, f in zip(pieces, new):
+        moved = np.any(p.factor != f, axis=1)
+        if moved.any():
+            p.factor, p.span = f, None
+            p.changed |= moved
+
+
+def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
+    """The last resort when tightening left windows above a limit: each piece with a sample
+    above stretched uniformly in time by the worst need there (planners.verify.stretch_need:
+    velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to MAX_STRETCHES times."""
+    from planners.verify import stretch_need
+    T = prof.T
+    for _ in range(MAX_STRETCHES):
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
+        starts = np.concatenate([[0.0], np.cumsum([p.span.duration for p in pieces])])
+        g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
+        worst = np.zeros(len(pieces))
+        np.maximum.at(worst, g, need)
+        if worst.max() <= 1 + FEASIBLE_TOL:
+            break
+        for p, w in zip(pieces, worst):
+            if w > 1 + FEASIBLE_TOL:
+                p.span.lam *= w * (1 + TIGHTEN_EXTRA)
+        prof = Profile.from_pieces(name, T, [p.span for p in pieces], path, info)
+    info["stretch"] = [round(p.span.lam, 6) for p in pieces]
+    return prof
+
+
+def solve(path, machine, limits, settings: Settings) -> Profile:
+    """The profile of ``settings`` on ``path``, checked at T and repaired (module docstring).
+    info["station_relaxation_s"]: the pieces' time before the first repair, the limits held
+    at the stations only (a bound of this transcription, from its local solution)."""
+    check_limits(limits, settings.name)
+    check_path(path, settings.name)
+    g = settings.grid_mm
+    if not (isinstance(g, (int, float)) and not isinstance(g, bool) and 0 < g < math.inf):
+        raise PlanningError(f"{settings.name}: grid_mm = {g!r} must be a finite number > 0")
+    T = machine.servo_period_s
+    table = PathTable(path, machine)
+    joins = join_jumps(path, table, machine)
+    pieces = [_Piece(k, table, path, machine, limits, s0, s1, g, joins)
+              for k, (s0, s1) in enumerate(rest_pieces(path))]
+    info = {"pieces": len(pieces), "stations": int(sum(len(p.grid) for p in pieces)),
+            "g1_joins": len(joins), "tightened": []}
+    for rnd in range(MAX_REPAIRS + 1):
+        prof = _sample(pieces, T, path, info, settings)
+        if rnd == 0:
+            info["station_relaxation_s"] = float(sum(p.span.duration for p in pieces))
+        above = _reads_above(prof, machine, path, limits)
+        if not above:
+            break
+        if rnd == MAX_REPAIRS:
+            prof = _stretch(prof, pieces, machine, path, limits, info, settings.name)
+            above = _reads_above(prof, machine, path, limits)
+            break
+        # what the round read above: windows per limit, the time before tightening
+        info["tightened"].append({"time_s": prof.execution_time_s,
+                                  **{c: sum(1 for a in above if a[0] == m) for m, c in enumerate(LIMIT_COLUMNS)}})
+        _tighten(prof, pieces, above, TIGHTEN_EXTRA * 2 ** rnd)
+    prof.info["above_at_T"] = len(above)
+    prof.info["insufficient_progress"] = sum(p.insufficient_progress for p in pieces)
+    return prof
