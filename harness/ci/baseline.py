@@ -41,6 +41,9 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     # (Clarabel, then IPOPT) moved them by 8.7e-5 relative under other numpy SIMD (kossel
     # repro_part; tests/test_reproducibility.py): ±0.1 % there, its joint peaks stay at ±1e-6
     ("*/optimal*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
+    # … and for the same reason the time its samples spend above a Cartesian limit: a sample
+    # near one flips (0.967 → 0.969 s of Cartesian jerk on repro_part from the SOCP, +0.21 %)
+    ("*/optimal*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 1e-2}),
     ("*peak_ratio.*", {"abs": 1e-6}),
     ("*violation_time_s.*", {"abs": 1e-6}),
     ("max_chord_error_um", {"rel": 0.005, "abs": 1e-3}),          # geometry: no quantisation
