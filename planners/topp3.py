@@ -145,6 +145,7 @@ class _Piece:
         self.factor = np.ones((len(self.grid), len(LIMIT_COLUMNS)))
         self.changed = np.zeros(len(self.grid), bool)
         self.prof = self.span = None
+        self.stuck = False
         self.insufficient_progress = 0
 
     def where(self) -> str:
@@ -178,13 +179,20 @@ class _Piece:
         TOPP2-RA's profile, then around each solution (settings.lin_tol, .max_linearisations);
         after a tightening (``changed``: the stations whose factors moved), the windows around
         them only, from the last solution."""
+        if self.prof is not None and not self.stuck:
+            try:
+                self.prof = self._resolve_windows()
+            except copp.CoppError:
+                # not even the whole piece from the last solution had one (pocket_keops: Clarabel
+                # found the tightened piece almost infeasible, from TOPP2-RA's start too): the
+                # piece keeps its last solution, and the last resort stretches it (_stretch)
+                self.stuck = True
         if self.prof is None:
             prob2 = copp.solver.topp2_ra.Problem(self._robot().constraints, (0, len(self.grid) - 1), (0.0, 0.0))
             a_lin = np.minimum(copp.solver.topp2_ra.solve(prob2), self.cap2)
             best = None
             for _ in range(settings.max_linearisations):
-                prof = self._socp(self._robot(a_lin), a_lin)
-                tf, ts = self._times(prof)
+                prof, tf, ts = self._timed(self._socp(self._robot(a_lin), a_lin))
                 done = best is not None and (best[0] - tf) / tf < settings.lin_tol
                 if best is None or tf < best[0]:
                     best = (tf, prof, ts)
@@ -192,16 +200,24 @@ class _Piece:
                     break
                 a_lin = prof.a
             self.prof = best[1]
-        else:
-            self.prof = self._resolve_windows()
         self.changed[:] = False
-        return self.prof, self._times(self.prof)[1]
+        self.prof, _, ts = self._timed(self.prof)
+        return self.prof, ts
 
-    def _times(self, prof):
-        tf, ts = copp.interpolation.s_to_t_topp3(self.grid - self.s0, prof)
+    def _timed(self, prof):
+        """(profile, its time, its node times) by copp's time map; where that is NaN, once more
+        with s̈ = 0 at the profile's stops inside the piece (_stops_at_rest)."""
+        s = self.grid - self.s0
+        try:
+            tf, ts = copp.interpolation.s_to_t_topp3(s, prof)
+        except copp.CoppError as e:
+            if "NaN" not in str(e):
+                raise
+            prof = _stops_at_rest(prof)
+            tf, ts = copp.interpolation.s_to_t_topp3(s, prof)
         if not np.isfinite(tf):
             raise copp.CoppError(f"the profile's time is {tf}")
-        return tf, ts
+        return prof, tf, ts
 
     def _resolve_windows(self):
         """The last solution with each window around the changed stations solved again, its
@@ -218,12 +234,17 @@ class _Piece:
             while True:
                 a_lin = np.minimum(a[lo:hi + 1], self.cap2[lo:hi + 1] * self.factor[lo:hi + 1, 3] ** 2)
                 try:
-                    prof = self._socp(rob, a_lin, lo, (a[lo], a[hi]), (b[lo], b[hi]),
+                    # at the piece's ends the rest it starts and stops at (copp's b there is
+                    # not 0: with it the whole piece had no solution on pocket_keops)
+                    ends = [(a[lo], b[lo]) if lo > 0 else (0.0, 0.0), (a[hi], b[hi]) if hi < n - 1 else (0.0, 0.0)]
+                    prof = self._socp(rob, a_lin, lo, (ends[0][0], ends[1][0]), (ends[0][1], ends[1][1]),
                                       (1 if lo == 0 else 0, 1 if hi == n - 1 else 0))
                     break
                 except copp.CoppError:
                     if lo == 0 and hi == n - 1:
-                        raise
+                        # the whole piece, linearised around the last solution as it was
+                        a0 = np.minimum(old.a, self.cap2 * self.factor[:, 3] ** 2)
+                        return self._socp(self._robot(a0), a0)
                     w = WINDOW_GROWTH * (hi - lo)
                     lo, hi = max(lo - w, 0), min(hi + w, n - 1)
             a[lo:hi + 1], b[lo:hi + 1] = prof.a, prof.b
@@ -246,7 +267,7 @@ class _Piece:
             raise copp.CoppError(f"topp3_socp stopped with Clarabel status {res.solver_status}")
         if res.solver_status == copp.core.ClarabelSolverStatus.INSUFFICIENT_PROGRESS:
             self.insufficient_progress += 1
-        return _stops_at_rest(res.profile)
+        return res.profile
 
     def tighten(self, col, s_lo, s_hi, ratio, new, extra) -> None:
         """In ``new`` (the next factors): limit ``col`` at the stations under [s_lo, s_hi] and
@@ -432,6 +453,8 @@ def solve(path, machine, limits, settings: Settings) -> Profile:
         info["tightened"].append({"time_s": prof.execution_time_s,
                                   **{c: sum(1 for a in above if a[0] == m) for m, c in enumerate(LIMIT_COLUMNS)}})
         _tighten(prof, pieces, above, TIGHTEN_EXTRA * 2 ** rnd)
+    prof.info["station_relaxation_s"] = info["station_relaxation_s"]
     prof.info["above_at_T"] = len(above)
     prof.info["insufficient_progress"] = sum(p.insufficient_progress for p in pieces)
+    prof.info["repair_failed"] = [p.k for p in pieces if p.stuck]
     return prof
