@@ -64,6 +64,7 @@ MAX_REPAIRS = 8
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 8
 LIMIT_COLUMNS = ("velocity", "acceleration", "jerk", "feed")
+# a stop inside a piece: a ≤ STOP_A of the piece's largest a (_stops_at_rest)
 STOP_A = 1e-6
 INSUFFICIENT_PROGRESS_OK = copp.clarabel.ClarabelOptions(allow_insufficient_progress=True)
 # a repair re-solves the stations whose limits were tightened and, either side, the travel of
@@ -183,9 +184,9 @@ class _Piece:
             try:
                 self.prof = self._resolve_windows()
             except copp.CoppError:
-                # not even the whole piece from the last solution had one (pocket_keops: Clarabel
-                # found the tightened piece almost infeasible, from TOPP2-RA's start too): the
-                # piece keeps its last solution, and the last resort stretches it (_stretch)
+                # not even the whole piece had a solution under its tightened limits (Clarabel:
+                # (almost) primal infeasible): it keeps its last solution, which the last resort
+                # stretches (_stretch), and is not solved again
                 self.stuck = True
         if self.prof is None:
             prob2 = copp.solver.topp2_ra.Problem(self._robot().constraints, (0, len(self.grid) - 1), (0.0, 0.0))
@@ -234,8 +235,7 @@ class _Piece:
             while True:
                 a_lin = np.minimum(a[lo:hi + 1], self.cap2[lo:hi + 1] * self.factor[lo:hi + 1, 3] ** 2)
                 try:
-                    # at the piece's ends the rest it starts and stops at (copp's b there is
-                    # not 0: with it the whole piece had no solution on pocket_keops)
+                    # at the piece's ends: the rest it starts and stops at
                     ends = [(a[lo], b[lo]) if lo > 0 else (0.0, 0.0), (a[hi], b[hi]) if hi < n - 1 else (0.0, 0.0)]
                     prof = self._socp(rob, a_lin, lo, (ends[0][0], ends[1][0]), (ends[0][1], ends[1][1]),
                                       (1 if lo == 0 else 0, 1 if hi == n - 1 else 0))
