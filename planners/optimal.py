@@ -181,7 +181,10 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | Non
         notes["socp_s"] = socp.execution_time_s
     except PlanningError as e:
         socp, notes["socp"] = None, str(e)
-    candidates.append(plan_joint(path, machine, limits))
+    try:
+        candidates.append(plan_joint(path, machine, limits))
+    except PlanningError as e:
+        notes["scurve_joint"] = str(e)
     prof = _fastest_within_limits(candidates, machine, path, notes)
     if polish is None:
         polish = _nlp_resolves(prof, path, node_period_s, max_nodes_per_piece)
@@ -214,8 +217,8 @@ def _fastest_within_limits(candidates, machine, path, notes) -> Profile:
         if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
             ok.append(p)
     if not ok:
-        raise PlanningError(f"optimal: neither the SOCP's nor scurve_joint's profile is within the limits at T"
-                            f"{'; SOCP: ' + notes['socp'] if 'socp' in notes else ''}")
+        why = "".join(f"; {k}: {notes[k]}" for k in ("socp", "scurve_joint") if k in notes)
+        raise PlanningError(f"optimal: neither the SOCP's nor scurve_joint's profile is within the limits at T{why}")
     best = min(ok, key=lambda p: p.execution_time_s)
     source = "socp" if best.planner == "optimal" else best.planner
     return dataclasses.replace(best, planner="optimal", info=dict(best.info, source=source, **notes))
