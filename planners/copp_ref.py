@@ -4,7 +4,7 @@ settings: a second, independent jerk-limited reference on the planners' constrai
 Wang, Hu, Li, Yu, Yan, Liang & Jin, Int. J. Machine Tools and Manufacture 215 (2026) 104355;
 the `copp-py` package.  The transcription, its check at T and its repairs: planners/topp3.py.
 The linearisations stop when a solve gains < 0.1 % of a piece's time, after at most 4 solves
-(more moved the result by < 0.1 % at twice the time).
+(topp3.Settings' defaults; more moved the result by < 0.1 % at twice the time).
 """
 from __future__ import annotations
 
@@ -12,14 +12,12 @@ import time
 
 from . import topp3
 
-LIN_TOL = 1e-3
-MAX_LINEARISATIONS = 4
 
 
 def plan(path, machine, limits=None, *, grid_mm: float = 0.1):
     """COPP TOPP3-SOCP: joint v, a, j limits and the feed caps, checked and repaired at T."""
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
-    prof = topp3.solve(path, machine, limits, topp3.Settings("copp", grid_mm, LIN_TOL, MAX_LINEARISATIONS))
+    prof = topp3.solve(path, machine, limits, topp3.Settings("copp", grid_mm))
     prof.planning_time_s = time.perf_counter() - t0
     return prof

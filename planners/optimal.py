@@ -5,9 +5,9 @@ feed cap; the G1-join reads).  Two transcriptions:
 
 * the default, COPP's TOPP3-SOCP over arc length (planners/topp3.py, copp-py + Clarabel):
   stations ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by
-  tangents (a restriction: the time never grows from one linearisation to the next), solved
-  until a linearisation gains < LIN_TOL, checked at T and repaired where a difference window
-  reads above a limit.  info["lower_bound_s"] is its station relaxation: the time before the
+  tangents (a restriction: the time never grows from one linearisation to the next), at
+  `copp`'s settings (its profile is this one: optimal is never slower), checked at T and
+  repaired where a difference window reads above a limit.  info["lower_bound_s"] is its station relaxation: the time before the
   repairs, with the limits held at the stations only (a bound of this transcription from its
   local solution, not a certificate of the continuous problem: IPOPT's time-domain NLP found
   1.7668 s on keops/bird against a station relaxation of 1.76725 s);
@@ -54,10 +54,6 @@ NODE_RADII = 0.1
 # Where IPOPT fails from the warm start slowed by warm_stretch, it starts again from this
 # (rand_tilted_weights_keops: Infeasible_Problem_Detected from 1.02, solved from 1.1)
 RETRY_STRETCH = 1.1
-# The SOCP's linearisations go on until one gains < LIN_TOL of a piece's time (`copp` stops at
-# 1e-3), at most MAX_LINEARISATIONS solves
-LIN_TOL = 1e-5
-MAX_LINEARISATIONS = 12
 
 
 def broken_limits(machine, path, prof, pcs, limits) -> set:
@@ -164,8 +160,7 @@ def sample_cubic(pieces_sol, T, path, info) -> Profile:
 def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | None = None,
          margin: float = 0.005, node_period_s: float = 1e-3, max_nodes_per_piece: int = 600,
          warm_stretch: float = 1.02, retries: int = 3) -> Profile:
-    """Minimum-time jerk-limited reference: the TOPP3-SOCP solved to convergence (stations
-    ≤ ``grid_mm`` apart) or `scurve_joint`'s profile where that is faster, both within the
+    """Minimum-time jerk-limited reference: the TOPP3-SOCP (stations ≤ ``grid_mm`` apart) or `scurve_joint`'s profile where that is faster, both within the
     limits at T; with ``polish``, the IPOPT NLP from there (module docstring).  ``polish=None``
     (the default): where the NLP's grid resolves every piece, a node per ``node_period_s``
     within ``max_nodes_per_piece`` (_nlp_resolves)."""
@@ -176,7 +171,7 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | Non
     from .scurve import plan_joint
     candidates, notes = [], {}
     try:
-        socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm, LIN_TOL, MAX_LINEARISATIONS))
+        socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm))
         candidates.append(socp)
         notes["socp_s"] = socp.execution_time_s
     except PlanningError as e:
