@@ -7,14 +7,16 @@ feed cap; the G1-join reads).  Two transcriptions:
   stations ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by
   tangents (a restriction: the time never grows from one linearisation to the next), at
   `copp`'s settings (its profile is this one: optimal is never slower), checked at T and
-  repaired where a difference window reads above a limit.  info["lower_bound_s"] is its station relaxation: the time before the
-  repairs, with the limits held at the stations only (a bound of this transcription from its
-  local solution, not a certificate of the continuous problem: IPOPT's time-domain NLP found
-  1.7668 s on keops/bird against a station relaxation of 1.76725 s);
+  repaired where a difference window reads above a limit.  `scurve_joint`'s profile is
+  returned instead where it is faster, or where the SOCP has no solution (info["source"]).
+  info["lower_bound_s"] is the station relaxation: the time before the repairs, with the
+  limits held at the stations only (a bound of this transcription from its local solution,
+  not a certificate of the continuous problem: IPOPT's time-domain NLP found 1.7668 s on
+  keops/bird against a station relaxation of 1.76725 s);
 * the time-domain NLP (CasADi + IPOPT, planners/optimal_nlp.py): direct multiple shooting with
-  constant jerk on each interval, the limits at the nodes.  It runs where the SOCP has no
-  solution (from `scurve_joint`'s profile), or from the SOCP's profile with ``polish=True``;
-  the faster of it and its start is returned (info["source"]).
+  constant jerk on each interval, the limits at the nodes, started from that profile.  It runs
+  with ``polish=True`` and, by default, where its nodes resolve every piece (_nlp_resolves);
+  the faster of it and its start is returned.
 
 The NLP's solution is sampled at T exactly and checked with the independent metrics; if a
 discretisation effect pushes a joint ratio above 1 the problem is re-solved: on a grid twice
@@ -160,8 +162,9 @@ def sample_cubic(pieces_sol, T, path, info) -> Profile:
 def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | None = None,
          margin: float = 0.005, node_period_s: float = 1e-3, max_nodes_per_piece: int = 600,
          warm_stretch: float = 1.02, retries: int = 3) -> Profile:
-    """Minimum-time jerk-limited reference: the TOPP3-SOCP (stations ≤ ``grid_mm`` apart) or `scurve_joint`'s profile where that is faster, both within the
-    limits at T; with ``polish``, the IPOPT NLP from there (module docstring).  ``polish=None``
+    """Minimum-time jerk-limited reference: the TOPP3-SOCP (stations ≤ ``grid_mm`` apart) or
+    `scurve_joint`'s profile where that is faster, both within the limits at T; with
+    ``polish``, the IPOPT NLP from there (module docstring).  ``polish=None``
     (the default): where the NLP's grid resolves every piece, a node per ``node_period_s``
     within ``max_nodes_per_piece`` (_nlp_resolves)."""
     t0 = time.perf_counter()
