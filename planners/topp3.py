@@ -126,8 +126,9 @@ def _join_rows(machine, path, grid, joins, T_scaled):
     return out
 
 
-class _Piece:
-    """One rest-to-rest piece as a COPP problem in scaled time (t_u = A/J)."""
+class Piece:
+    """One rest-to-rest piece as a COPP problem in scaled time (t_u = A/J); ``reference``: the
+    profile (a at the stations) the first solve is linearised around, TOPP2-RA's where None."""
 
     def __init__(self, k, table, path, machine, limits, s0, s1, grid_mm, joins):
         self.k, self.s0, self.s1 = k, s0, s1
@@ -147,7 +148,7 @@ class _Piece:
         # check at T reads the limit above 1 in a window over the station (tighten)
         self.factor = np.ones((len(self.grid), len(LIMIT_COLUMNS)))
         self.changed = np.zeros(len(self.grid), bool)
-        self.prof = self.span = None
+        self.prof = self.span = self.reference = None
         self.stuck = False
         self.insufficient_progress = 0
 
@@ -191,8 +192,7 @@ class _Piece:
                 # stretches (_stretch), and is not solved again
                 self.stuck = True
         if self.prof is None:
-            prob2 = copp.solver.topp2_ra.Problem(self._robot().constraints, (0, len(self.grid) - 1), (0.0, 0.0))
-            a_lin = np.minimum(copp.solver.topp2_ra.solve(prob2), self.cap2)
+            a_lin = np.minimum(self.topp2_ra() if self.reference is None else self.reference, self.cap2)
             best = None
             for _ in range(settings.max_linearisations):
                 prof, tf, ts = self._timed(self._socp(self._robot(a_lin), a_lin))
@@ -206,6 +206,11 @@ class _Piece:
         self.changed[:] = False
         self.prof, _, ts = self._timed(self.prof)
         return self.prof, ts
+
+    def topp2_ra(self):
+        """a at the stations of the jerk-free time-optimal profile (TOPP2-RA)."""
+        prob2 = copp.solver.topp2_ra.Problem(self._robot().constraints, (0, len(self.grid) - 1), (0.0, 0.0))
+        return copp.solver.topp2_ra.solve(prob2)
 
     def _timed(self, prof):
         """(profile, its time, its node times) by copp's time map; where that is NaN, once more
@@ -371,7 +376,7 @@ def _sample(pieces, T, path, info, settings) -> Profile:
     return Profile.from_pieces(settings.name, T, [p.span for p in pieces], path, info)
 
 
-def _reads_above(prof, machine, path, limits):
+def reads_above(prof, machine, path, limits):
     """[(limit column, first sample of the window, its width in samples, ratio)] of every window
     that reads a limit above 1 at T: joint v, a, j by differences of the IK'd samples (as
     planners.verify reads them), the feed against F_max."""
@@ -385,7 +390,7 @@ def _reads_above(prof, machine, path, limits):
 
 
 def _tighten(prof, pieces, above, extra) -> None:
-    """Each limit read above at the stations under its window (_Piece.tighten); the pieces
+    """Each limit read above at the stations under its window (Piece.tighten); the pieces
     whose factors changed are to be solved again."""
     s = prof.s
     new = [p.factor.copy() for p in pieces]
@@ -424,32 +429,38 @@ def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
     return prof
 
 
-def solve(path, machine, limits, settings: Settings) -> Profile:
-    """The profile of ``settings`` on ``path``, checked at T and repaired (module docstring).
-    info["station_relaxation_s"]: the pieces' time before the first repair, the limits held
-    at the stations only (a bound of this transcription, from its local solution)."""
+def pieces_of(path, machine, limits, settings: Settings) -> list[Piece]:
+    """The path's rest-to-rest pieces as problems on their station grids."""
     check_limits(limits, settings.name)
     check_path(path, settings.name)
     g = settings.grid_mm
     if not (isinstance(g, (int, float)) and not isinstance(g, bool) and 0 < g < math.inf):
         raise PlanningError(f"{settings.name}: grid_mm = {g!r} must be a finite number > 0")
-    T = machine.servo_period_s
     table = PathTable(path, machine)
     joins = join_jumps(path, table, machine)
-    pieces = [_Piece(k, table, path, machine, limits, s0, s1, g, joins)
-              for k, (s0, s1) in enumerate(rest_pieces(path))]
+    return [Piece(k, table, path, machine, limits, s0, s1, g, joins) for k, (s0, s1) in enumerate(rest_pieces(path))]
+
+
+def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None = None) -> Profile:
+    """The profile of ``settings`` on ``path`` (its ``pieces``, from pieces_of, where given),
+    checked at T and repaired (module docstring).  info["station_relaxation_s"]: the pieces'
+    time before the first repair, the limits held at the stations only (a bound of this
+    transcription, from its local solution)."""
+    if pieces is None:
+        pieces = pieces_of(path, machine, limits, settings)
+    T = machine.servo_period_s
     info = {"pieces": len(pieces), "stations": int(sum(len(p.grid) for p in pieces)),
-            "g1_joins": len(joins), "tightened": []}
+            "g1_joins": sum(len(p.joins) for p in pieces), "tightened": []}
     for rnd in range(MAX_REPAIRS + 1):
         prof = _sample(pieces, T, path, info, settings)
         if rnd == 0:
             info["station_relaxation_s"] = float(sum(p.span.duration for p in pieces))
-        above = _reads_above(prof, machine, path, limits)
+        above = reads_above(prof, machine, path, limits)
         if not above:
             break
         if rnd == MAX_REPAIRS:
             prof = _stretch(prof, pieces, machine, path, limits, info, settings.name)
-            above = _reads_above(prof, machine, path, limits)
+            above = reads_above(prof, machine, path, limits)
             break
         # what the round read above: windows per limit, the time before tightening
         info["tightened"].append({"time_s": prof.execution_time_s,
