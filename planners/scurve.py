@@ -235,13 +235,23 @@ class _Planner:
         """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection); ``fmax`` is
         the FLF's largest value over the segment. A generator for scurve_batch.drive: it yields
         ("flf", seg) per test of the feed against the FLF and returns whether ruckig fitted."""
+        bounds = self.first_fit(seg, vcap, fmax)
+        if bounds is None:
+            return False
+        if bounds[0] == bounds[1] or (yield "flf", seg):
+            return True
+        return (yield from self.bisect_peak(seg, *bounds))
+
+    def first_fit(self, seg: Segment, vcap: float, fmax: float):
+        """fit_peak's first fit, at the highest peak the cap and the FLF allow: the bounds
+        (lo, hi) of its bisection, or None if ruckig finds no profile."""
         lo = max(seg.v0, seg.v1, 1e-6)
         hi = max(lo, min(vcap, fmax))
         seg.vpeak = hi
-        if not seg.compute(self.otg, self.inp, self.traj):
-            return False
-        if hi == lo or (yield "flf", seg):
-            return True
+        return (lo, hi) if seg.compute(self.otg, self.inp, self.traj) else None
+
+    def bisect_peak(self, seg: Segment, lo: float, hi: float):
+        """fit_peak's bisection, after the fit at ``hi`` went over the FLF (a generator, as fit_peak)."""
         good, kept = lo, None
         for _ in range(PEAK_BISECTION_ITERS):
             if hi - good < PEAK_BISECTION_TOL:
@@ -295,6 +305,32 @@ class _Planner:
             return None
         if known is not None and seg.prof == known[0]:
             return known[1]
+        return (yield "check", seg)
+
+    def fit_new(self, new, fresh, caps, checker):
+        """seg_ok of the segments ``fresh`` (segment numbers ``new``, caps ``caps``), its first fits
+        and tests run for all at once: most pass the FLF at the first fit, and a generator per
+        segment through scurve_batch.drive cost more than its tests on a 10⁵-line program."""
+        out = [None] * len(fresh)
+        bounds = [self.first_fit(seg, c, self.fmax[i]) for i, seg, c in zip(new, fresh, caps)]
+        ready = [k for k, b in enumerate(bounds) if b is not None and b[0] == b[1]]
+        test = [k for k, b in enumerate(bounds) if b is not None and b[0] != b[1]]
+        slow = []
+        if test:
+            under = checker.under_flf([fresh[k] for k in test]).tolist()
+            ready = sorted(ready + [k for k, u in zip(test, under) if u])
+            slow = [k for k, u in zip(test, under) if not u]
+        if ready:
+            for k, c in zip(ready, checker.check([fresh[k] for k in ready])):
+                out[k] = c
+        # those over the FLF: fit_peak's bisection, then the check
+        for k, c in zip(slow, drive([self._bisect_check(fresh[k], *bounds[k]) for k in slow], checker)):
+            out[k] = c
+        return out
+
+    def _bisect_check(self, seg, lo, hi):
+        if not (yield from self.bisect_peak(seg, lo, hi)):
+            return None
         return (yield "check", seg)
 
     def repair(self, i, seg, chk, v, v_c, A, J, vcap):
@@ -379,10 +415,12 @@ class _Planner:
             now = np.array([v[:-1], v[1:], A, J, vcap])
             new = np.nonzero((now != last).any(axis=0))[0].tolist()
             last = now
-            # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic
-            sl, Ll, vl, Al, Jl, cl = (x.tolist() for x in (s_c, Ls, v, A, J, vcap))
-            fresh = [Segment(sl[i], Ll[i], vl[i], vl[i + 1], Al[i], Jl[i], cl[i]) for i in new]
-            checks = drive([self.seg_ok(seg, i, cl[i]) for i, seg in zip(new, fresh)], checker)
+            # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic;
+            # those of the new segments only (a late round has a few hundred of 10⁴–10⁵)
+            at = np.array(new, np.intp)
+            cl = vcap[at].tolist()
+            fresh = [Segment(*x) for x in zip(*(y[at].tolist() for y in (s_c, Ls, v[:-1], v[1:], A, J)), cl)]
+            checks = self.fit_new(new, fresh, cl, checker)
             for i, seg, chk in zip(new, fresh, checks):
                 if chk is None:
                     raise PlanningError(
