@@ -4,12 +4,14 @@ the largest feed reachable in a length, and one ruckig profile between two criti
 from __future__ import annotations
 
 import math
+import struct
 from array import array
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 _OK = (Result.Working, Result.Finished)
+_PROF = struct.Struct("43d")      # Segment.prof
 
 
 def min_distance(v0, v1, A, J):
@@ -116,8 +118,9 @@ class Segment:
             return False
         prof = traj.profiles[0][0]
         self.duration = float(traj.duration)
-        self.prof = array("d", [self.s0, self.L, self.v0, self.v1, self.duration]
-                          + prof.t + prof.j + prof.a + prof.v + prof.p)
+        # packed, then read as doubles: the same values, faster than an array from a list
+        self.prof = array("d", _PROF.pack(self.s0, self.L, self.v0, self.v1, self.duration,
+                                          *prof.t, *prof.j, *prof.a, *prof.v, *prof.p))
         return True
 
     @property
