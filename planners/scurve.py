@@ -45,7 +45,7 @@ from .constraints import (PathTable, PlanningError, check_limits, check_path,
 from .feed import feed_ceiling
 from .profile import Profile
 from .scurve_batch import Checker, Joined, drive
-from .scurve_pieces import Segment, reachable, solver
+from .scurve_pieces import Segment, no_profile, reachable, solver
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
@@ -348,6 +348,10 @@ class _Planner:
 
         def ok(f, attr, full):
             setattr(seg, attr, full * f)
+            # no profile at all (most tests at × 0.05): the fit would fail before any request
+            # (it would set vpeak, which every later use sets again or restores first)
+            if no_profile(seg.v0, seg.v1, seg.L, seg.A, seg.J):
+                return False
             c = yield from self.seg_ok(seg, i, vcap[i], (fitted[3], chk))
             if c is not None and c.ok:
                 passed[seg.A, seg.J] = seg.state()
