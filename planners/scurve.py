@@ -30,7 +30,7 @@ lands on s = L at rest.
 The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve_pieces; the segment
 checks, run for all the segments of a round at once, planners.scurve_batch (the peak fit and
 the repair are generators whose tests scurve_batch.drive runs in lockstep).
-Size: ~430 lines: the FLF, the critical points, the peak fit and the repair loop of one
+Size: ~490 lines: the FLF, the critical points, the peak fit and the repair loop of one
 method (TII 2022), kept together.
 """
 from __future__ import annotations
@@ -329,6 +329,7 @@ class _Planner:
         return out
 
     def _bisect_check(self, seg, lo, hi):
+        """seg_ok after a first fit over the FLF (a generator for scurve_batch.drive)."""
         if not (yield from self.bisect_peak(seg, lo, hi)):
             return None
         return (yield "check", seg)
@@ -420,7 +421,7 @@ class _Planner:
             new = np.nonzero((now != last).any(axis=0))[0].tolist()
             last = now
             # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic;
-            # those of the new segments only (a late round has a few hundred of 10⁴–10⁵)
+            # those of the new segments only (after the first round, a fraction of them)
             at = np.array(new, np.intp)
             cl = vcap[at].tolist()
             fresh = [Segment(*x) for x in zip(*(y[at].tolist() for y in (s_c, Ls, v[:-1], v[1:], A, J)), cl)]
