@@ -41,7 +41,7 @@ import time
 import numpy as np
 
 from .constraints import (PathTable, PlanningError, check_limits, check_path,
-                          chord_feed_cap, corner_list, ik_along, joint_derivs, second_derivative_jumps)
+                          chord_feed_cap, cross_norm, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile
 from .scurve_batch import Checker, Joined, drive
@@ -111,7 +111,7 @@ class _Planner:
         """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
         s = np.atleast_1d(np.asarray(s, float))
         P1, P2, _ = self.table.cartesian(s)
-        kappa = np.linalg.norm(np.cross(P1, P2), axis=-1)
+        kappa = cross_norm(P1, P2)
         q1 = self.table.joints(s)[0] if self.joint else None
         return np.minimum(flf_of(kappa, q1, self.limits, self.T),
                           feed_ceiling(self.path, s, self.limits.feed_max))
