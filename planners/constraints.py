@@ -183,9 +183,19 @@ def chord_feed_cap(kappa, eps: float, T: float) -> np.ndarray:
         return np.where(rho > eps, (2.0 / T) * np.sqrt(np.maximum(2 * rho * eps - eps * eps, 0.0)), 2 * rho / T)
 
 
+def cross_norm(P1, P2) -> np.ndarray:
+    """|P1 × P2| per row of (…, 3) arrays (κ of an arc-length parametrisation from P′, P″):
+    np.linalg.norm(np.cross(P1, P2), axis=-1)'s operations, in its order, on the columns (numpy
+    ran those of (N, 3) arrays in inner loops of 3: 3× the time on a 10⁶-row table)."""
+    a0, a1, a2 = P1[..., 0], P1[..., 1], P1[..., 2]
+    b0, b1, b2 = P2[..., 0], P2[..., 1], P2[..., 2]
+    c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    return np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
 def table_feed_cap(path, table, limits, T: float) -> np.ndarray:
     """min(F_max, F_clim) on a PathTable's grid (κ = |P′ × P″| of the arc-length parametrisation)."""
-    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
+    kappa = cross_norm(table.cart[1], table.cart[2])
     return feed_cap(path, table.s, limits, T, kappa=kappa)
 
 
@@ -287,7 +297,7 @@ class PathTable:
     def _cells_to_split(S, piece, cart):
         """(cells wider than REFINE_RADII curvature radii at their ends, the parts to split
         each into (≤ 64), all cell widths)."""
-        kap = np.linalg.norm(np.cross(cart[1], cart[2]), axis=1)
+        kap = cross_norm(cart[1], cart[2])
         h = np.diff(S)
         k = np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII)
         need = np.nonzero((piece[1:] == piece[:-1]) & (k > 1) & (h > REFINE_MIN_MM))[0]

@@ -30,7 +30,7 @@ lands on s = L at rest.
 The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve_pieces; the segment
 checks, run for all the segments of a round at once, planners.scurve_batch (the peak fit and
 the repair are generators whose tests scurve_batch.drive runs in lockstep).
-Size: ~430 lines: the FLF, the critical points, the peak fit and the repair loop of one
+Size: ~490 lines: the FLF, the critical points, the peak fit and the repair loop of one
 method (TII 2022), kept together.
 """
 from __future__ import annotations
@@ -41,11 +41,11 @@ import time
 import numpy as np
 
 from .constraints import (PathTable, PlanningError, check_limits, check_path,
-                          chord_feed_cap, corner_list, ik_along, joint_derivs, second_derivative_jumps)
+                          chord_feed_cap, cross_norm, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile
 from .scurve_batch import Checker, Joined, drive
-from .scurve_pieces import Segment, reachable, solver
+from .scurve_pieces import Segment, no_profile, reachable, solver
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
@@ -111,7 +111,7 @@ class _Planner:
         """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
         s = np.atleast_1d(np.asarray(s, float))
         P1, P2, _ = self.table.cartesian(s)
-        kappa = np.linalg.norm(np.cross(P1, P2), axis=-1)
+        kappa = cross_norm(P1, P2)
         q1 = self.table.joints(s)[0] if self.joint else None
         return np.minimum(flf_of(kappa, q1, self.limits, self.T),
                           feed_ceiling(self.path, s, self.limits.feed_max))
@@ -235,13 +235,23 @@ class _Planner:
         """Largest peak feed ≤ vcap whose profile stays under the FLF (bisection); ``fmax`` is
         the FLF's largest value over the segment. A generator for scurve_batch.drive: it yields
         ("flf", seg) per test of the feed against the FLF and returns whether ruckig fitted."""
+        bounds = self.first_fit(seg, vcap, fmax)
+        if bounds is None:
+            return False
+        if bounds[0] == bounds[1] or (yield "flf", seg):
+            return True
+        return (yield from self.bisect_peak(seg, *bounds))
+
+    def first_fit(self, seg: Segment, vcap: float, fmax: float):
+        """fit_peak's first fit, at the highest peak the cap and the FLF allow: the bounds
+        (lo, hi) of its bisection, or None if ruckig finds no profile."""
         lo = max(seg.v0, seg.v1, 1e-6)
         hi = max(lo, min(vcap, fmax))
         seg.vpeak = hi
-        if not seg.compute(self.otg, self.inp, self.traj):
-            return False
-        if hi == lo or (yield "flf", seg):
-            return True
+        return (lo, hi) if seg.compute(self.otg, self.inp, self.traj) else None
+
+    def bisect_peak(self, seg: Segment, lo: float, hi: float):
+        """fit_peak's bisection, after the fit at ``hi`` went over the FLF (a generator, as fit_peak)."""
         good, kept = lo, None
         for _ in range(PEAK_BISECTION_ITERS):
             if hi - good < PEAK_BISECTION_TOL:
@@ -297,6 +307,33 @@ class _Planner:
             return known[1]
         return (yield "check", seg)
 
+    def fit_new(self, new, fresh, caps, checker):
+        """seg_ok of the segments ``fresh`` (segment numbers ``new``, caps ``caps``), its first fits
+        and tests run for all at once: most pass the FLF at the first fit, and a generator per
+        segment through scurve_batch.drive cost more than its tests on a 10⁵-line program."""
+        out = [None] * len(fresh)
+        bounds = [self.first_fit(seg, c, self.fmax[i]) for i, seg, c in zip(new, fresh, caps)]
+        ready = [k for k, b in enumerate(bounds) if b is not None and b[0] == b[1]]
+        test = [k for k, b in enumerate(bounds) if b is not None and b[0] != b[1]]
+        slow = []
+        if test:
+            under = checker.under_flf([fresh[k] for k in test]).tolist()
+            ready = sorted(ready + [k for k, u in zip(test, under) if u])
+            slow = [k for k, u in zip(test, under) if not u]
+        if ready:
+            for k, c in zip(ready, checker.check([fresh[k] for k in ready])):
+                out[k] = c
+        # those over the FLF: fit_peak's bisection, then the check
+        for k, c in zip(slow, drive([self._bisect_check(fresh[k], *bounds[k]) for k in slow], checker)):
+            out[k] = c
+        return out
+
+    def _bisect_check(self, seg, lo, hi):
+        """seg_ok after a first fit over the FLF (a generator for scurve_batch.drive)."""
+        if not (yield from self.bisect_peak(seg, lo, hi)):
+            return None
+        return (yield "check", seg)
+
     def repair(self, i, seg, chk, v, v_c, A, J, vcap):
         """One round's repair of segment i (its Check ``chk``) that broke a limit: its join feeds
         (a violation through the joins' reads only), else TII 2022's J, then A, then its feeds;
@@ -312,6 +349,10 @@ class _Planner:
 
         def ok(f, attr, full):
             setattr(seg, attr, full * f)
+            # no profile at all (most tests at × 0.05): the fit would fail before any request
+            # (it would set vpeak, which every later use sets again or restores first)
+            if no_profile(seg.v0, seg.v1, seg.L, seg.A, seg.J):
+                return False
             c = yield from self.seg_ok(seg, i, vcap[i], (fitted[3], chk))
             if c is not None and c.ok:
                 passed[seg.A, seg.J] = seg.state()
@@ -379,10 +420,12 @@ class _Planner:
             now = np.array([v[:-1], v[1:], A, J, vcap])
             new = np.nonzero((now != last).any(axis=0))[0].tolist()
             last = now
-            # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic
-            sl, Ll, vl, Al, Jl, cl = (x.tolist() for x in (s_c, Ls, v, A, J, vcap))
-            fresh = [Segment(sl[i], Ll[i], vl[i], vl[i + 1], Al[i], Jl[i], cl[i]) for i in new]
-            checks = drive([self.seg_ok(seg, i, cl[i]) for i, seg in zip(new, fresh)], checker)
+            # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic;
+            # those of the new segments only (after the first round, a fraction of them)
+            at = np.array(new, np.intp)
+            cl = vcap[at].tolist()
+            fresh = [Segment(*x) for x in zip(*(y[at].tolist() for y in (s_c, Ls, v[:-1], v[1:], A, J)), cl)]
+            checks = self.fit_new(new, fresh, cl, checker)
             for i, seg, chk in zip(new, fresh, checks):
                 if chk is None:
                     raise PlanningError(

@@ -4,12 +4,14 @@ the largest feed reachable in a length, and one ruckig profile between two criti
 from __future__ import annotations
 
 import math
+import struct
 from array import array
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 _OK = (Result.Working, Result.Finished)
+_PROF = struct.Struct("43d")      # Segment.prof
 
 
 def min_distance(v0, v1, A, J):
@@ -18,6 +20,30 @@ def min_distance(v0, v1, A, J):
     if dv <= A * A / J:
         return (v0 + v1) * math.sqrt(dv / J)
     return 0.5 * (v0 + v1) * (dv / A + A / J)
+
+
+# ruckig accepts a profile whose end is within 1e-8 of the target position and velocity
+# (profile.hpp: p_precision, v_precision): the end feed is read as anywhere within _V_TOL of v1
+_V_TOL = 2e-8
+
+
+def no_profile(v0, v1, L, A, J) -> bool:
+    """True where no feed change v0 → v1 (a = 0 at both ends, feed ≥ 0) fits in L, so ruckig
+    has none: L is below the shortest such change, within ruckig's tolerances. The shortest is
+    the direct change (min_distance: it has the largest |a| at every feed) or one that first
+    slows to 0 (shorter for a change of several times v0): a profile that slows to some feed
+    in between is split there into two changes, whose summed min_distance is concave in that
+    feed, so it is shortest at an end."""
+    bound = L * (1 + 1e-6) + 1e-7
+    if min_distance(v0, v1, A, J) <= bound or abs(v1 - v0) <= _V_TOL:
+        return False
+    # min_distance from v0 is concave on each side of it: over the end feeds ruckig accepts it
+    # is shortest at one of their two ends (the change through 0 at the lower)
+    via0 = min_distance(v0, 0.0, A, J)
+    for x in (max(v1 - _V_TOL, 0.0), v1 + _V_TOL):
+        if min(min_distance(v0, x, A, J), via0 + min_distance(0.0, x, A, J)) <= bound:
+            return False
+    return True
 
 
 def reachable(v0, L, A, J, vmax):
@@ -68,11 +94,9 @@ class Segment:
 
     def compute(self, otg, inp, traj) -> bool:
         """Fit the profile with the solver of :func:`solver`; False if ruckig finds none."""
-        # None exists below half the shortest change: after the feed last passes (v0 + v1)/2 it
-        # stays above it for at least the time a jerk-limited change of |v1 − v0|/2 ending at
-        # a = 0 takes, which covers ≥ min_distance/2. Ruckig's failure (an exception that
-        # formats its input) costs ~20 µs and the repair's tests at J or A × 0.05 often fail
-        if min_distance(self.v0, self.v1, self.A, self.J) > 2.0 * self.L * (1 + 1e-6) + 1e-9:
+        # ruckig's failure (an exception that formats its input) costs ~20 µs, and the repair's
+        # tests at J or A × 0.05 often fail
+        if no_profile(self.v0, self.v1, self.L, self.A, self.J):
             return False
         inp.current_velocity = [self.v0]
         inp.target_position = [self.L]
@@ -94,8 +118,9 @@ class Segment:
             return False
         prof = traj.profiles[0][0]
         self.duration = float(traj.duration)
-        self.prof = array("d", [self.s0, self.L, self.v0, self.v1, self.duration]
-                          + prof.t + prof.j + prof.a + prof.v + prof.p)
+        # packed, then read as doubles: the same values, faster than an array from a list
+        self.prof = array("d", _PROF.pack(self.s0, self.L, self.v0, self.v1, self.duration,
+                                          *prof.t, *prof.j, *prof.a, *prof.v, *prof.p))
         return True
 
     @property

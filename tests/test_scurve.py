@@ -361,19 +361,26 @@ def test_scurve_joint_is_joint_feasible_where_the_joint_jerk_peaks_between_sampl
 
 
 def test_segments_the_precheck_rejects_have_no_ruckig_profile():
-    """Segment.compute skips ruckig where min_distance > 2L (no jerk-limited profile covers less
-    than half the shortest change): it fits exactly where ruckig, asked directly, does."""
+    """Segment.compute skips ruckig where scurve_pieces.no_profile holds (L below the shortest
+    change, direct or through feed 0): it fits exactly where ruckig, asked directly, does, on
+    lengths around that shortest change, large changes from a low feed (where the change through
+    0 is the shorter) and changes within ruckig's velocity tolerance."""
     from ruckig import Result
     rng = np.random.default_rng(11)
     otg, inp, traj = scurve_pieces.solver()
+    md = scurve_pieces.min_distance
     fits = []
-    for _ in range(400):
+    for k in range(1500):
         v0, v1 = rng.uniform(0, 300, 2) * rng.choice([0.0, 1.0], 2, p=[0.2, 0.8])
+        if k % 3 == 1:
+            v0 = v1 * rng.uniform(0.01, 0.2)
+        elif k % 3 == 2:
+            v1 = v0 + rng.normal() * 10 ** rng.uniform(-9, -6)
         A, J = rng.uniform(100, 1e4), rng.uniform(1e3, 5e5)
-        d = scurve_pieces.min_distance(v0, v1, A, J)
+        d = min(md(v0, v1, A, J), md(v0, 0.0, A, J) + md(0.0, v1, A, J))
         if d == 0:
             continue
-        seg = scurve_pieces.Segment(0.0, d / rng.uniform(0.3, 4.0), v0, v1, A, J, max(v0, v1) * rng.uniform(1, 2))
+        seg = scurve_pieces.Segment(0.0, d / rng.uniform(0.97, 1.05), v0, v1, A, J, max(v0, v1) * rng.uniform(1, 2))
         got = seg.compute(otg, inp, traj)
         inp.current_velocity, inp.target_position, inp.target_velocity = [v0], [seg.L], [v1]
         inp.max_acceleration, inp.max_jerk, inp.max_velocity = [A], [J], [seg.vpeak]
@@ -382,9 +389,10 @@ def test_segments_the_precheck_rejects_have_no_ruckig_profile():
         except Exception:
             res = None
         assert got == (res in (Result.Working, Result.Finished)), (v0, v1, A, J, seg.L)
-        fits.append((d / seg.L, got))
-    # both sides of the threshold were tried
-    assert any(r > 2 for r, _ in fits) and any(got for _, got in fits)
+        fits.append((scurve_pieces.no_profile(v0, v1, seg.L, A, J), got, md(v0, v1, A, J) > seg.L))
+    # rejected by the precheck, fitted, and fitted though the direct change is longer than L
+    assert any(pre for pre, _, _ in fits) and any(got for _, got, _ in fits)
+    assert any(got and longer for _, got, longer in fits)
 
 
 def test_window_search_equals_searchsorted_on_grouped_queries():

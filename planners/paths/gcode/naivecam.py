@@ -85,13 +85,15 @@ def _linkable(start, chain, p, path_mode) -> bool:
     if q == 0 or len(chain) > MAX_CHAIN or tuple(p) == tuple(start):
         return False
     # the per-axis lists and generator written out (the same operations; sum() kept, whose
-    # float summation changed in Python 3.12): a 10⁵-line program calls this per move
+    # float summation changed in Python 3.12): a 10⁵-line program calls this per move, and
+    # min(max(t, 0.0), 1.0) as the conditionals it evaluates (a call each cost more)
     s0, s1, s2 = start
     M0, M1, M2 = p[0] - s0, p[1] - s1, p[2] - s2
     mm = M0 * M0 + M1 * M1 + M2 * M2
     for P, _ in chain:
         d0, d1, d2 = P[0] - s0, P[1] - s1, P[2] - s2
-        t = min(max((M0 * d0 + M1 * d1 + M2 * d2) / mm, 0.0), 1.0)
+        t = (M0 * d0 + M1 * d1 + M2 * d2) / mm
+        t = 0.0 if 0.0 > t else (1.0 if 1.0 < t else t)
         if math.sqrt(sum(((d0 - t * M0) ** 2, (d1 - t * M1) ** 2, (d2 - t * M2) ** 2))) > q:
             return False
     return True
