@@ -66,7 +66,6 @@ MAX_STRETCHES = 8
 LIMIT_COLUMNS = ("velocity", "acceleration", "jerk", "feed")
 # a stop inside a piece: a ≤ STOP_A of the piece's largest a (_stops_at_rest)
 STOP_A = 1e-6
-INSUFFICIENT_PROGRESS_OK = copp.clarabel.ClarabelOptions(allow_insufficient_progress=True)
 # a repair re-solves the stations whose limits were tightened and, either side, the travel of
 # WINDOW_TU time units t_u = A/J (a jerk-limited change of speed takes ~2 t_u) at the fastest
 # of them, at least WINDOW_STATIONS stations, its ends held at the last solution; where that
@@ -83,11 +82,22 @@ class Settings:
     ≤ ``grid_mm`` apart, linearisations until a solve gains < ``lin_tol`` of the piece's time,
     at most ``max_linearisations`` solves (COPP's: more moved the result by < 0.1 % at twice
     the time; to 1e-5 it gained nothing on the corpus paths measured and made `optimal` slower
-    than `copp` on 6 of 32 after the repairs, cam_blend_kossel by 1.8 %)."""
+    than `copp` on 6 of 32 after the repairs, cam_blend_kossel by 1.8 %).  ``kkt_refinement``:
+    Clarabel refines each solve of its KKT system iteratively (COPP's setting); without, a
+    solve is ~40 % faster to the same profile (docs/TUNING.md)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
     max_linearisations: int = 4
+    kkt_refinement: bool = True
+
+    def clarabel(self):
+        """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
+        opts = copp.clarabel.ClarabelOptions(allow_insufficient_progress=True)
+        raw = opts.clarabel_settings
+        raw.iterative_refinement_enable = self.kkt_refinement
+        opts.clarabel_settings = raw
+        return opts
 
 
 def _grid(path, table, joins, s0, s1, grid_mm):
@@ -130,11 +140,12 @@ class Piece:
     """One rest-to-rest piece as a COPP problem in scaled time (t_u = A/J); ``reference``: the
     profile (a at the stations) the first solve is linearised around, TOPP2-RA's where None."""
 
-    def __init__(self, k, table, path, machine, limits, s0, s1, grid_mm, joins):
+    def __init__(self, k, table, path, machine, limits, s0, s1, settings, joins):
         self.k, self.s0, self.s1 = k, s0, s1
+        self.options = settings.clarabel()
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
-        self.grid = _grid(path, table, joins, s0, s1, grid_mm)
+        self.grid = _grid(path, table, joins, s0, s1, settings.grid_mm)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)
@@ -269,7 +280,7 @@ class Piece:
                                               b_boundary=b_ends, num_stationary_max=stationary)
         # one solve that accepts insufficient progress (a rejected one, then a second that
         # accepts it, doubled pocket_keops' time)
-        res = copp.solver.topp3_socp.solve_expert(prob, INSUFFICIENT_PROGRESS_OK)
+        res = copp.solver.topp3_socp.solve_expert(prob, self.options)
         if res.profile is None:
             raise copp.CoppError(f"topp3_socp stopped with Clarabel status {res.solver_status}")
         if res.solver_status == copp.core.ClarabelSolverStatus.INSUFFICIENT_PROGRESS:
@@ -425,7 +436,7 @@ def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
             if w > 1 + FEASIBLE_TOL:
                 p.span.lam *= w * (1 + TIGHTEN_EXTRA)
         prof = Profile.from_pieces(name, T, [p.span for p in pieces], path, info)
-    info["stretch"] = [round(p.span.lam, 6) for p in pieces]
+    prof.info["stretch"] = [round(p.span.lam, 6) for p in pieces]
     return prof
 
 
@@ -438,7 +449,7 @@ def pieces_of(path, machine, limits, settings: Settings) -> list[Piece]:
         raise PlanningError(f"{settings.name}: grid_mm = {g!r} must be a finite number > 0")
     table = PathTable(path, machine)
     joins = join_jumps(path, table, machine)
-    return [Piece(k, table, path, machine, limits, s0, s1, g, joins) for k, (s0, s1) in enumerate(rest_pieces(path))]
+    return [Piece(k, table, path, machine, limits, s0, s1, settings, joins) for k, (s0, s1) in enumerate(rest_pieces(path))]
 
 
 def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None = None) -> Profile:
