@@ -38,7 +38,7 @@ TOL = 1e-6                  # planners.verify.FEASIBLE_TOL: a ratio ≤ 1 + 1e-6
 CSV_FIELDS = ("path", "machine", "kind", "planner", "status", "execution_time_s", "feasible",
               "cartesian_feasible", "joint_v", "joint_a", "joint_j", "cart_v", "cart_a", "cart_j",
               "own_limits_ok", "feed", "joint_worst", "cart_worst", "planning_time_s", "lower_bound_s",
-              "error")
+              "swarm_time_s", "error")
 
 
 class CorpusError(ValueError):
@@ -64,6 +64,7 @@ class Row:
     feed: float = math.nan
     planning_time_s: float = math.nan
     lower_bound_s: float = math.nan   # a planner's own bound on the optimum (optimal: info["lower_bound_s"])
+    swarm_time_s: float = math.nan    # pso: its swarm alone, before the polish (info["swarm_time_s"])
     error: str = ""
     extra: dict = field(default_factory=dict)
 
@@ -169,6 +170,7 @@ def run_one(entry: dict, planner: str, machine, path) -> Row:
         return row
     row.planning_time_s = float(prof.planning_time_s)
     row.lower_bound_s = _finite((prof.info or {}).get("lower_bound_s"))
+    row.swarm_time_s = _finite((prof.info or {}).get("swarm_time_s"))
     T = machine.servo_period_s
     try:
         met = command_metrics(machine, prof.path.point(prof.s), T, prof.s)
@@ -302,10 +304,15 @@ def write_markdown(rows: list[Row], file, title="Toolpath corpus") -> None:
         L.append(f"| {k} | {s['profiles']}/{s['paths']} | {s['feasible']} | {s['cartesian_feasible']} | {s['own_limits']} | "
                  f"{s['failed']} | {s['errors']} | {_fmt(s['ratio_median'], 4)} | {_fmt(s['ratio_worst'], 4)} | "
                  f"{_fmt(s['plan_median_s'], 3)} | {_fmt(s['plan_worst_s'], 3)} |")
+    swarm = [r for r in rows if r.status == "ok" and math.isfinite(r.swarm_time_s) and math.isfinite(best[r.path])]
+    if swarm:
+        q = [r.swarm_time_s / best[r.path] for r in swarm]
+        L += ["", f"pso's swarm alone (before its polish, info['swarm_time_s']) on {len(swarm)} paths: "
+                  f"T/T_best median {np.median(q):.4f}, worst {max(q):.4f}."]
     L += ["", "## Every row", "",
           "| path | machine | planner | T (s) | T/T_best | feasible | joint v/a/j | Cartesian v/a/j | plan (s) | "
-          "gap to its bound | error |",
-          "|---|---|---|---|---|---|---|---|---|---|---|"]
+          "gap to its bound | swarm alone (s) | error |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         b = best[r.path]
         ratio = r.execution_time_s / b if r.status == "ok" and math.isfinite(b) else math.nan
@@ -314,7 +321,8 @@ def write_markdown(rows: list[Row], file, title="Toolpath corpus") -> None:
         err = r.error.replace("|", "\\|").replace("\n", " ")
         L.append(f"| {r.path} | {r.machine} | {r.planner} | {_fmt(r.execution_time_s, 5)} | {_fmt(ratio, 4)} | "
                  f"{_fmt(r.feasible) if r.status == 'ok' else r.status} | {jr} | {cr} | "
-                 f"{_fmt(r.planning_time_s, 3)} | {_fmt(r.execution_time_s / r.lower_bound_s - 1, 4)} | {err} |")
+                 f"{_fmt(r.planning_time_s, 3)} | {_fmt(r.execution_time_s / r.lower_bound_s - 1, 4)} | "
+                 f"{_fmt(r.swarm_time_s, 5)} | {err} |")
     Path(file).write_text("\n".join(L) + "\n")
 
 

@@ -1,259 +1,162 @@
-"""pso: seeded determinism, beats its scurve_joint seed, feasible at T, clear errors."""
-import dataclasses
+"""pso: the feed spline's closed forms and time-scaling law, the exact time map of its samples,
+knots placed by the path's limits (not the seed), the cooperative swarm's invariants, seeded
+determinism, never slower than its seed, feasible at T, clear errors."""
 import numpy as np
 import pytest
 
-from planners.verify import command_metrics
 from kins import load_machine
 from planners import PlanningError, plan
-from planners.pso import basis, join, problem, seed as pso_seed, tuning
-from planners.pso.polish import polish
-from planners.constraints import rest_pieces
+from planners import topp3
 from planners.paths import Arc, Line, SegmentPath
+from planners.pso.feed import KNOT_STEP_TU, MIN_SPAN_STATIONS, FeedSpline
+from planners.pso.span import FeedSpan
+from planners.pso.swarm import BLOCK, BlockSwarm
+from planners.verify import command_metrics
 
 KEOPS = load_machine("keops")
 Z = -400.0
 PATH = SegmentPath([Line([-40, -20, Z], [0, -20, Z]), Arc([0, -20, Z], [0, 0, Z], [0, 0, 1], np.pi / 2),
                     Line([20, 0, Z], [20, 30, Z])])
-FAST = {"iterations": 20, "particles": 16, "control_points": 30}
+FAST = {"iterations": 15, "particles": 8}
 
 
-def test_same_seed_same_profile_other_seed_other_search():
-    a = plan("pso", PATH, KEOPS, seed=3, **FAST)
-    b = plan("pso", PATH, KEOPS, seed=3, **FAST)
+def _feed(path=PATH, machine=KEOPS, margin=0.0):
+    pieces = topp3.pieces_of(path, machine, machine.limits, topp3.Settings("pso"))
+    return FeedSpline(pieces[0], margin)
+
+
+def _greville(feed):
+    t = feed.knots
+    return (t[1:feed.K + 1] + t[2:feed.K + 2] + t[3:feed.K + 3]) / 3
+
+
+def test_a_linear_w_is_the_constant_jerk_start():
+    """w = αx reproduces every linear function, so ṡ = (αx)^{2/3}, s̈ = ⅔α^{4/3}x^{1/3}, s⃛ = 2α²/9,
+    and from rest x(t) = α²t³/27 (scaled time): the jerk-limited start, in closed form."""
+    feed, alpha = _feed(), 3.0
+    c = alpha * _greville(feed)
+    x = feed.x[1:40]
+    sd, sdd, sddd = (m[1:40, 0] for m in feed.motion(c[:, None]))
+    np.testing.assert_allclose(sd, (alpha * x) ** (2 / 3), rtol=1e-12)
+    np.testing.assert_allclose(sdd, 2 / 3 * alpha ** (4 / 3) * x ** (1 / 3), rtol=1e-12)
+    np.testing.assert_allclose(sddd, 2 * alpha ** 2 / 9, rtol=1e-9)
+    span = FeedSpan(feed, c, 0)
+    tt = np.linspace(0.0, 0.4, 50) * float(span.tx[5]) * span.tu
+    x_t, sd_t, _, sddd_t = span.at(tt)
+    u = tt / span.tu
+    np.testing.assert_allclose(x_t, alpha ** 2 * u ** 3 / 27, rtol=1e-11, atol=1e-15)
+    np.testing.assert_allclose(sd_t * span.tu, alpha ** 2 * u ** 2 / 9, rtol=1e-10, atol=1e-15)
+    np.testing.assert_allclose(sddd_t * span.tu ** 3, 2 * alpha ** 2 / 9, rtol=1e-9)
+
+
+def test_the_time_map_inverts_and_the_samples_reach_the_end():
+    """s(t) from Newton on the Gauss–Legendre time map: t(s(t)) = t at 2000 times, s(T_end) = L."""
+    feed = _feed()
+    c = feed.start_locally(feed.fit(np.sqrt(feed.a_ra)))
+    span = FeedSpan(feed, c, 0)
+    tt = np.linspace(0.0, span.duration, 2000)
+    x = span.at(tt)[0]
+    assert np.all(np.diff(x) > 0) and x[-1] == pytest.approx(feed.L, abs=1e-9)
+    # the time back from each sample: station time + the quadrature to it
+    k = np.clip(np.searchsorted(span.x, x, side="right") - 1, 1, len(span.x) - 3)
+    inner = (x > span.x[1]) & (x < span.x[-2])
+    back = span.tx[k[inner]] + span._integral(span.x[k[inner]], x[inner])
+    np.testing.assert_allclose(back * span.tu, tt[inner], rtol=0, atol=1e-12)
+
+
+def test_time_scaling_law_of_the_reads():
+    """Stretching time by λ multiplies w by λ^{−3/2}: every station's need and every interval's
+    time scale by 1/λ and λ exactly (v ∝ 1/λ, a ∝ 1/λ², j ∝ 1/λ³), except at a G1 join, whose
+    row adds the read κṡ² of its q″ jump (∝ 1/λ²) to the jerk."""
+    feed = _feed()
+    joins = [i for i, *_ in feed.joins]
+    assert len(joins) == 2
+    c = feed.fit(np.sqrt(feed.a_ra))
+    dt, need = feed.reads(c)
+    free = np.setdiff1d(np.arange(len(need)), joins)
+    for lam in (0.5, 2.0, 3.7):
+        dt2, need2 = feed.reads(c * lam ** -1.5)
+        np.testing.assert_allclose(need2[free], need[free] / lam, rtol=1e-10, atol=1e-300)
+        np.testing.assert_allclose(dt2, dt * lam, rtol=1e-10)
+
+
+def test_knots_follow_the_limits_not_the_seed():
+    """The knots come from the jerk-free optimum's time on the piece's stations, one per
+    KNOT_STEP_TU of it (to the station they are moved to): the same for any seed profile."""
+    seed = plan("scurve_joint", PATH, KEOPS)
+    slow = plan("trapezoid", PATH, KEOPS)
+    a = plan("pso", PATH, KEOPS, seed_profile=seed, polish=False, **FAST)
+    b = plan("pso", PATH, KEOPS, seed_profile=slow, polish=False, **FAST)
+    assert a.info["control_points"] == b.info["control_points"]
+    feed = _feed()
+    t_ra = feed.station_times(np.sqrt(feed.a_ra))
+    m = int(np.ceil(t_ra[-1] / KNOT_STEP_TU))
+    wanted = np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, feed.x)
+    inner = feed.knots[4:-4]
+    # moved to a station, at most MIN_SPAN_STATIONS intervals off (kept that far apart, so
+    # a wanted knot that close to the end is dropped)
+    assert 0 <= len(wanted) - len(inner) <= 1 and feed.K == len(inner) + 4
+    assert np.abs(inner - wanted[:len(inner)]).max() <= MIN_SPAN_STATIONS * feed.dx.max() + 1e-12
+
+
+def test_blocks_cover_every_coefficient_once_and_one_colour_shares_no_station():
+    feed = _feed()
+    sw = BlockSwarm(feed, feed.start_locally(feed.fit(np.sqrt(feed.a_ra))), np.random.default_rng(0), 4, 0.05)
+    for it in range(BLOCK):
+        sw.iteration = it
+        seen = []
+        for colour in range(2):
+            idx = sw._blocks(colour)
+            ks = [sw.free[b[b >= 0]] for b in idx]
+            seen += [k for b in ks for k in b]
+            spans = sorted((feed.sup_lo[b[0]], feed.sup_hi[b[-1]]) for b in ks)
+            assert all(hi < lo for (_, hi), (lo, _) in zip(spans, spans[1:]))
+        assert sorted(seen) == list(sw.free)
+
+
+def test_the_context_stays_within_the_limits_and_never_slows_down():
+    feed = _feed()
+    sw = BlockSwarm(feed, feed.start_locally(feed.fit(np.sqrt(feed.a_ra))), np.random.default_rng(1), 8, 0.05)
+    times = [feed.time(sw.c)]
+    for _ in range(12):
+        sw.step()
+        assert feed.reads(sw.c)[1].max() <= 1.0
+        times.append(feed.time(sw.c))
+    assert all(b <= a for a, b in zip(times, times[1:])) and times[-1] < 0.97 * times[0]
+
+
+def test_same_seed_same_profile_other_seed_other_swarm():
+    a = plan("pso", PATH, KEOPS, seed=3, polish=False, **FAST)
+    b = plan("pso", PATH, KEOPS, seed=3, polish=False, **FAST)
     assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
     assert [h[1] for h in a.info["history"]] == [h[1] for h in b.info["history"]]
-    # knots at quantiles (not at the seed's switch times): the swarm moves off its start,
-    # and where it goes depends on the seed
-    c = plan("pso", PATH, KEOPS, seed=3, exact_knots=False, **FAST)
-    d = plan("pso", PATH, KEOPS, seed=4, exact_knots=False, **FAST)
-    assert not np.array_equal(c.s, d.s)
+    c = plan("pso", PATH, KEOPS, seed=4, polish=False, **FAST)
+    assert [h[1] for h in a.info["history"]] != [h[1] for h in c.info["history"]]
 
 
-def test_beats_its_seed_and_is_feasible():
+def test_feasible_at_T_never_slower_than_its_seed_and_both_results_reported():
     seed = plan("scurve_joint", PATH, KEOPS)
     p = plan("pso", PATH, KEOPS, seed_profile=seed, **FAST)
-    assert p.execution_time_s < seed.execution_time_s
     r = command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)
     assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
-    assert p.info["returned"] == "swarm best" and len(p.info["t_check_stretch"]) == 1
-    # the swarm's best never gets worse
-    best = [h[1] for h in p.info["history"]]
-    assert all(x >= y for x, y in zip(best, best[1:]))
+    info = p.info
+    assert p.execution_time_s <= seed.execution_time_s
+    assert p.execution_time_s == min(info["swarm_time_s"], info["polished_time_s"], info["seed_time_s"])
+    assert info["returned"] == "polished" and info["swarm_time_s"] < info["start_time_s"]
+    # the swarm alone, without its polish, is feasible at T too
+    q = plan("pso", PATH, KEOPS, seed_profile=seed, polish=False, **FAST)
+    rq = command_metrics(KEOPS, PATH.point(q.s), q.T, q.s)
+    assert rq["feasible"] and "polished_time_s" not in q.info
+    assert q.execution_time_s == pytest.approx(min(q.info["swarm_time_s"], seed.execution_time_s))
 
 
-def test_time_scaling_law():
-    """Stretching time by λ divides joint v, a, j by λ, λ², λ³: the λ a particle gets makes its
-    worst ratio exactly 1 (margin 0)."""
-    m = KEOPS
-    from planners.constraints import PathTable
-    table = PathTable(PATH, m)
-    pr = problem.PieceProblem(table, 0.0, PATH.length, m.limits, m.servo_period_s, [], 12, 300,
-                           table.s, np.full(len(table.s), 1e9))
-    X = np.linspace(1, 3, 8)[None, :] * np.array([[1.0], [2.0]])
-    lam, (s, v, a, j) = pr.scale(X, 0.0)
-    d1, d2, d3 = table.joints(np.clip(s, 1e-9, PATH.length - 1e-9))
-    v3, a3, j3 = (x[..., None] / lam[:, None, None] ** k for x, k in ((v, 1), (a, 2), (j, 3)))
-    qv = np.abs(d1 * v3).max(axis=(1, 2)) / m.limits.joint.v
-    qa = np.abs(d2 * v3 ** 2 + d1 * a3).max(axis=(1, 2)) / m.limits.joint.a
-    qj = np.abs(d3 * v3 ** 3 + 3 * d2 * v3 * a3 + d1 * j3).max(axis=(1, 2)) / m.limits.joint.j
-    np.testing.assert_allclose(np.maximum.reduce([qv, qa, qj]), 1.0, rtol=1e-9)
-
-
-def test_no_feasible_particle_is_a_clear_error(monkeypatch):
-    # PATH's line–arc–line has two G1 joins: one piece, searched whole and cut into three
-    monkeypatch.setattr(problem.PieceProblem, "start", lambda self, x0, margin: None)
-    monkeypatch.setattr(problem.SubPiece, "start", lambda self, x0, margin: None)
-    with pytest.raises(PlanningError, match=r"pso: no feasible particle on piece\(s\) \[0\]"):
-        plan("pso", PATH, KEOPS, **FAST)
+def test_time_budget_is_reported_and_zero_iterations_return_the_start():
+    p = plan("pso", PATH, KEOPS, polish=False, time_budget_s=0.0, **FAST)
+    assert p.info["stopped_by"] == "time budget" and p.info["iterations_run"] == 0
 
 
 def test_bad_options():
-    with pytest.raises(PlanningError, match="≥ 2 particles"):
+    with pytest.raises(PlanningError, match="particles"):
         plan("pso", PATH, KEOPS, particles=1)
-
-
-@pytest.mark.slow
-def test_the_swarm_starts_from_its_seed_on_every_piece_of_bird():
-    """Fitted with the seed's jerk switch times as knots, each piece's start particle needs no
-    stretch beyond the seed's own duration (±1 %).  A knot span holding no seed sample once
-    left the fit undetermined there and stretched one piece of bird 19× (0.69 → 13.2 s)."""
-    from planners.constraints import PathTable, feed_cap
-    from planners.paths import resolve_path
-    from planners.scurve import plan_joint
-    path, m = resolve_path("bird"), KEOPS
-    table = PathTable(path, m)
-    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
-    cap = feed_cap(path, table.s, m.limits, m.servo_period_s, kappa=kappa)
-    seed = plan_joint(path, m)
-    for s0, s1 in rest_pieces(path):
-        tau, v, jerk, D, knots = pso_seed.seed_window(seed, s0, s1)
-        pr = problem.PieceProblem(table, s0, s1, m.limits, m.servo_period_s, [], 15, 400, table.s, cap,
-                               pso_seed.knot_density(tau, jerk), inner=knots)
-        lam, _ = pr.scale(pr.shape.fit(tau, v)[None, :], 0.005)
-        assert lam[0] == pytest.approx(D, rel=0.01), (s0, s1)
-
-
-@pytest.mark.slow
-def test_never_slower_than_a_feasible_seed():
-    """With no search, no polish and a 5 % margin the swarm's best is the seed stretched to 95 %
-    of every limit, slower than the seed: pso then returns the seed itself (feasible), and says so."""
-    seed = plan("scurve_joint", PATH, KEOPS)
-    p = plan("pso", PATH, KEOPS, seed_profile=seed, iterations=0, particles=4, margin=0.05,
-             polish_steps=0)
-    assert p.execution_time_s == seed.execution_time_s and p.planner == "pso"
-    assert p.info["returned"].startswith("seed (scurve_joint)")
-    assert command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)["feasible"]
-
-
-def test_join_stretch_is_the_root_of_the_join_cubic():
-    """λ with read/λ² + cont/λ³ = J exactly, checked against numpy's companion-matrix roots;
-    at the limits of a pure reading or a pure jerk it is √(read/J) or ∛(cont/J)."""
-    rng = np.random.default_rng(1)
-    J = 5e5
-    read = rng.uniform(0, 3e6, 200) * rng.integers(0, 2, 200)
-    cont = rng.uniform(0, 3e6, 200) * rng.integers(0, 2, 200)
-    lam = join.join_stretch(read, cont, J)
-    for r, c, x in zip(read, cont, lam):
-        roots = np.roots([J, 0.0, -r, -c])
-        ref = max(z.real for z in roots if abs(z.imag) < 1e-9 * max(1.0, abs(z)))
-        assert x == pytest.approx(max(ref, 0.0), rel=1e-10, abs=1e-12)
-    np.testing.assert_allclose(join.join_stretch(np.array([2e6]), np.array([0.0]), J), [2.0], rtol=1e-12)
-    np.testing.assert_allclose(join.join_stretch(np.array([0.0]), np.array([4e6]), J), [2.0], rtol=1e-12)
-
-
-def test_sub_piece_duration_and_ratio_at_constant_feed():
-    """A sub-piece whose every control point is c moves at ṡ ≡ c (s̈ = s⃛ = 0): it lasts L/c, and
-    its worst ratio is the joint velocity |dq/ds|·c/V, here with dq/ds by central differences
-    of the IK (not the path table the planner reads)."""
-    from planners.constraints import PathTable
-    m, L, c = KEOPS, 40.0, 150.0
-    line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
-    table = PathTable(line, m)
-    sub = problem.SubPiece(table, 0.0, L, c, c, [], m.limits, m.servo_period_s, 10, 300, table.s,
-                        np.full(len(table.s), 1e9))
-    X = np.full((1, len(sub.free)), c)
-    d, need = sub.ratio(X, 0.0)
-    assert d[0] == pytest.approx(L / c, rel=1e-12)
-    s = np.linspace(1e-3, L - 1e-3, 2001)
-    h = 1e-4
-    dq = (m.ik(line.point(s + h)) - m.ik(line.point(s - h))) / (2 * h)
-    assert need[0] == pytest.approx(np.abs(dq).max() * c / m.limits.joint.v, rel=1e-4)
-
-
-@pytest.mark.slow
-def test_cut_piece_passes_each_join_at_its_join_feed():
-    """PATH's piece is searched cut at its two G1 joins (line–arc–line): the profile passes
-    each join at JOIN_FEED_FRACTION of the join's feed (divided by the T-check stretch), with
-    ṡ continuous there (a sub-piece's ends are fixed, so neighbours agree)."""
-    from planners.constraints import PathTable, feed_cap
-    p = plan("pso", PATH, KEOPS, **FAST)
-    assert p.info["searched_as"] == ["cut"]
-    m, T = KEOPS, KEOPS.servo_period_s
-    table = PathTable(PATH, m)
-    kappa = np.linalg.norm(np.cross(table.cart[1], table.cart[2]), axis=1)
-    cap = feed_cap(PATH, table.s, m.limits, T, kappa=kappa)
-    a_max = m.limits.cartesian.a               # one sample's feed change is below a·T (2.5 mm/s)
-    for sj in (40.0, 40.0 + 10 * np.pi):        # the arc's ends
-        h = 1e-4                                # one-sided q″ by second differences of the IK
-        dq2 = np.diff(m.ik(PATH.point(sj + h * np.arange(-2, 3))), 2, axis=0)[[0, 2]] / h ** 2
-        want = tuning.JOIN_FEED_FRACTION * join.join_feed(table, sj, np.abs(dq2[1] - dq2[0]), m.limits,
-                                                          0.005, T, cap) / p.info["t_check_stretch"][0]
-        i = int(np.searchsorted(p.s, sj))
-        assert np.interp(sj, p.s, p.sd) == pytest.approx(want, rel=2e-3)
-        assert abs(p.sd[i] - p.sd[i - 1]) < a_max * T
-
-
-@pytest.mark.slow
-def test_polish_climbs_to_the_feed_cap():
-    """Under a feed cap c alone (joint limits out of reach, ends fixed at c) the fastest
-    sub-piece moves at ṡ ≡ c and lasts L/c.  From ṡ = c/2 inside, the polish's LP steps get there
-    (rel 1e-4) with the cap met (to the 1e-7 the penalised objective leaves)."""
-    from types import SimpleNamespace
-    from planners.constraints import PathTable
-    m, L, c = KEOPS, 40.0, 150.0
-    line = SegmentPath([Line([-20, 0, Z], [20, 0, Z])])
-    table = PathTable(line, m)
-    free = SimpleNamespace(joint=SimpleNamespace(v=1e9, a=1e12, j=1e15))
-    sub = problem.SubPiece(table, 0.0, L, c, c, [], free, m.servo_period_s, 10, 300, table.s,
-                        np.full(len(table.s), c))
-    x0 = np.full(len(sub.free), c / 2)
-    assert sub.duration(x0[None, :])[0] > 1.3 * L / c
-    x, f, its = polish(sub, x0, 0.0, 60)
-    d, need = sub.ratio(x[None, :], 0.0)
-    assert need[0] <= 1 + 1e-7 and f == pytest.approx(d[0], rel=1e-6)
-    assert d[0] == pytest.approx(L / c, rel=1e-4)
-    assert 0 < its <= 60
-
-
-def test_join_index_search_is_the_first_sample_at_or_after_each_join():
-    # the per-join (P, M) comparison it replaces: first index with s ≥ join, 0 if none, clipped
-    rng = np.random.default_rng(5)
-    s = np.cumsum(rng.random((7, 50)), axis=1)
-    s[2, 20:23] = s[2, 19] - 0.5                 # a row that dips (rounding at a plateau)
-    pts = [-1.0, 0.3, 3.0, 10.0, 24.9, 25.0, 1e9]
-    want = np.stack([np.clip(np.argmax(s >= p, axis=1), 1, 49) for p in pts], axis=1)
-    assert np.array_equal(join.first_at_or_after(s, pts), want)
-    assert join.first_at_or_after(s, []).shape == (7, 0)
-
-
-def test_sparse_basis_is_the_dense_basis():
-    # a small piece's knots (uneven, as the seed's switch times are); dense arrays from
-    # BSpline per basis function, the sparse ones from design matrices and the derivative
-    # and antiderivative recurrences
-    rng = np.random.default_rng(2)
-    inner = np.sort(rng.random(25))
-    d = basis.Shape(0, 300, inner=inner)
-    s = basis.Shape(0, 300, inner=inner, sparse=True)
-    assert s.K == d.K and np.array_equal(s.tau, d.tau)
-    for D, S in ((d.B, s.B), (d.B1, s.B1), (d.B2, s.B2)):
-        assert np.abs(D - S.toarray()).max() <= 1e-12 * np.abs(D).max()
-    C = rng.random((4, d.K))
-    for x, y in zip(d.eval(C), s.eval(C)):
-        assert np.abs(x - y).max() <= 1e-12 * np.abs(x).max()
-    tau = np.linspace(0.0, 1.0, 2000)
-    v = 1.5 + np.sin(3 * tau)
-    assert np.allclose(s.fit(tau, v), d.fit(tau, v), rtol=0, atol=1e-12)
-
-
-def test_piece_over_the_size_bound_is_searched_sparse_from_its_seed(monkeypatch):
-    seed = plan("scurve_joint", PATH, KEOPS)
-    opts = dict(seed=3, seed_profile=seed, particles=16, iterations=20, control_points=30)
-    monkeypatch.setattr(tuning, "BASIS_MAX_ELEMENTS", 1000)
-    a = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
-    b = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
-    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
-    (fb,) = a.info["fallback"]["pieces"]             # one rest-to-rest piece, over the bound
-    assert fb["piece"] == 0 and fb["s_mm"] == [0.0, round(PATH.length, 6)] and fb["polish"] == "skipped"
-    assert fb["seed_knots"] > 8 and fb["control_points"] > fb["seed_knots"]
-    assert a.execution_time_s <= seed.execution_time_s
-    r = command_metrics(KEOPS, PATH.point(a.s), a.T, a.s)
-    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
-    # the whole piece's swarm is the dense one's (same knots, same start, same random numbers):
-    # its best per iteration agrees to rounding
-    monkeypatch.undo()
-    d = plan("pso", PATH, KEOPS, polish_steps=0, **opts)
-    assert "fallback" not in d.info
-    assert np.allclose([h[1] for h in a.info["history"]], [h[1] for h in d.info["history"]],
-                       rtol=1e-9, atol=0)
-
-
-def test_an_infeasible_seed_is_stretched_at_T_where_the_swarm_is_slower():
-    # a seed planned for 1.3 × the jerk and 1.2 × the acceleration limit breaks the limits at T;
-    # with a wide margin the swarm's start (the seed stretched to 0.8 × every limit) is slower
-    # than the seed stretched at T by just its excess: ∛(jerk ratio), the jerk ruling
-    hot = dataclasses.replace(KEOPS.limits, joint=dataclasses.replace(
-        KEOPS.limits.joint, a=1.2 * KEOPS.limits.joint.a, j=1.3 * KEOPS.limits.joint.j))
-    seed = plan("scurve_joint", PATH, KEOPS, limits=hot)
-    rs = command_metrics(KEOPS, PATH.point(seed.s), seed.T, seed.s)
-    assert not rs["feasible"] and rs["joint_peak_ratio"]["jerk"] > 1.1
-    opts = dict(seed=3, seed_profile=seed, iterations=0, polish_steps=0, margin=0.2, control_points=30)
-    a = plan("pso", PATH, KEOPS, **opts)
-    b = plan("pso", PATH, KEOPS, **opts)
-    assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
-    assert a.info["returned"].startswith("per piece") and a.info["pieces_from"] == ["seed"]
-    r = command_metrics(KEOPS, PATH.point(a.s), a.T, a.s)
-    assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
-    assert a.execution_time_s < a.info["swarm_time_s"]
-    stretched = seed.execution_time_s * rs["joint_peak_ratio"]["jerk"] ** (1 / 3)
-    assert a.execution_time_s == pytest.approx(stretched, abs=3 * a.T)
+    with pytest.raises(PlanningError, match="iterations"):
+        plan("pso", PATH, KEOPS, iterations=-1)

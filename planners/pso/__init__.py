@@ -1,88 +1,69 @@
 """`pso` — feed profile optimised by particle swarm (Erwinski, Szczepanski, Tarczewski,
-IOP Conf. Ser. MSE 1140, 2021; extended to a delta's joints as planned in Erwinski et al.,
-NU·ROBOTI·FTS 2022, shared/SOURCES.md §A).
+IOP Conf. Ser. MSE 1140, 2021: a B-spline feed searched by PSO; extended to a delta's joints as
+planned in Erwinski et al., NU·ROBOTI·FTS 2022, shared/SOURCES.md §A), memetic: a local
+convex polish after the swarm.
 
-Shared constraint set with `toppra` and `optimal`: joint v, a, j limits, F_max and the
-chord-error feed cap (plus, at a G1 join, the jerk its jump of q″ reads as at T added to the
-continuous jerk, bounded as in `optimal`).
+Constraint set shared with `optimal` and `copp` (planners/topp3.py's stations): joint v, a, j
+limits, F_max and the chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at
+T added to the continuous jerk.
 
-Parametrisation.  The path is split at exact-stop corners; on each piece the feed is a
-quadratic B-spline ṡ(τ) = Σ cₖBₖ(τ) over normalised time τ ∈ [0, 1] (so s⃛ is piecewise constant,
-the class of the s-curve), with c₀ = c₁ = c_{K−2} = c_{K−1} = 0 so the piece starts and ends at
-rest with s̈ = 0, and s(τ) = L·∫ṡ/∫₀¹ṡ (exact antiderivative), so every particle reaches the end
-of the piece.  Knots: the seed's jerk switch times (then the seed is represented exactly and
-the swarm starts from it) plus, with ``extra_knots``, knots at quantiles of the seed's jerk
-activity (dense at the FLF minima and G1 joins); ``exact_knots=False`` uses the quantile
-knots only.  (A B-spline over arc length, as in the 2021 paper for a Cartesian machine,
-cannot leave rest with finite jerk — near rest ṡ ∝ s^{2/3} — hence normalised time.)
+Parametrisation (feed.py): per rest-to-rest piece w = ṡ^{3/2} as a cubic B-spline over arc
+length, its knots placed by the limits (equal steps of the jerk-free optimum's time), so the
+swarm's dimension follows the path and its limits, never a seed profile's segments or switch
+times, and nothing is chosen per path.
 
-A piece with G1 joins (at most MAX_JOINS_CUT) is also searched cut at them (`SubPiece`):
-each join passed at a fixed feed with s̈ = s⃛ = 0, each sub-piece a feed spline of its own with
-those ends, in its own normalised time.  The feed must dip at a join (bird: to 57–207 mm/s
-from ~850 mm/s between them); a whole-piece spline spends its few control points on that dip
-and one time stretch couples all of it, while the cut search shapes each dip-to-dip stretch on
-its own.  Per piece the faster of the two is kept (measured on bird and bird_kossel:
-docs/TUNING.md).
+Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
+the stations the block moves; the context (every block's best) stays within the limits at the
+stations.  It starts from the better of two feasible starts, each made feasible by local
+scaling: the jerk-free optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.
 
-Objective.  Stretching time by λ divides joint velocity by λ, acceleration by λ², jerk by
-λ³ and the feed by λ.  So each whole piece's shape is scaled to the smallest λ at which every
-limit holds (the exact penalty for violations: time grows with the violation), and the
-objective is the execution time λ.  Every evaluated particle is thus feasible on its
-samples; the swarm only searches shapes.  A sub-piece's ends are fixed, so its objective is
-its duration × max(1, worst ratio)^PENALTY_POWER instead.  The whole swarm is evaluated at
-once (particles × samples arrays).  After the search the best profile is sampled at T and
-checked with the independent metrics; a discretisation excess is removed by a further small
-stretch of the whole piece (with its join feeds).  The seed is returned where it is faster and
-feasible; where it is faster but breaks a limit at T, its fit is stretched at T the same way
-and each rest-to-rest piece takes the shorter of that and the swarm's.
+Polish: the TOPP3-SOCP (topp3.py), linearised around the swarm's best instead of TOPP2-RA's
+profile, then checked and repaired at T like `optimal`'s.  ``polish=False`` returns the pure
+swarm.  Both the swarm's and the polished time are in info (``swarm_time_s``,
+``polished_time_s``), with the seed's.
 
-Polish: after the swarm, a few steps of sequential linear programming on a finer spline
-(polish.py).  ``polish_steps=0`` returns the swarm alone.  The swarm runs 20 iterations by
-default (why: docs/TUNING.md).
+Returned: the fastest of the polished profile, the swarm's and the seed, each checked at T
+(joint limits and F_max), so `pso` is never slower than its seed (info["returned"]).  The
+swarm's own profile is sampled from the exact time map of its spline (span.py) and stretched
+per piece by what its samples at T read above a limit.
 
-Seeded: the swarm starts around the `scurve_joint` profile (its feed fitted by least
-squares), ``seed`` drives all random numbers and the iteration count ends the search, so the
-same inputs give the same profile on any machine.  An optional wall-clock ``time_budget_s``
-(off by default: it would make the result depend on the machine's speed) is reported in
-``info['stopped_by']`` when it ends the search.
-
-Modules: tuning (the constants), basis (the feed's B-splines), problem (a whole piece and a
-sub-piece behind one protocol), join (G1 joins), seed (the start from the seed profile), swarm,
-polish, result (the best profile at T, against the seed).
+Deterministic: ``seed`` drives every random number, the iteration count ends the search (an
+optional wall-clock ``time_budget_s`` would make the result depend on the machine: off by
+default, reported in info["stopped_by"] when it ends the search).
 """
 from __future__ import annotations
 
-import math
+import dataclasses
 import time
 
 import numpy as np
 
-from ..constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
-                           table_feed_cap)
+from ..constraints import PlanningError, check_limits, check_path
 from ..profile import Profile
-from .polish import polish_best
-from .result import stretch_at_T, swarm_or_seed, t_check_stretch
-from .seed import Setting, start
-from .swarm import Progress, Swarm
-from . import tuning
-from .tuning import JOIN_FEED_FRACTION, POLISH_ITERATIONS
+from .. import topp3
+from .feed import FeedSpline
+from .span import FeedSpan
+from .swarm import BlockSwarm
 
-__all__ = ["plan", "JOIN_FEED_FRACTION"]
+__all__ = ["plan"]
+
+SWARM_REPAIRS = 4          # rounds of tightening where the swarm's samples at T read above a limit
+REPAIR_ITERATIONS = 10     # swarm iterations after each
+# a repair whose context takes this many times the last one's time stops the repairs: the
+# tightened limits made a stretch crawl (a G1 join's read at T the station rows do not follow)
+COLLAPSE = 2.0
 
 
-def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iterations: int = 20,
-         control_points: int = 60, samples: int = 400, margin: float = 0.005,
-         time_budget_s: float | None = None, seed_profile=None, target_time_s: float | None = None,
-         exact_knots: bool = True, extra_knots: float = 0.5, spread: float = 0.05,
-         polish_steps: int | None = None) -> Profile:
-    """PSO-optimised feed.  ``control_points``: total over the pieces (≥ 8 each, shared in
-    proportion to the seed's time on each); ``polish_steps``: SLP steps per piece after the
-    swarm (POLISH_ITERATIONS if None, 0: none); ``target_time_s``: record when the best total
-    (swarm, then polished) first reaches it (``info['time_to_target_s']``), for the benchmark."""
+def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 40,
+         margin: float = 0.002, spread: float = 0.05, polish: bool = True, grid_mm: float = 0.1,
+         polish_linearisations: int = 4, time_budget_s: float | None = None, seed_profile=None) -> Profile:
+    """PSO-optimised feed (module docstring): ``particles`` per block swarm, ``iterations`` of
+    every swarm, limits held at the stations to 1 − ``margin`` during the search; the polish
+    (``polish``) at most ``polish_linearisations`` SOCP solves a piece before its repairs."""
     from ..scurve import plan_joint
+    from ..verify import command_metrics
 
     t0 = time.perf_counter()
-    polish_steps = POLISH_ITERATIONS if polish_steps is None else polish_steps
     limits = machine.limits if limits is None else limits
     check_limits(limits, "pso")
     check_path(path, "pso")
@@ -90,60 +71,161 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 40, iter
         raise PlanningError(f"pso: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
-    table = PathTable(path, machine)
-    st = Setting(table, limits, T, join_jumps(path, table, machine), table_feed_cap(path, table, limits, T),
-                 margin)
+    # the polish at optimal's engine settings (Clarabel without KKT refinement: docs/TUNING.md)
+    settings = topp3.Settings("pso", grid_mm, max_linearisations=polish_linearisations, kkt_refinement=False)
+    pieces = topp3.pieces_of(path, machine, limits, settings)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
-    pcs = rest_pieces(path)
-    begin = start(st, seed_prof, pcs, control_points, samples, exact_knots, extra_knots)
-    swarm = Swarm(begin.probs, begin.X0, begin.tags, rng, particles, spread, margin)
-    _all_feasible(swarm, pcs)
-    progress = Progress(t0, target_time_s)
-    progress.record(swarm.total())
-    stopped_by = swarm.run(iterations, progress, time_budget_s)
-    swarm_total = progress.history[-1][1]
-    # the swarm finds the shape (which option, which basin); a few SLP steps on a finer spline
-    # converge it (docs/TUNING.md)
-    polished = polish_best(swarm, polish_steps, margin, progress) if polish_steps > 0 else []
 
-    chosen = swarm.chosen()
-    pieces = [pr.piece(sw.g, sw.fg, g) for _, pr, sw, g in chosen]
-    info = _info(seed, particles, stopped_by, [int(pr.K) for _, pr, _, _ in chosen], swarm, len(pcs),
-                 seed_prof, progress, swarm_total, polished, begin.fallback)
-    # check at T with the independent metrics; stretch the pieces whose samples at T read
-    # above a limit (the swarm saw only its own samples) by just that excess
-    prof, r = stretch_at_T(pieces, len(pcs), T, path, machine, limits, info)
-    if prof is None:
-        raise PlanningError(f"pso: best particle breaks a joint limit at T: {r['joint_peak_ratio']}")
-    prof.info["t_check_stretch"] = t_check_stretch(pieces)
-    prof.info["returned"] = "swarm best"
-    prof = swarm_or_seed(prof, seed_prof, pieces, begin.seed_pieces, len(pcs), T, path, machine, limits,
-                         info)
+    feeds, starts, started_from = [], [], []
+    for p in pieces:
+        feed = FeedSpline(p, margin)
+        # each fit made feasible locally, or else by a uniform stretch
+        cands = {}
+        for name, sd in (("topp2_ra", np.sqrt(feed.a_ra)), ("seed", _seed_feed(seed_prof, p))):
+            c = feed.fit(sd)
+            cands[name] = _first_not_none(feed.start_locally(c), feed.scaled_within(c))
+        name = min(cands, key=lambda k: feed.time(cands[k]) if feed.within(cands[k]) else np.inf)
+        feeds.append(feed)
+        starts.append(cands[name] if feed.within(cands[name]) else None)
+        started_from.append(name)
+    no_start = [p.where() for p, c in zip(pieces, starts) if c is None]
+    swarm_prof, spans, progress, repairs = (None, None, _Progress(t0, np.nan, time_budget_s), []) if no_start else \
+        _search(feeds, starts, rng, particles, spread, iterations, time_budget_s, t0, T, path, machine, limits,
+                10 * seed_prof.execution_time_s)
+    history = progress.history
+    info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
+            "stopped_by": progress.stopped_by, "control_points": [f.K for f in feeds],
+            "started_from": started_from, "start_time_s": progress.history[0][1] * pieces[0].tu,
+            "seed_time_s": float(seed_prof.execution_time_s), "swarm_repairs": repairs,
+            **({"swarm": f"no start within the limits on {', '.join(no_start)}"} if no_start else {}),
+            "history": [[h[0], h[1] * pieces[0].tu] for h in history[:: max(1, len(history) // 50)] + history[-1:]]}
+    info["swarm_time_s"] = swarm_prof.execution_time_s if swarm_prof is not None else None
+    info["swarm_planning_s"] = time.perf_counter() - t0
+    candidates = [("swarm", swarm_prof)] if swarm_prof is not None else []
+    if polish:
+        # linearised around the faster of the swarm's and the seed's feed on each piece: the
+        # tangent rows allow at most 3 × the reference's ṡ² in one solve, so a slow reference
+        # costs linearisations
+        info["polish_reference"] = []
+        for k, p in enumerate(pieces):
+            span = spans[k] if spans else None
+            t_seed = float(np.diff(np.interp([p.s0, p.s1], seed_prof.s, seed_prof.t))[0])
+            use_seed = span is None or t_seed < span.duration
+            p.reference = _seed_feed(seed_prof, p) ** 2 if use_seed else span.a_at_stations()
+            info["polish_reference"].append("seed" if use_seed else "swarm")
+        try:
+            pol = topp3.solve(path, machine, limits, settings, pieces)
+            info["polished_time_s"] = pol.execution_time_s
+            candidates.append(("polished", pol))
+        except PlanningError as e:
+            info["polish"] = str(e)
+    candidates.append(("seed", seed_prof))
+    ok = []
+    for name, prof in candidates:
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0.0) <= 1 + 1e-6:
+            ok.append((prof.execution_time_s, name, prof))
+    if not ok:
+        raise PlanningError("pso: neither the swarm's, the polished nor the seed's profile is within the limits at T"
+                            + "".join(f"; {k}: {info[k]}" for k in ("swarm", "polish") if k in info))
+    _, name, best = min(ok, key=lambda x: x[:2])
+    prof = dataclasses.replace(best, planner="pso", info=dict(best.info, **info, returned=name))
     prof.planning_time_s = time.perf_counter() - t0
     return prof
 
 
-def _all_feasible(swarm, pcs):
-    """A clear error unless every rest-to-rest piece has an option whose swarms all started."""
-    bad = [g for g, (_, v) in swarm.best_options().items() if not math.isfinite(v)]
-    if bad:
-        raise PlanningError(f"pso: no feasible particle on piece(s) {bad} (s = "
-                            f"{', '.join(f'{pcs[i][0]:.6g}…{pcs[i][1]:.6g}' for i in bad)} mm)")
+def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, path, machine, limits, too_slow):
+    """(the swarm's profile or None, its spans, the progress, the repairs' windows): the swarm
+    from ``starts``, its iterations, then its repairs at T (below).  A profile slower than
+    ``too_slow`` (10 × the seed's time) is no candidate: sampling it would only cost memory."""
+    swarms = [BlockSwarm(f, c, rng, particles, spread) for f, c in zip(feeds, starts)]
+    progress = _Progress(t0, _total(swarms), budget)
+    progress.run(swarms, iterations)
+    tu = feeds[0].piece.tu
+    # the swarm's limits hold at the stations; where its samples at T read above one, the
+    # limit is held lower at the stations there and the swarm goes on from its context made
+    # feasible again (as topp3 repairs its SOCP).  The swarm's profile: the faster of the one
+    # before the repairs, stretched per piece by its excess at T, and the one after them.
+    repairs, found = [], []
+    for rnd in range(SWARM_REPAIRS + 1):
+        spans = [FeedSpan(f, sw.c, k) for k, (f, sw) in enumerate(zip(feeds, swarms))]
+        if sum(sp.duration for sp in spans) > too_slow:
+            break
+        at_T = Profile.from_pieces("pso", T, spans, path)
+        above = topp3.reads_above(at_T, machine, path, limits)
+        if not above or rnd == SWARM_REPAIRS:
+            found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
+            break
+        if rnd == 0:
+            found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
+        for col, i, width, ratio in above:
+            lo, hi = at_T.s[i], at_T.s[min(i + width, len(at_T.s) - 1)]
+            for f in feeds:
+                if f.piece.s0 <= hi and f.piece.s1 >= lo:
+                    f.tighten(col, lo, hi, ratio, topp3.TIGHTEN_EXTRA * 2 ** rnd)
+        again = [sw.feed.start_locally(sw.c) for sw in swarms]
+        if any(c is None for c in again) or \
+                sum(sw.feed.time(c) for sw, c in zip(swarms, again)) > COLLAPSE * _total(swarms):
+            break       # no context within the tightened limits, or one that collapsed somewhere
+        repairs.append(len(above))
+        for sw, c in zip(swarms, again):
+            sw.c = c
+        progress.run(swarms, REPAIR_ITERATIONS)
+    found = [(prof, sp) for prof, sp in found if prof is not None]
+    prof, spans = min(found, key=lambda x: x[0].execution_time_s) if found else (None, spans)
+    return prof, spans, progress, repairs
 
 
-def _info(seed, particles, stopped_by, control_points, swarm, n_pieces, seed_prof, progress, swarm_total,
-          polished, fallback):
-    """The profile's info: the search's settings, its choices and its progress."""
-    history, options = progress.history, swarm.best_options()
-    return {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
-            "stopped_by": stopped_by, "control_points": control_points,
-            "searched_as": [options[g][0] for g in range(n_pieces)],
-            "seed_time_s": float(seed_prof.execution_time_s),
-            "history": [[round(history[i][0], 4), float(history[i][1])]        # ~50 and the last
-                        for i in sorted(set(range(0, len(history), max(1, len(history) // 50)))
-                                        | {len(history) - 1})],
-            "swarm_time_s": float(swarm_total), "polish": polished,
-            **({"fallback": {"reason": f"piece over the size bound of {tuning.BASIS_MAX_ELEMENTS} basis elements: "
-                                       "sparse basis at the seed's switch times, no polish",
-                             "pieces": fallback}} if fallback else {}),
-            "time_to_target_s": progress.time_to_target}
+class _Progress:
+    """The swarms' iterations: the best total after each (``history``: (seconds since t0, scaled
+    time)), and what stopped them."""
+
+    def __init__(self, t0, start, budget):
+        self.t0, self.budget = t0, budget
+        self.history, self.stopped_by = [(0.0, start)], "iterations"
+
+    def run(self, swarms, iterations):
+        for _ in range(iterations):
+            if self.budget is not None and time.perf_counter() - self.t0 > self.budget:
+                self.stopped_by = "time budget"
+                return
+            for sw in swarms:
+                sw.step()
+            self.history.append((round(time.perf_counter() - self.t0, 4), _total(swarms)))
+
+
+def _first_not_none(*xs):
+    return next(x for x in xs if x is not None)
+
+
+def _total(swarms) -> float:
+    """The swarms' contexts' time in scaled time (their own station model)."""
+    return float(sum(sw.feed.time(sw.c) for sw in swarms))
+
+
+def _seed_feed(seed_prof, piece):
+    """The seed's feed (scaled time) at the piece's stations."""
+    return np.interp(piece.grid, seed_prof.s, seed_prof.sd) * piece.tu
+
+
+def _stretched_at_T(spans, T, path, machine, limits, too_slow):
+    """The spans sampled at T, each rest-to-rest piece stretched by the worst need of its samples
+    (planners.verify.stretch_need), up to 8 times; None if still above a limit or slower than
+    ``too_slow``."""
+    from ..verify import command_metrics, stretch_need
+    for _ in range(8):
+        if sum(sp.duration for sp in spans) > too_slow:
+            return None
+        prof = Profile.from_pieces("pso", T, spans, path)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
+            return prof
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
+        starts = np.concatenate([[0.0], np.cumsum([sp.duration for sp in spans])])
+        g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(spans) - 1)
+        worst = np.zeros(len(spans))
+        np.maximum.at(worst, g, need)
+        for sp, w in zip(spans, worst):
+            if w > 1.0:
+                sp.lam *= w * (1 + 1e-4)
+    return None

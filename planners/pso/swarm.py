@@ -1,109 +1,95 @@
-"""One particle swarm per problem, all advanced together so the best total is known at every
-iteration; per rest-to-rest piece the option (whole or cut) with the smaller best total counts."""
-from __future__ import annotations
+"""A cooperative particle swarm over one piece's feed spline (CPSO-S_K: van den Bergh &
+Engelbrecht, IEEE Trans. Evol. Comput. 8(3), 2004): the free coefficients are cut into blocks
+of BLOCK, and each block of a particle is judged in the context of the swarm's best
+(every other coefficient at its best value).
 
-import math
-import time
-from dataclasses import dataclass
+Why blocks: a coefficient moves the feed over 4 knot spans only, so the time and the limits a
+block changes are those of the stations under its support; judging blocks, not whole
+particles, lets an improvement in one place count although others got worse in the same
+particle, and one swarm over hundreds of coefficients does not converge otherwise.  Blocks of
+one colour (every other block) share no station, so all of them are judged in one pass over
+the piece; the two colours take turns.  The cut moves by one coefficient each iteration, so
+neighbouring coefficients are also improved together.
+
+A particle is the logarithm of the coefficients (the feed is positive, and steps are
+relative).  A block's objective on its stations: the time there if every station is within the
+limits, else a constant above any time plus the worst need (feasibility first, Deb's rule), so
+the context stays feasible."""
+from __future__ import annotations
 
 import numpy as np
 
 W, C1, C2 = 0.7298, 1.49618, 1.49618        # Clerc–Kennedy constriction coefficients
+BLOCK = 4                                   # ≥ 4: same-colour supports then leave a knot span between them
+VMAX = 0.2                                  # largest step of a log-coefficient per iteration
+INFEASIBLE = 1e30
 
 
-@dataclass
-class Particles:
-    X: np.ndarray          # positions (P, n)
-    V: np.ndarray          # velocities
-    P: np.ndarray          # each particle's best position
-    fP: np.ndarray         # and its objective
-    g: np.ndarray          # the swarm's best position
-    fg: float              # and its objective
-    vmax: np.ndarray       # the velocity bound per coefficient
+class BlockSwarm:
+    """The swarm of one piece, around the feasible coefficients ``c`` (feed.FeedSpline);
+    ``rng`` draws every random number, in a fixed order."""
 
+    def __init__(self, feed, c, rng, particles: int, spread: float):
+        self.feed, self.rng, self.P = feed, rng, particles
+        self.c = np.array(c, float)
+        self.free = np.arange(1, feed.K - 1)
+        base = np.log(self.c[self.free])
+        self.X = base[None, :] + spread * rng.standard_normal((particles, len(self.free)))
+        self.X[0] = base
+        self.V = 0.1 * VMAX * rng.standard_normal(self.X.shape)
+        self.Pb = self.X.copy()
+        self.iteration = self.evaluations = 0
 
-class Progress:
-    """The best total over time (``history``) and when it first reached ``target`` (seconds
-    since t0), for the benchmark."""
+    def _blocks(self, colour: int):
+        """(blocks (nb, BLOCK) of positions in ``free``, −1 = padding) of one colour under this
+        iteration's cut."""
+        n, off = len(self.free), self.iteration % BLOCK
+        cuts = ([np.arange(0, off)] if off else []) + [np.arange(i, min(i + BLOCK, n)) for i in range(off, n, BLOCK)]
+        mine = cuts[colour::2]
+        idx = np.full((len(mine), BLOCK), -1)
+        for b, ks in enumerate(mine):
+            idx[b, :len(ks)] = ks
+        return idx
 
-    def __init__(self, t0, target):
-        self.t0, self.target = t0, target
-        self.history, self.time_to_target = [], None
+    def _judge(self, idx, Xs):
+        """Objective (nb, columns) of each block of each of the position sets Xs (list of (P, n)),
+        and of the context as the last column."""
+        feed, free = self.feed, self.free
+        valid = idx >= 0
+        cols = sum(len(X) for X in Xs)
+        C = np.repeat(self.c[:, None], cols + 1, axis=1)
+        at = idx[valid]
+        C[free[at], :cols] = np.exp(np.vstack(Xs)[:, at]).T
+        dt, need = feed.reads(C)
+        self.evaluations += cols * len(idx)
+        lo, hi = feed.sup_lo[free[idx[:, 0]]], feed.sup_hi[free[idx.max(axis=1)]]    # padding is last
+        cum = np.vstack([np.zeros((1, cols + 1)), np.cumsum(dt, axis=0)])
+        time = cum[hi] - cum[lo]
+        # even rows: the max over [lo, hi] (a zero row past the end keeps hi + 1 a valid index)
+        need = np.vstack([need, np.zeros((1, cols + 1))])
+        worst = np.maximum.reduceat(need, np.ravel(np.column_stack([lo, hi + 1])), axis=0)[::2]
+        return np.where(worst <= 1.0, time, INFEASIBLE + worst)
 
-    def reached(self, total):
-        if self.target and self.time_to_target is None and total <= self.target:
-            self.time_to_target = time.perf_counter() - self.t0
-
-    def record(self, total):
-        self.history.append((time.perf_counter() - self.t0, total))
-        if self.target and self.time_to_target is None and total <= self.target:
-            self.time_to_target = self.history[-1][0]
-
-
-class Swarm:
-    """Particles around each problem's start (its fitted seed made feasible; None where there is
-    none), drawn from ``rng`` in problem order."""
-
-    def __init__(self, probs, X0, tags, rng, particles, spread, margin):
-        self.probs, self.tags, self.rng, self.margin = probs, tags, rng, margin
-        self.states = [self._spawn(pr, x0, particles, spread) for pr, x0 in zip(probs, X0)]
-
-    def _spawn(self, pr, x0, particles, spread):
-        x0 = pr.start(x0, self.margin)             # the seed, made to meet every limit
-        if x0 is None:
-            return None
-        n = len(x0)
-        X = x0[None, :] * (1 + spread * self.rng.standard_normal((particles, n)))
-        X[0] = x0
-        X = np.maximum(X, 0.0)
-        span = np.maximum(x0, 1e-3 * x0.max())
-        Vel = 0.05 * span[None, :] * self.rng.standard_normal((particles, n))
-        f = pr.objective(X, self.margin)
-        best = int(np.argmin(f))
-        return Particles(X, Vel, X.copy(), f.copy(), X[best].copy(), float(f[best]), 0.2 * span)
-
-    def best_options(self):
-        """{piece: (option, its time)}: per piece the option with the smaller best total."""
-        tot = {}
-        for (g, opt), sw in zip(self.tags, self.states):
-            tot[(g, opt)] = tot.get((g, opt), 0.0) + (sw.fg if sw is not None else math.inf)
-        out = {}
-        for (g, opt), v in tot.items():
-            if g not in out or v < out[g][1]:
-                out[g] = (opt, v)
-        return out
-
-    def total(self):
-        return sum(v for _, v in self.best_options().values())
-
-    def chosen(self):
-        """[(index, problem, particles, piece)] of the options best_options() picks."""
-        pick = self.best_options()
-        return [(k, pr, sw, g) for k, (pr, sw, (g, opt)) in enumerate(zip(self.probs, self.states, self.tags))
-                if sw is not None and pick[g][0] == opt]
-
-    def run(self, iterations, progress, time_budget_s=None):
-        """Advance every swarm ``iterations`` times (or until ``time_budget_s`` since progress.t0
-        has passed): what stopped it."""
-        live = [(pr, sw) for pr, sw in zip(self.probs, self.states) if sw is not None]
-        for _ in range(iterations):
-            if time_budget_s is not None and time.perf_counter() - progress.t0 > time_budget_s:
-                return "time budget"
-            for pr, sw in live:
-                self._step(pr, sw)
-            progress.record(self.total())
-        return "iterations"
-
-    def _step(self, pr, sw):
-        X, V = sw.X, sw.V
-        r1, r2 = self.rng.random(X.shape), self.rng.random(X.shape)
-        V = W * V + C1 * r1 * (sw.P - X) + C2 * r2 * (sw.g[None, :] - X)
-        V = np.clip(V, -sw.vmax, sw.vmax)
-        X = np.maximum(X + V, 0.0)
-        f = pr.objective(X, self.margin)
-        imp = f < sw.fP
-        sw.P[imp], sw.fP[imp] = X[imp], f[imp]
-        b = int(np.argmin(sw.fP))
-        if sw.fP[b] < sw.fg:
-            sw.g, sw.fg = sw.P[b].copy(), float(sw.fP[b])
-        sw.X, sw.V = X, V
+    def step(self):
+        """One iteration: per colour, each block of each particle and of its best is judged; the
+        better replaces the best's block, the best block of all enters the context."""
+        P = self.P
+        for colour in range(2):
+            idx = self._blocks(colour)
+            if not len(idx):
+                continue
+            f = self._judge(idx, [self.X, self.Pb])
+            fX, fP, f_ctx = f[:, :P], f[:, P:2 * P], f[:, 2 * P]
+            valid = idx >= 0
+            for b in range(len(idx)):
+                at = idx[b][valid[b]]
+                better = fX[b] < fP[b]
+                self.Pb[np.ix_(better, at)] = self.X[np.ix_(better, at)]
+                k = int(np.argmin(fX[b]))
+                if fX[b, k] < f_ctx[b]:
+                    self.c[self.free[at]] = np.exp(self.X[k, at])
+        g = np.log(self.c[self.free])[None, :]
+        r1, r2 = self.rng.random(self.X.shape), self.rng.random(self.X.shape)
+        self.V = np.clip(W * self.V + C1 * r1 * (self.Pb - self.X) + C2 * r2 * (g - self.X), -VMAX, VMAX)
+        self.X = self.X + self.V
+        self.iteration += 1

@@ -1,0 +1,169 @@
+"""The feed of one rest-to-rest piece as a cubic B-spline over arc length, and what it reads at
+the piece's stations.
+
+In scaled time (t_u = A/J of the joints, as the TOPP3 engine's Piece) the spline is
+w(x) = ṡ^{3/2} over x = s − s0 ∈ [0, L], so that
+
+    ṡ = w^{2/3},   s̈ = ⅔ w^{1/3} w′,   s⃛ = ṡ·ds̈/dx = (2/9) w′² + ⅔ w w″:
+
+finite jerk everywhere, also at rest, where w = 0 and the piece leaves with s ∝ t³ (a constant
+jerk start has w linear in x).  A spline of ṡ itself over arc length cannot leave rest with
+finite jerk (near rest ṡ ∝ s^{2/3}).  The coefficients at both ends are 0; the others are the
+search's variables, c > 0.
+
+Knots are placed by the path's limits, not by any profile's switch times: at equal steps of
+the time of the jerk-free time-optimal profile (TOPP2-RA on the same stations), KNOT_STEP_TU
+jerk time scales apart, so they are dense where the limits hold the feed low (lobes, joins,
+the workspace edge) and sparse on fast stretches, and their number grows with the piece's
+duration under its limits, not with its segment count.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.sparse.linalg import lsqr
+
+from ..verify import FEASIBLE_TOL
+
+# one knot per this many t_u of TOPP2-RA's time (a jerk-limited rise from 0 to A takes 1 t_u)
+KNOT_STEP_TU = 0.25
+MIN_SPANS = 4
+# knots at least this many station intervals apart: a coefficient whose support held fewer
+# stations would be free between them
+MIN_SPAN_STATIONS = 3
+# rounds of the local scaling that makes a start feasible (start_locally)
+START_ROUNDS = 60
+TINY = 1e-12
+
+
+def interval_time(dx, sd0, sd1):
+    """Time over an interval with w = ṡ^{3/2} linear between its ends: ∫dx/w^{2/3} =
+    3Δx/(ṡ0 + √(ṡ0ṡ1) + ṡ1), exact at a rest end (w linear: 3Δx/ṡ1); the arithmetic mean of ṡ
+    would let a feed that dips to near 0 at a station (a G1 join) pass it in no time."""
+    return 3.0 * dx / np.maximum(sd0 + np.sqrt(sd0 * sd1) + sd1, TINY)
+
+
+class FeedSpline:
+    """The spline's knots and basis on one topp3.Piece's stations, and the reads of any set of
+    coefficient columns there (joint v, a, j, the feed cap, the G1 joins' rows)."""
+
+    def __init__(self, piece, margin: float):
+        self.piece = piece
+        self.x = piece.grid - piece.s0
+        self.dx = np.diff(self.x)
+        self.L = float(self.x[-1])
+        self.margin = margin
+        self.a_ra = np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0)
+        t_ra = self.station_times(np.sqrt(self.a_ra))
+        m = max(MIN_SPANS, int(math.ceil(t_ra[-1] / KNOT_STEP_TU)))
+        want = np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, self.x)
+        self.knots = np.concatenate([[0.0] * 4, self._on_stations(want), [self.L] * 4])
+        self.K = len(self.knots) - 4
+        # per coefficient: the first and last station under its support [t_k, t_{k+4}]
+        self.sup_lo = np.searchsorted(self.x, self.knots[:self.K], side="left")
+        self.sup_hi = np.searchsorted(self.x, self.knots[4:self.K + 4], side="right") - 1
+        d1, d2, d3 = piece.deriv[1:]
+        self.d1, self.d2, self.d3 = d1, d2, d3
+        self.v_abs = np.abs(d1).max(axis=1)
+        self.lims = [lim * (1 - margin) for lim in piece.lims]
+        self.cap2 = piece.cap2 * (1 - margin) ** 2
+        self.joins = piece.joins
+        # per station the fraction of each limit (v, a, j, feed) it is held to: 1 until the
+        # samples at T read the limit above 1 over the station (tighten)
+        self.factor = np.ones((len(self.x), 4))
+
+    def _on_stations(self, want):
+        """The wanted inner knots moved to stations, ≥ MIN_SPAN_STATIONS intervals apart and from
+        the ends."""
+        n, out, last = len(self.x), [], 0
+        for i in np.searchsorted(self.x, want):
+            i = max(int(i), last + MIN_SPAN_STATIONS)
+            if i > n - 1 - MIN_SPAN_STATIONS:
+                break
+            out.append(i)
+            last = i
+        return self.x[out]
+
+    def station_times(self, sd):
+        """Scaled time at each station of a feed sd (0 at both ends)."""
+        return np.concatenate([[0.0], np.cumsum(interval_time(self.dx, sd[:-1], sd[1:]))])
+
+    def spline(self, c) -> BSpline:
+        return BSpline(self.knots, c, 3, extrapolate=False)
+
+    def motion(self, C, lo=0, hi=None):
+        """ṡ, s̈, s⃛ (scaled) at stations lo … hi − 1 of coefficient columns C (K, P)."""
+        x = self.x[lo:hi]
+        spl = self.spline(C)
+        w, w1, w2 = spl(x), spl(x, 1), spl(x, 2)
+        w = np.maximum(w, 0.0)
+        cb = np.cbrt(w)
+        return cb * cb, (2.0 / 3.0) * cb * w1, (2.0 / 9.0) * w1 * w1 + (2.0 / 3.0) * w * w2
+
+    def reads(self, C):
+        """(interval times (n − 1, P), per-station need (n, P)): the need is the time stretch that
+        would bring the station within every limit (held to 1 − margin and to the station's
+        factors): max of v/V, √(a/A), ∛(j/J), ṡ/cap, and at a G1 join ∛((|j| + κṡ²)/J) for
+        either side's derivatives."""
+        C = np.asarray(C, float)
+        if C.ndim == 1:
+            C = C[:, None]
+        sd, sdd, sddd = self.motion(C)
+        V, A, J = self.lims
+        f = self.factor
+        need = (self.v_abs / (V * f[:, 0]))[:, None] * sd
+        need = np.maximum(need, sd / np.sqrt(self.cap2 * f[:, 3] ** 2)[:, None])
+        Af, Jf = (A * f[:, 1])[:, None], (J * f[:, 2])[:, None]
+        sd2, sd3 = sd * sd, sd * sd * sd
+        for m in range(3):
+            d1, d2, d3 = self.d1[:, m:m + 1], self.d2[:, m:m + 1], self.d3[:, m:m + 1]
+            need = np.maximum(need, np.sqrt(np.abs(d2 * sd2 + d1 * sdd) / Af))
+            need = np.maximum(need, np.cbrt(np.abs(d3 * sd3 + 3 * d2 * sd * sdd + d1 * sddd) / Jf))
+        for i, D1, D2, D3, kappa in self.joins:
+            for side in range(2):
+                for m in range(3):
+                    jerk = D3[side, m] * sd3[i] + 3 * D2[side, m] * sd[i] * sdd[i] + D1[side, m] * sddd[i]
+                    need[i] = np.maximum(need[i], np.cbrt((np.abs(jerk) + kappa[m] * sd2[i]) / Jf[i]))
+        return interval_time(self.dx[:, None], sd[:-1], sd[1:]), need
+
+    def tighten(self, col: int, s_lo: float, s_hi: float, ratio: float, extra: float) -> None:
+        """Limit ``col`` (topp3.LIMIT_COLUMNS) at the stations under [s_lo, s_hi] (path s) and two
+        either side held to its present fraction / (ratio·(1 + extra)): the samples at T read it
+        ``ratio`` × the limit there."""
+        x = self.x + self.piece.s0
+        i0 = max(int(np.searchsorted(x, s_lo, side="right")) - 2, 0)
+        i1 = min(int(np.searchsorted(x, s_hi, side="left")) + 2, len(x))
+        self.factor[i0:i1, col] /= ratio * (1 + extra)
+
+    def fit(self, sd_target):
+        """Coefficients whose ṡ is close to sd_target (scaled) at the stations: least squares on
+        w = ṡ^{3/2}, the ends 0, every other coefficient > 0."""
+        w = np.maximum(sd_target, 0.0) ** 1.5
+        B = BSpline.design_matrix(self.x, self.knots, 3).tocsc()[:, 1:-1]
+        c = lsqr(B, w, atol=1e-12, btol=1e-12, iter_lim=20 * self.K)[0]
+        return np.concatenate([[0.0], np.maximum(c, 1e-6 * max(float(w.max()), TINY)), [0.0]])
+
+    def time(self, c) -> float:
+        return float(self.reads(c)[0].sum())
+
+    def within(self, c) -> bool:
+        return bool(self.reads(c)[1].max() <= 1 + FEASIBLE_TOL)
+
+    def start_locally(self, c):
+        """A version of c within the limits at the stations, or None: each coefficient whose
+        support needs a stretch λ > 1 is scaled by λ^{−3/2} (w ∝ ṡ^{3/2}), round after round, at
+        most START_ROUNDS.  Deterministic."""
+        c = np.array(c, float)
+        for _ in range(START_ROUNDS):
+            need = self.reads(c)[1][:, 0]
+            if need.max() <= 1.0:
+                return c
+            lam = np.array([need[lo:hi + 1].max(initial=0.0) for lo, hi in zip(self.sup_lo, self.sup_hi)])
+            c = c / np.maximum(lam, 1.0) ** 1.5 / np.where(lam > 1.0, 1.0 + 1e-3, 1.0)
+        return c if self.reads(c)[1].max() <= 1.0 else None
+
+    def scaled_within(self, c):
+        """c scaled as a whole (a uniform time stretch) until every station is within its limits."""
+        return np.asarray(c, float) / max(float(self.reads(c)[1].max()), 1.0) ** 1.5 / (1 + 1e-9)
