@@ -25,7 +25,6 @@ def _jacobian_row_horizontal() -> float:
 def report(r: dict) -> str:
     """REPORT.md from the figure steps' results, keyed as `pkmbench figures` names the steps."""
     from harness.cosim.drive_params import encoder_increment_mm
-    from planners.pso import JOIN_FEED_FRACTION
 
     kp, kc = r["KEOPS paper Figs. 5–6"], r["KEOPS flat bird at the workspace centre"]
     fo = r["KEOPS feed over arc length"]
@@ -40,8 +39,7 @@ def report(r: dict) -> str:
         "flat_joint": _vaj(kc["scurve"]["joint"]),
         "feed_times": ", ".join(f"{k} {v:.4f}" for k, v in fo["execution_time_s"].items()),
         "n_joins": len(fo["joins_mm"]),
-        "joins": ", ".join(f"{x:.0f}" for x in fo["joins_mm"]),
-        "join_fraction": f"{100 * JOIN_FEED_FRACTION:.0f}",
+        "pso_time": f"{fo['execution_time_s']['pso']:.4f}", "opt_time": f"{fo['execution_time_s']['optimal']:.4f}",
         "excess_lo": f"{fo['stretch_excess_pct'][0]:.1f}", "excess_hi": f"{fo['stretch_excess_pct'][1]:.1f}",
         "gap_lo": f"{fo['peak_shortfall_pct'][0]:.1f}", "gap_hi": f"{fo['peak_shortfall_pct'][1]:.1f}",
         "top_pso": f"{fo['top_peak']['pso_mm_s']:.0f}", "top_opt": f"{fo['top_peak']['optimal_mm_s']:.0f}",

@@ -72,10 +72,10 @@ def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
 
 
 def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
-    """Where pso loses to the jerk-limited optimum: the feed of scurve_joint (pso's seed), pso
-    and optimal over arc length, all three within the joint limits. Returns the execution
-    times and, per stretch between corners and G1 joins, how pso compares with the optimum
-    (the numbers REPORT.md quotes)."""
+    """The swarm and its polish against the jerk-limited optimum: the feed of scurve_joint (pso's
+    seed), pso's swarm alone (polish=False), pso and optimal over arc length, all within the
+    joint limits. Returns the execution times and, per stretch between corners and G1 joins,
+    how the swarm alone compares with the optimum (the numbers REPORT.md quotes)."""
     import planners
     from kins import load_machine
     from planners.paths import resolve_path
@@ -86,8 +86,9 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     s = np.linspace(0.0, path.length, int(path.length / 0.25) + 1)
     cols, result, profs = {"s_mm": s}, {}, {}
     fig, ax = plt.subplots(figsize=(10, 3.6))
-    for name in ("scurve_joint", "pso", "optimal"):
-        prof = planners.plan(name, path, m)
+    for name, planner, options in (("scurve_joint", "scurve_joint", {}), ("pso_swarm", "pso", {"polish": False}),
+                                   ("pso", "pso", {}), ("optimal", "optimal", {})):
+        prof = planners.plan(planner, path, m, **options)
         profs[name] = prof
         result[name] = prof.execution_time_s
         cols[f"{name}_feed_mm_s"] = np.interp(s, prof.s, prof.sd)
@@ -101,8 +102,8 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
 
 
 def _stretches(path, m, profs, s, cols) -> dict:
-    """pso against the optimum on each stretch between the path's ends, corners and G1 joins:
-    its time in excess and its peak-feed shortfall, in %, and the seed's highest feed."""
+    """pso's swarm alone against the optimum on each stretch between the path's ends, corners and
+    G1 joins: its time in excess and its peak-feed shortfall, in %, and the seed's highest feed."""
     from planners.constraints import PathTable, corner_list, join_jumps
 
     joins = [sj for sj, _ in join_jumps(path, PathTable(path, m), m)]
@@ -114,12 +115,12 @@ def _stretches(path, m, profs, s, cols) -> dict:
 
     excess, gap, peaks = [], [], []
     for a, b in zip(bounds[:-1], bounds[1:]):
-        dt = {n: float(time_at(profs[n], b) - time_at(profs[n], a)) for n in ("pso", "optimal")}
+        dt = {n: float(time_at(profs[n], b) - time_at(profs[n], a)) for n in ("pso_swarm", "optimal")}
         inside = (s > a) & (s < b)
         if dt["optimal"] <= 0 or not inside.any():
             continue
-        excess.append(100 * (dt["pso"] - dt["optimal"]) / dt["optimal"])
-        fp, fo = cols["pso_feed_mm_s"][inside].max(), cols["optimal_feed_mm_s"][inside].max()
+        excess.append(100 * (dt["pso_swarm"] - dt["optimal"]) / dt["optimal"])
+        fp, fo = cols["pso_swarm_feed_mm_s"][inside].max(), cols["optimal_feed_mm_s"][inside].max()
         gap.append(100 * (fo - fp) / fo)
         peaks.append((float(fo), float(fp), float(s[inside][np.argmax(cols["optimal_feed_mm_s"][inside])])))
     top = max(peaks)
