@@ -49,6 +49,16 @@ def test_a_linear_w_is_the_constant_jerk_start():
     np.testing.assert_allclose(sddd_t * span.tu ** 3, 2 * alpha ** 2 / 9, rtol=1e-9)
 
 
+def test_the_basis_matrices_are_the_spline_and_its_derivatives():
+    """w, w′, w″ at the stations by the sparse bases (de Boor's derivative coefficients) against
+    scipy's BSpline evaluated with nu = 0, 1, 2."""
+    feed = _feed()
+    C = np.random.default_rng(0).random((feed.K, 3))
+    spl = feed.spline(C)
+    for nu, B in enumerate(feed.bases):
+        np.testing.assert_allclose(B @ C, spl(feed.x, nu), rtol=0, atol=1e-12 * np.abs(spl(feed.x, nu)).max())
+
+
 def test_the_time_map_inverts_and_the_samples_reach_the_end():
     """s(t) from Newton on the Gauss–Legendre time map: t(s(t)) = t at 2000 times, s(T_end) = L."""
     feed = _feed()

@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 from scipy.interpolate import BSpline
+from scipy import sparse
 from scipy.sparse.linalg import lsqr
 
 from ..verify import FEASIBLE_TOL
@@ -36,6 +37,7 @@ MIN_SPAN_STATIONS = 3
 # rounds of the local scaling that makes a start feasible (start_locally)
 START_ROUNDS = 60
 TINY = 1e-12
+CHUNK = 1024              # stations a pass of reads() (its temporaries stay in cache)
 
 
 def interval_time(dx, sd0, sd1):
@@ -61,6 +63,9 @@ class FeedSpline:
         want = np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, self.x)
         self.knots = np.concatenate([[0.0] * 4, self._on_stations(want), [self.L] * 4])
         self.K = len(self.knots) - 4
+        self.bases = self._bases()
+        self.chunks = [(lo, min(lo + CHUNK, len(self.x))) for lo in range(0, len(self.x), CHUNK)]
+        self.chunk_bases = [[B[lo:hi] for B in self.bases] for lo, hi in self.chunks]
         # per coefficient: the first and last station under its support [t_k, t_{k+4}]
         self.sup_lo = np.searchsorted(self.x, self.knots[:self.K], side="left")
         self.sup_hi = np.searchsorted(self.x, self.knots[4:self.K + 4], side="right") - 1
@@ -73,6 +78,7 @@ class FeedSpline:
         # per station the fraction of each limit (v, a, j, feed) it is held to: 1 until the
         # samples at T read the limit above 1 over the station (tighten)
         self.factor = np.ones((len(self.x), 4))
+        self._limits()
 
     def _on_stations(self, want):
         """The wanted inner knots moved to stations, ≥ MIN_SPAN_STATIONS intervals apart and from
@@ -93,11 +99,27 @@ class FeedSpline:
     def spline(self, c) -> BSpline:
         return BSpline(self.knots, c, 3, extrapolate=False)
 
-    def motion(self, C, lo=0, hi=None):
-        """ṡ, s̈, s⃛ (scaled) at stations lo … hi − 1 of coefficient columns C (K, P)."""
-        x = self.x[lo:hi]
-        spl = self.spline(C)
-        w, w1, w2 = spl(x), spl(x, 1), spl(x, 2)
+    def _bases(self):
+        """Sparse (n, K) matrices taking coefficients to w, w′, w″ at the stations: a cubic's
+        derivative is the quadratic spline on the inner knots with coefficients
+        3(c_{i+1} − c_i)/(t_{i+4} − t_{i+1}), its second the linear one likewise (de Boor)."""
+        t, x, K = self.knots, self.x, self.K
+        B0 = BSpline.design_matrix(x, t, 3)
+
+        def diff(knots, k, n):          # (n − 1, n): the derivative's coefficients
+            h = (knots[k + 1:n + k] - knots[1:n]) / k
+            return sparse.diags([-1 / h, 1 / h], [0, 1], shape=(n - 1, n))
+
+        D1 = diff(t, 3, K)
+        D2 = diff(t[1:-1], 2, K - 1)
+        B1 = BSpline.design_matrix(x, t[1:-1], 2) @ D1
+        B2 = BSpline.design_matrix(x, t[2:-2], 1) @ D2 @ D1
+        return [sparse.csr_matrix(B) for B in (B0, B1, B2)]
+
+    def motion(self, C, bases=None):
+        """ṡ, s̈, s⃛ (scaled) at the stations (the rows of ``bases``, all where None) of coefficient
+        columns C (K, P)."""
+        w, w1, w2 = (B @ C for B in (self.bases if bases is None else bases))
         w = np.maximum(w, 0.0)
         cb = np.cbrt(w)
         return cb * cb, (2.0 / 3.0) * cb * w1, (2.0 / 9.0) * w1 * w1 + (2.0 / 3.0) * w * w2
@@ -106,27 +128,40 @@ class FeedSpline:
         """(interval times (n − 1, P), per-station need (n, P)): the need is the time stretch that
         would bring the station within every limit (held to 1 − margin and to the station's
         factors): max of v/V, √(a/A), ∛(j/J), ṡ/cap, and at a G1 join ∛((|j| + κṡ²)/J) for
-        either side's derivatives."""
+        either side's derivatives.  In chunks of CHUNK stations (their temporaries stay small)."""
         C = np.asarray(C, float)
         if C.ndim == 1:
             C = C[:, None]
-        sd, sdd, sddd = self.motion(C)
-        V, A, J = self.lims
-        f = self.factor
-        need = (self.v_abs / (V * f[:, 0]))[:, None] * sd
-        need = np.maximum(need, sd / np.sqrt(self.cap2 * f[:, 3] ** 2)[:, None])
-        Af, Jf = (A * f[:, 1])[:, None], (J * f[:, 2])[:, None]
-        sd2, sd3 = sd * sd, sd * sd * sd
-        for m in range(3):
-            d1, d2, d3 = self.d1[:, m:m + 1], self.d2[:, m:m + 1], self.d3[:, m:m + 1]
-            need = np.maximum(need, np.sqrt(np.abs(d2 * sd2 + d1 * sdd) / Af))
-            need = np.maximum(need, np.cbrt(np.abs(d3 * sd3 + 3 * d2 * sd * sdd + d1 * sddd) / Jf))
+        n, P = len(self.x), C.shape[1]
+        sd_all, need = np.empty((n, P)), np.empty((n, P))
+        for k, (lo, hi) in enumerate(self.chunks):
+            sd, sdd, sddd = self.motion(C, self.chunk_bases[k])
+            sd_all[lo:hi] = sd
+            sd2 = sd * sd
+            sd3 = sd2 * sd
+            qa = qj = 0.0
+            for m in range(3):
+                d1, d2, d3 = self.d1[lo:hi, m:m + 1], self.d2[lo:hi, m:m + 1], self.d3[lo:hi, m:m + 1]
+                qa = np.maximum(qa, np.abs(d2 * sd2 + d1 * sdd))
+                qj = np.maximum(qj, np.abs(d3 * sd3 + 3 * d2 * sd * sdd + d1 * sddd))
+            need[lo:hi] = np.maximum(np.maximum(self.q_v[lo:hi] * sd, self.q_feed[lo:hi] * sd),
+                                     np.maximum(np.sqrt(qa * self.q_a[lo:hi]), np.cbrt(qj * self.q_j[lo:hi])))
         for i, D1, D2, D3, kappa in self.joins:
+            sd, sdd, sddd = (x[0] for x in self.motion(C, [B[i:i + 1] for B in self.bases]))
             for side in range(2):
                 for m in range(3):
-                    jerk = D3[side, m] * sd3[i] + 3 * D2[side, m] * sd[i] * sdd[i] + D1[side, m] * sddd[i]
-                    need[i] = np.maximum(need[i], np.cbrt((np.abs(jerk) + kappa[m] * sd2[i]) / Jf[i]))
-        return interval_time(self.dx[:, None], sd[:-1], sd[1:]), need
+                    jerk = D3[side, m] * sd ** 3 + 3 * D2[side, m] * sd * sdd + D1[side, m] * sddd
+                    need[i] = np.maximum(need[i], np.cbrt((np.abs(jerk) + kappa[m] * sd * sd) * self.q_j[i, 0]))
+        return interval_time(self.dx[:, None], sd_all[:-1], sd_all[1:]), need
+
+    def _limits(self):
+        """Per station the reciprocal limits (n, 1) under the factors: v, feed, a, j."""
+        V, A, J = self.lims
+        f = self.factor
+        self.q_v = (self.v_abs / (V * f[:, 0]))[:, None]
+        self.q_feed = (1.0 / np.sqrt(self.cap2 * f[:, 3] ** 2))[:, None]
+        self.q_a = (1.0 / (A * f[:, 1]))[:, None]
+        self.q_j = (1.0 / (J * f[:, 2]))[:, None]
 
     def tighten(self, col: int, s_lo: float, s_hi: float, ratio: float, extra: float) -> None:
         """Limit ``col`` (topp3.LIMIT_COLUMNS) at the stations under [s_lo, s_hi] (path s) and two
@@ -136,12 +171,13 @@ class FeedSpline:
         i0 = max(int(np.searchsorted(x, s_lo, side="right")) - 2, 0)
         i1 = min(int(np.searchsorted(x, s_hi, side="left")) + 2, len(x))
         self.factor[i0:i1, col] /= ratio * (1 + extra)
+        self._limits()
 
     def fit(self, sd_target):
         """Coefficients whose ṡ is close to sd_target (scaled) at the stations: least squares on
         w = ṡ^{3/2}, the ends 0, every other coefficient > 0."""
         w = np.maximum(sd_target, 0.0) ** 1.5
-        B = BSpline.design_matrix(self.x, self.knots, 3).tocsc()[:, 1:-1]
+        B = self.bases[0].tocsc()[:, 1:-1]
         c = lsqr(B, w, atol=1e-12, btol=1e-12, iter_lim=20 * self.K)[0]
         return np.concatenate([[0.0], np.maximum(c, 1e-6 * max(float(w.max()), TINY)), [0.0]])
 
