@@ -1,8 +1,9 @@
 """The reproducibility contract (docs/REPRODUCIBILITY.md) under other SIMD code paths.
 
 Machines of one kind differ in their SIMD, and numpy's per-ISA kernels differ in the last
-bits; NPY_DISABLE_CPU_FEATURES makes this machine take another machine's code path. A
-solver-based planner (CasADi/IPOPT) and a quantised drive (the Kossel's steppers, one
+bits; NPY_DISABLE_CPU_FEATURES makes this machine take another machine's code path. The
+solver-based planners (Clarabel, CasADi/IPOPT; pso's swarm compares times whose last bits move)
+and a quantised drive (the Kossel's steppers, one
 encoder increment 1.96 µm) both run here, so the two places where last bits grow are covered.
 On a CPU without AVX-512 or AVX2 a setting changes nothing and the contract holds trivially.
 """
@@ -21,7 +22,7 @@ from harness.cosim.system import FMU_DIR
 
 REPO = Path(__file__).resolve().parent.parent
 PROGRAM = REPO / "tests" / "data" / "repro_part.ngc"
-PLANNERS = ["optimal", "scurve_joint"]
+PLANNERS = ["optimal", "pso", "scurve_joint"]
 # numpy's x86-64 dispatch levels above the baseline X86_V2: AVX2 and AVX-512 off
 OTHER_SIMD = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
 

@@ -37,13 +37,16 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     ("planning_time_ratio", {"max_factor": 1.5, "min_excess": 0.1}),
     ("execution_time_s", {"rel": 0.005}),
     ("feasible", {"exact": True}),
-    # optimal's Cartesian peaks are not limits it keeps, and its solver-based profiles (Clarabel,
-    # IPOPT) moved them by 8.7e-5 relative under other numpy SIMD (kossel repro_part;
-    # tests/test_reproducibility.py): ±0.1 % there, its joint peaks stay at ±1e-6
+    # optimal's (and pso's, polished by the same SOCP) Cartesian peaks are not limits they keep,
+    # and the solver-based profiles (Clarabel, IPOPT) moved them by 8.7e-5 relative under other
+    # numpy SIMD (kossel repro_part; tests/test_reproducibility.py): ±0.1 % there, their joint
+    # peaks stay at ±1e-6
     ("*/optimal*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
-    # … and for the same reason the time its samples spend above a Cartesian limit: a sample
+    ("*/pso*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
+    # … and for the same reason the time their samples spend above a Cartesian limit: a sample
     # near one flips (0.967 → 0.969 s of Cartesian jerk on repro_part from the SOCP, +0.21 %)
     ("*/optimal*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 1e-2}),
+    ("*/pso*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 1e-2}),
     ("*peak_ratio.*", {"abs": 1e-6}),
     ("*violation_time_s.*", {"abs": 1e-6}),
     ("max_chord_error_um", {"rel": 0.005, "abs": 1e-3}),          # geometry: no quantisation
