@@ -6,10 +6,8 @@ feed cap; the G1-join reads).  Two transcriptions:
 * the default, COPP's TOPP3-SOCP over arc length (planners/topp3.py, copp-py + Clarabel):
   stations ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by
   tangents (a restriction: the time never grows from one linearisation to the next), at
-  `copp`'s settings but for Clarabel's KKT refinement (off: each solve ~40 % faster), checked
-  at T and repaired where a difference window reads above a limit (the repairs follow the
-  solver's last digits: optimal's time differs from copp's on some corpus paths, either way,
-  docs/TUNING.md).  `scurve_joint`'s profile is
+  `copp`'s settings (its profile is this one: optimal is never slower), checked at T and
+  repaired where a difference window reads above a limit.  `scurve_joint`'s profile is
   returned instead where it is faster, or where the SOCP has no solution (info["source"]).
   info["lower_bound_s"] is the station relaxation: the time before the repairs, with the
   limits held at the stations only (a bound of this transcription from its local solution,
@@ -176,9 +174,7 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | Non
     from .scurve import plan_joint
     candidates, notes = [], {}
     try:
-        # copp's engine without Clarabel's KKT refinement: ~30 % less planning time, but not
-        # copp's last digits, which the repairs follow (docs/TUNING.md)
-        socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm, kkt_refinement=False))
+        socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm))
         candidates.append(socp)
         notes["socp_s"] = socp.execution_time_s
     except PlanningError as e:

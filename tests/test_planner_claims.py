@@ -92,7 +92,7 @@ def test_reference_times_order(machine_name):
     assert t["optimal"] <= t["pso"] + T               # optimal is optimal within tolerance
     assert t["optimal"] <= t["scurve_joint"] + T
     assert t["toppra"] <= t["copp"] + T               # COPP's TOPP3 meets the jerk limit too
-    assert t["optimal"] <= t["copp"] + T              # copp's engine, its KKT solves unrefined
+    assert t["optimal"] <= t["copp"] + T              # optimal's SOCP is copp's profile
 
 
 @pytest.mark.parametrize("machine_name", ["keops", "kossel"])

@@ -71,8 +71,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
         raise PlanningError(f"pso: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
-    # the polish at optimal's engine settings (Clarabel without KKT refinement: docs/TUNING.md)
-    settings = topp3.Settings("pso", grid_mm, max_linearisations=polish_linearisations, kkt_refinement=False)
+    settings = topp3.Settings("pso", grid_mm, max_linearisations=polish_linearisations)
     pieces = topp3.pieces_of(path, machine, limits, settings)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
