@@ -4,8 +4,7 @@ settings: a second, independent jerk-limited reference on the planners' constrai
 Wang, Hu, Li, Yu, Yan, Liang & Jin, Int. J. Machine Tools and Manufacture 215 (2026) 104355;
 the `copp-py` package.  The transcription, its check at T and its repairs: planners/topp3.py.
 The linearisations stop when a solve gains < 0.1 % of a piece's time, after at most 4 solves
-(topp3.Settings' defaults; more moved the result by < 0.1 % at twice the time); Clarabel's
-KKT refinement is off, as for every planner on the engine (copp-py's default is on).
+(topp3.Settings' defaults; more moved the result by < 0.1 % at twice the time).
 """
 from __future__ import annotations
 

@@ -83,14 +83,15 @@ class Settings:
     at most ``max_linearisations`` solves (COPP's: more moved the result by < 0.1 % at twice
     the time; to 1e-5 it gained nothing on the corpus paths measured and made `optimal` slower
     than `copp` on 6 of 32 after the repairs, cam_blend_kossel by 1.8 %).  ``kkt_refinement``:
-    Clarabel refines each solve of its KKT system iteratively (copp-py's default); off for
-    every planner on the engine: a solve is ~40 % faster to the same profile (to 1e-9 of its
-    time), and `copp`, `optimal` and `pso`'s polish stay one computation (docs/TUNING.md)."""
+    Clarabel refines each solve of its KKT system iteratively (copp-py's default, kept for
+    every planner on the engine): without, a solve is ~40 % faster to the same time, but the
+    profiles moved 10–50 × more under other numpy SIMD than the reproducibility contract allows
+    (docs/TUNING.md)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
     max_linearisations: int = 4
-    kkt_refinement: bool = False
+    kkt_refinement: bool = True
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""

@@ -98,9 +98,12 @@ def test_reference_times_order(machine_name):
 @pytest.mark.parametrize("machine_name", ["keops", "kossel"])
 def test_pso_meets_the_issue_target_against_the_optimum(machine_name):
     """Issue 5's target T_pso ≤ 1.03·T_optimal, here on the short path (bird: bench_planners);
-    the swarm alone is further off, the polish closes the gap (keops 0.4987 → 0.4758 s against
-    the optimum's 0.4748 s)."""
+    pso returns the fastest of its polished profile, its swarm alone and its seed, and the
+    swarm alone cannot beat the optimum by more than a servo period."""
+    T = load_machine(machine_name).servo_period_s
     t_opt = run("optimal", machine_name)[2].execution_time_s
     p = run("pso", machine_name)[2]
     assert p.execution_time_s <= 1.03 * t_opt
-    assert p.info["swarm_time_s"] > 1.03 * t_opt
+    info = p.info
+    assert p.execution_time_s == min(info["swarm_time_s"], info["polished_time_s"], info["seed_time_s"])
+    assert info["swarm_time_s"] >= t_opt - T

@@ -58,7 +58,8 @@ def test_metrics_agree_within_the_contract_under_other_simd(runs):
 
 def test_commands_agree_within_the_contract_under_other_simd(runs):
     base, _, _ = runs
-    for p in PLANNERS:
+    # not pso's: its swarm may take another path to the same time (docs/REPRODUCIBILITY.md)
+    for p in (p for p in PLANNERS if p != "pso"):
         a, b = base / "native" / p / "command.csv", base / "other" / p / "command.csv"
         assert csv_difference(a, b, ci.CSV_REL) is None, p
 
