@@ -56,7 +56,6 @@ class FeedSpline:
         self.x = piece.grid - piece.s0
         self.dx = np.diff(self.x)
         self.L = float(self.x[-1])
-        self.margin = margin
         self.a_ra = np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0)
         t_ra = self.station_times(np.sqrt(self.a_ra))
         m = max(MIN_SPANS, int(math.ceil(t_ra[-1] / KNOT_STEP_TU)))

@@ -38,7 +38,7 @@ class BlockSwarm:
         self.X[0] = base
         self.V = 0.1 * VMAX * rng.standard_normal(self.X.shape)
         self.Pb = self.X.copy()
-        self.iteration = self.evaluations = 0
+        self.iteration = 0
 
     def _blocks(self, colour: int):
         """(blocks (nb, BLOCK) of positions in ``free``, −1 = padding) of one colour under this
@@ -61,7 +61,6 @@ class BlockSwarm:
         at = idx[valid]
         C[free[at], :cols] = np.exp(np.vstack(Xs)[:, at]).T
         dt, need = feed.reads(C)
-        self.evaluations += cols * len(idx)
         lo, hi = feed.sup_lo[free[idx[:, 0]]], feed.sup_hi[free[idx.max(axis=1)]]    # padding is last
         cum = np.vstack([np.zeros((1, cols + 1)), np.cumsum(dt, axis=0)])
         time = cum[hi] - cum[lo]
