@@ -14,13 +14,14 @@ times, and nothing is chosen per path.
 
 Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
 the stations the block moves; the context (every block's best) stays within the limits at the
-stations.  It starts from the better of two feasible starts, each made feasible by local
-scaling: the jerk-free optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.
+stations.  It starts from the better of two fits made feasible by local scaling: the jerk-free
+optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.  Where its samples at T read above a
+limit, the limit is held lower at the stations there and the swarm goes on (_search).
 
-Polish: the TOPP3-SOCP (topp3.py), linearised around the swarm's best instead of TOPP2-RA's
-profile, then checked and repaired at T like `optimal`'s.  ``polish=False`` returns the pure
-swarm.  Both the swarm's and the polished time are in info (``swarm_time_s``,
-``polished_time_s``), with the seed's.
+Polish: the TOPP3-SOCP (topp3.py), linearised on each piece around the faster of the swarm's
+and the seed's feed instead of TOPP2-RA's profile, then checked and repaired at T like
+`optimal`'s.  ``polish=False`` leaves it out.  The swarm's, the polished and the seed's times
+are in info (``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
 
 Returned: the fastest of the polished profile, the swarm's and the seed, each checked at T
 (joint limits and F_max), so `pso` is never slower than its seed (info["returned"]).  The
