@@ -89,16 +89,17 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
         starts.append(cands[name] if feed.within(cands[name]) else None)
         started_from.append(name)
     no_start = [p.where() for p, c in zip(pieces, starts) if c is None]
-    swarm_prof, spans, progress, repairs = (None, None, _Progress(t0, np.nan, time_budget_s), []) if no_start else \
+    swarm_prof, spans, progress, repairs = (None, None, _Progress(t0, None, time_budget_s), []) if no_start else \
         _search(feeds, starts, rng, particles, spread, iterations, time_budget_s, t0, T, path, machine, limits,
                 10 * seed_prof.execution_time_s)
     history = progress.history
     info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
             "stopped_by": progress.stopped_by, "control_points": [f.K for f in feeds],
-            "started_from": started_from, "start_time_s": progress.history[0][1] * pieces[0].tu,
+            "started_from": started_from, "start_time_s": None if no_start else progress.history[0][1] * pieces[0].tu,
             "seed_time_s": float(seed_prof.execution_time_s), "swarm_repairs": repairs,
             **({"swarm": f"no start within the limits on {', '.join(no_start)}"} if no_start else {}),
-            "history": [[h[0], h[1] * pieces[0].tu] for h in history[:: max(1, len(history) // 50)] + history[-1:]]}
+            "history": [[h[0], h[1] * pieces[0].tu] for h in history[:: max(1, len(history) // 50)] + history[-1:]
+                        if h[1] is not None]}
     info["swarm_time_s"] = swarm_prof.execution_time_s if swarm_prof is not None else None
     info["swarm_planning_s"] = time.perf_counter() - t0
     candidates = [("swarm", swarm_prof)] if swarm_prof is not None else []
