@@ -193,7 +193,8 @@ class Piece:
 
     def solve(self, settings):
         """(TOPP3 profile, node times in scaled time).  The first time: linearised around
-        TOPP2-RA's profile, then around each solution (settings.lin_tol, .max_linearisations);
+        TOPP2-RA's profile (or the ``reference``), then around each solution (settings.lin_tol,
+        .max_linearisations);
         after a tightening (``changed``: the stations whose factors moved), the windows around
         them only, from the last solution."""
         if self.prof is not None and not self.stuck:
@@ -206,10 +207,15 @@ class Piece:
                 self.stuck = True
         if self.prof is None:
             a_lin = np.minimum(self.topp2_ra() if self.reference is None else self.reference, self.cap2)
+            # a reference (TOPP2-RA's profile is far above any jerk-limited one) counts as the
+            # solve before the first: a first solve that moves its time by < lin_tol is the
+            # fixed point a second linearisation would only confirm
+            before = None if self.reference is None else self._chord_time(a_lin)
             best = None
             for _ in range(settings.max_linearisations):
                 prof, tf, ts = self._timed(self._socp(self._robot(a_lin), a_lin))
-                done = best is not None and (best[0] - tf) / tf < settings.lin_tol
+                done = (best is not None and (best[0] - tf) / tf < settings.lin_tol) or \
+                    (best is None and before is not None and abs(before - self._chord_time(prof.a)) < settings.lin_tol * tf)
                 if best is None or tf < best[0]:
                     best = (tf, prof, ts)
                 if done:
@@ -219,6 +225,11 @@ class Piece:
         self.changed[:] = False
         self.prof, _, ts = self._timed(self.prof)
         return self.prof, ts
+
+    def _chord_time(self, a):
+        """Σ 2Δs/(√a_k + √a_k+1) in scaled time: a station profile's time, its b aside."""
+        r = np.sqrt(np.maximum(a, 0.0))
+        return float(np.sum(2 * np.diff(self.grid) / np.maximum(r[:-1] + r[1:], 1e-300)))
 
     def topp2_ra(self):
         """a at the stations of the jerk-free time-optimal profile (TOPP2-RA)."""

@@ -132,3 +132,23 @@ def test_repair_windows_reach_the_speed_valleys_and_merge():
     changed[[45]] = True                             # 45 ± 10 spans the valley at 38: merged
     assert topp3._windows(changed, grid, a, 10.0, 1) == [(13, 99)]
     assert topp3._windows(np.zeros(100, bool), grid, a, 2.0, 1) == []
+
+
+def test_a_reference_at_the_fixed_point_ends_the_linearisations_after_one_solve(monkeypatch):
+    """From TOPP2-RA's profile the SCP takes ≥ 2 solves (the gain of the second decides); from
+    a reference that is already its fixed point (the converged solution) the first solve moves
+    the reference's time by < lin_tol and ends them, at the same profile."""
+    path = SegmentPath([Line([0, 0, -300], [0, 0, -300 + 30.0])])
+    settings = topp3.Settings("copp")
+    solves = []
+    real = topp3.Piece._socp
+    monkeypatch.setattr(topp3.Piece, "_socp", lambda self, *a, **k: solves.append(1) or real(self, *a, **k))
+    piece, = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, settings)
+    first, _ = piece.solve(settings)
+    assert len(solves) >= 2
+    again, = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, settings)
+    again.reference = first.a
+    solves.clear()
+    prof, _ = again.solve(settings)
+    assert len(solves) == 1
+    assert np.allclose(prof.a, first.a, rtol=1e-6, atol=1e-9 * first.a.max())

@@ -18,8 +18,9 @@ stations.  It starts from the better of two fits made feasible by local scaling:
 optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.  Where its samples at T read above a
 limit, the limit is held lower at the stations there and the swarm goes on (_search).
 
-Polish: the TOPP3-SOCP (topp3.py), linearised on each piece around the faster of the swarm's
-and the seed's feed instead of TOPP2-RA's profile, then checked and repaired at T like
+Polish: the TOPP3-SOCP (topp3.py), linearised on each piece around the larger of the swarm's
+and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 3 solves; a first
+solve within lin_tol of that reference's time ends them), then checked and repaired at T like
 `optimal`'s.  ``polish=False`` leaves it out.  The swarm's, the polished and the seed's times
 are in info (``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
 
@@ -57,7 +58,7 @@ COLLAPSE = 2.0
 
 def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 40,
          margin: float = 0.002, spread: float = 0.05, polish: bool = True, grid_mm: float = 0.1,
-         polish_linearisations: int = 4, time_budget_s: float | None = None, seed_profile=None) -> Profile:
+         polish_linearisations: int = 3, time_budget_s: float | None = None, seed_profile=None) -> Profile:
     """PSO-optimised feed (module docstring): ``particles`` per block swarm, ``iterations`` of
     every swarm, limits held at the stations to 1 − ``margin`` during the search; the polish
     (``polish``) at most ``polish_linearisations`` SOCP solves a piece before its repairs."""
@@ -104,16 +105,15 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
     info["swarm_planning_s"] = time.perf_counter() - t0
     candidates = [("swarm", swarm_prof)] if swarm_prof is not None else []
     if polish:
-        # linearised around the faster of the swarm's and the seed's feed on each piece: the
-        # tangent rows allow at most 3 × the reference's ṡ² in one solve, so a slow reference
-        # costs linearisations
+        # linearised around the larger of the swarm's and the seed's ṡ² at each station: the
+        # tangent rows hold the limits around any reference, and they allow at most 3 × its ṡ²
+        # in one solve, so a reference further below the optimum costs linearisations
         info["polish_reference"] = []
         for k, p in enumerate(pieces):
-            span = spans[k] if spans else None
-            t_seed = float(np.diff(np.interp([p.s0, p.s1], seed_prof.s, seed_prof.t))[0])
-            use_seed = span is None or t_seed < span.duration
-            p.reference = _seed_feed(seed_prof, p) ** 2 if use_seed else span.a_at_stations()
-            info["polish_reference"].append("seed" if use_seed else "swarm")
+            p.reference = _seed_feed(seed_prof, p) ** 2
+            if spans:
+                p.reference = np.maximum(p.reference, spans[k].a_at_stations())
+            info["polish_reference"].append("seed and swarm" if spans else "seed")
         try:
             pol = topp3.solve(path, machine, limits, settings, pieces)
             info["polished_time_s"] = pol.execution_time_s
