@@ -92,7 +92,7 @@ class _Planner:
         if not joint:      # the Cartesian planner does not need the IK, but the path must be reachable
             ik_along(machine, self.table.s, self.table.cart[0])
         self.grid = self.table.s
-        self.F = self.F_at(self.grid)
+        self.F = self.F_grid()
         # Δx″ per checked axis at each join of the path's pieces (the table holds a join twice,
         # one-sided): a feed v there jumps the acceleration by Δx″v², which the check at T reads
         # as a jerk of up to JUMP_READ_FACTOR·Δx″v²/T on top of the continuous one
@@ -110,11 +110,31 @@ class _Planner:
     def F_at(self, s):
         """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
         s = np.atleast_1d(np.asarray(s, float))
+        return np.minimum(self._flf_tables(s), feed_ceiling(self.path, s, self.limits.feed_max))
+
+    def _flf_tables(self, s):
+        """F_at without the programmed feed's cap."""
         P1, P2, _ = self.table.cartesian(s)
-        kappa = cross_norm(P1, P2)
         q1 = self.table.joints(s)[0] if self.joint else None
-        return np.minimum(flf_of(kappa, q1, self.limits, self.T),
-                          feed_ceiling(self.path, s, self.limits.feed_max))
+        return flf_of(cross_norm(P1, P2), q1, self.limits, self.T)
+
+    def F_grid(self):
+        """F_at(self.grid), taking the table's rows themselves where the grid's Hermite weight w
+        is 0 or 1: there the interpolation gives that row's (or the next row's) x′ and x″ plus
+        zero terms, the same values (the sign of a zero aside, which κ and |q′| do not see)."""
+        tab, g = self.table, self.grid
+        i, w, _ = tab._locate(g)
+        tabs = [tab.cart] + ([tab.joint] if self.joint else [])
+        if not all(np.isfinite(x).all() for t in tabs for x in t[1:]):     # 0 · inf would be NaN
+            return self.F_at(g)
+        at_row = (w == 0) | (w == 1)
+        row = np.where(w == 0, i, i + 1)[at_row]
+        kappa = cross_norm(tab.cart[1][row], tab.cart[2][row])
+        q1 = tab.joint[1][row] if self.joint else None
+        F = np.empty(len(g))
+        F[at_row] = flf_of(kappa, q1, self.limits, self.T)
+        F[~at_row] = self._flf_tables(g[~at_row])
+        return np.minimum(F, feed_ceiling(self.path, g, self.limits.feed_max))
 
     # -- critical points ----------------------------------------------------------
     def critical_points(self):
