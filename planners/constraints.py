@@ -307,6 +307,16 @@ class PathTable:
     def _add_rows(path, S, piece, cart, s_new, p_new, inner):
         """The grid with rows s_new (of pieces p_new) added, sorted within their pieces."""
         c_new = cartesian_derivs(path, inner(s_new, p_new))
+        if (np.diff(piece) >= 0).all() and (np.diff(S) >= 0).all() and np.isfinite(s_new).all():
+            # the rows are in (piece, s) order and s never decreases: the new rows, put in that
+            # order, go after the rows of their piece at or before them, where np.lexsort of all
+            # rows puts them (a sort of the 10⁶ rows and their tables per call cost ~0.2 s)
+            order = np.lexsort((s_new, p_new))
+            s_new, p_new = s_new[order], p_new[order]
+            pos = np.clip(np.searchsorted(S, s_new, side="right"),
+                          np.searchsorted(piece, p_new, side="left"), np.searchsorted(piece, p_new, side="right"))
+            return (np.insert(S, pos, s_new), np.insert(piece, pos, p_new),
+                    tuple(np.insert(a, pos, b[order], axis=0) for a, b in zip(cart, c_new)))
         S, piece = np.concatenate([S, s_new]), np.concatenate([piece, p_new])
         order = np.lexsort((S, piece))
         return S[order], piece[order], tuple(np.concatenate([a, b])[order] for a, b in zip(cart, c_new))
