@@ -387,10 +387,12 @@ class Checker:
         lo = hi.copy()
         for end, where, read, _, _ in reads:
             k = where[lu]
-            r = read[np.maximum(k, 0)].T
             on = near[end][U] & (k >= 0)
-            hi += np.where(on, np.maximum(r, 0), 0.0)
-            lo += np.where(on, np.minimum(r, 0), 0.0)
+            # the read where it applies, else 0 (its max or min with 0 is then 0 as well): a
+            # gather of the transposed reads keeps the rows contiguous for the sums
+            r = np.where(on, np.take(np.ascontiguousarray(read.T), np.maximum(k, 0), axis=1), 0.0)
+            hi += np.maximum(r, 0)
+            lo += np.minimum(r, 0)
         jrow_r = jrow.copy()
         jrow_r[U] = _abs_max(np.maximum(np.abs(hi), np.abs(lo)))
         return reads, jrow_r
