@@ -32,6 +32,7 @@ def join_moves(moves: list, events: list, stateless_m=frozenset(), flushes=()) -
     out: list = []
     chain: list = []           # [(end point, the move it comes from)]
     start = None               # the chain's start: where the last move sent ended
+    offsets: list = []         # each chained point less start, per axis (as _linkable reads them)
     index_of = [0] * (len(moves) + 1)
 
     def flush():
@@ -40,6 +41,7 @@ def join_moves(moves: list, events: list, stateless_m=frozenset(), flushes=()) -
             out.append(last if len(chain) == 1 and last.kind == "feed" and tuple(last.start) == start
                        else replace(last, kind="feed", start=start, end=end, center=None, turn=0))
             chain.clear()
+            offsets.clear()
 
     for k, m in enumerate(moves):
         # a feed or mode change comes with an F or G64 word (a flush) except where M72 restores
@@ -54,11 +56,12 @@ def join_moves(moves: list, events: list, stateless_m=frozenset(), flushes=()) -
             out.append(m)
             continue
         for p in points:
-            if chain and not _linkable(start, chain, p, m.path_mode):
+            if chain and not _linkable(start, offsets, p, m.path_mode):
                 flush()
             if not chain:
                 start = tuple(m.start) if p is points[0] else tuple(chain_end)
             chain.append((p, m))
+            offsets.append((p[0] - start[0], p[1] - start[1], p[2] - start[2]))
             chain_end = p
     flush()
     index_of[len(moves)] = len(out)
@@ -79,19 +82,20 @@ def _chain_points(m):
     return None
 
 
-def _linkable(start, chain, p, path_mode) -> bool:
-    """emccanon.cc linkable(): every chained point within Q of the line start → p."""
+def _linkable(start, offsets, p, path_mode) -> bool:
+    """emccanon.cc linkable(): every chained point within Q of the line start → p
+    (``offsets``: each chained point less start, per axis)."""
     q = path_mode[2] if path_mode[0] == "blend" else 0.0
-    if q == 0 or len(chain) > MAX_CHAIN or tuple(p) == tuple(start):
+    if q == 0 or len(offsets) > MAX_CHAIN or tuple(p) == tuple(start):
         return False
     # the per-axis lists and generator written out (the same operations; sum() kept, whose
     # float summation changed in Python 3.12): a 10⁵-line program calls this per move, and
-    # min(max(t, 0.0), 1.0) as the conditionals it evaluates (a call each cost more)
+    # min(max(t, 0.0), 1.0) as the conditionals it evaluates (a call each cost more); the
+    # chained points' offsets from start are made once, as they join (a chain holds ≤ 101)
     s0, s1, s2 = start
     M0, M1, M2 = p[0] - s0, p[1] - s1, p[2] - s2
     mm = M0 * M0 + M1 * M1 + M2 * M2
-    for P, _ in chain:
-        d0, d1, d2 = P[0] - s0, P[1] - s1, P[2] - s2
+    for d0, d1, d2 in offsets:
         t = (M0 * d0 + M1 * d1 + M2 * d2) / mm
         t = 0.0 if 0.0 > t else (1.0 if 1.0 < t else t)
         if math.sqrt(sum(((d0 - t * M0) ** 2, (d1 - t * M1) ** 2, (d2 - t * M2) ** 2))) > q:
