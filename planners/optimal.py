@@ -56,6 +56,9 @@ NODE_RADII = 0.1
 # Where IPOPT fails from the warm start slowed by warm_stretch, it starts again from this
 # (rand_tilted_weights_keops: Infeasible_Problem_Detected from 1.02, solved from 1.1)
 RETRY_STRETCH = 1.1
+# an NLP solution (or its slow-down) slower than this many times its start is no candidate
+# (_faster_of keeps the start) and is not sampled at T: the samples' memory stays bounded
+TOO_SLOW = 10.0
 
 
 def broken_limits(machine, path, prof, pcs, limits) -> set:
@@ -292,8 +295,10 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
     bounds = [[p.s0] + [sj for sj, _ in p.joins] + [p.s1] for p in problems]
     starts = [_warm_start(warm, b, node_period_s, max_nodes, stretch, turn) for b in bounds]
     budgets = [max_nodes] * len(pcs)
+    too_slow = TOO_SLOW * warm.execution_time_s
     for attempt in range(retries + 1):
         sols, statuses, nxt = _solve_pieces(problems, starts)
+        _check_duration(sols, too_slow, "solution")
         margins = [dict(p.margins) for p in problems]
         prof = sample_cubic(sols, T, path, {"pieces": len(pcs), "ipopt": statuses,
                                             "margin": max(max(m.values()) for m in margins),
@@ -309,7 +314,7 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
         if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
             break
         if attempt == retries:
-            prof = _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses)
+            prof = _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slow)
             break
         # the limits hold at the nodes only: where the node budget spread a piece's grid
         # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine comes before a
@@ -331,7 +336,16 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
     return prof
 
 
-def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses) -> Profile:
+def _check_duration(sols, too_slow, what) -> None:
+    """A solution slower than ``too_slow`` is not sampled at T (a wild NLP solution slowed down
+    by its worst read took 2.4·10⁵ s on contour_keops: 7 GB of samples); the start is kept."""
+    d = sum(float(np.sum(x[0])) for x in sols)
+    if not d <= too_slow:
+        raise PlanningError(f"optimal: the NLP's {what} takes {d:.6g} s, more than {TOO_SLOW:g} × its start's "
+                            f"{too_slow / TOO_SLOW:.6g} s: not sampled")
+
+
+def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slow) -> Profile:
     """The last resort, feasible by construction: each piece that still breaks a limit at T is
     run slower, uniformly (t → λt scales the joint velocity by 1/λ, the acceleration by 1/λ², the
     jerk by 1/λ³), by the factor its worst ratio needs; the info says by how much."""
@@ -347,6 +361,7 @@ def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses) -> Prof
             lam[g] = max(need, 1.0) * (1 + 1e-4)
         sols = [(h * k, s, v / k, a / k ** 2, u / k ** 3) for (h, s, v, a, u), k in zip(sols, lam)]
         total *= lam
+        _check_duration(sols, too_slow, "solution slowed down to the limits")
         prof = sample_cubic(sols, T, path, dict(info, slowed_down=[float(x) for x in total]))
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
         if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:

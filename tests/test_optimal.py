@@ -281,7 +281,7 @@ def test_warm_start_puts_the_turn_nodes_on_the_arc():
     assert on_arc < th / optimal.NODE_RADII - 1     # time-spread only: fewer than the turn asks
 
 
-def test_slowed_down_scales_each_order_by_its_power():
+def test_slowed_down_scales_each_order_by_its_power(monkeypatch):
     """t → λt scales the joint velocity by 1/λ, the acceleration by 1/λ², the jerk by 1/λ³: a
     solution 1.3 × over a jerk limit comes back within it, λ ≈ 1.3^(1/3), its time × λ."""
     from planners.constraints import PathTable
@@ -298,12 +298,22 @@ def test_slowed_down_scales_each_order_by_its_power():
                           lim.chord_error_mm)
     r = command_metrics(KOSSEL, path.point(prof.s), T, prof.s)
     r["joint_peak_ratio"]["jerk"] *= 1.3
-    out = optimal._slowed_down(KOSSEL, path, prof, rest_pieces(path), tight, [sol], r, T, [])
+    out = optimal._slowed_down(KOSSEL, path, prof, rest_pieces(path), tight, [sol], r, T, [], math.inf)
     lam = out.info["slowed_down"][0]
     assert lam == pytest.approx(1.3 ** (1 / 3), rel=2e-3)
     assert out.info["continuous_time_s"] == pytest.approx(lam * prof.info["continuous_time_s"], rel=1e-9)
     after = command_metrics(KOSSEL, path.point(out.s), T, out.s)["joint_peak_ratio"]["jerk"]
     assert after * 1.3 <= 1 + 1e-6                       # within the tightened jerk limit
+    # a slow-down past TOO_SLOW × its start is refused before any sample at T is made (a wild
+    # solution's read of 10¹⁵ × a limit once asked for 7 GB of samples)
+    r["joint_peak_ratio"]["jerk"] = 1e15
+    sampled = []
+    real = optimal.sample_cubic
+    monkeypatch.setattr(optimal, "sample_cubic", lambda *a: sampled.append(1) or real(*a))
+    with pytest.raises(PlanningError, match="more than 10 × its start's"):
+        optimal._slowed_down(KOSSEL, path, prof, rest_pieces(path), tight, [sol], r, T, [],
+                             optimal.TOO_SLOW * prof.execution_time_s)
+    assert not sampled
 
 
 def test_the_faster_of_the_solution_and_its_start_within_the_limits():
