@@ -14,7 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from .errors import PlanningError
+
 HEADER = "t,s,sd,sdd,sddd"
+# samples a profile may have (5 arrays of them: 0.8 GB): 83 min at 250 µs.  A planner's wild
+# intermediate profile (2.4·10⁵ s) once asked for 7 GB and a run was killed for memory
+MAX_SAMPLES = 20_000_000
 
 
 class ProfileError(ValueError):
@@ -68,7 +73,10 @@ class Profile:
         """
         starts = np.concatenate([[0.0], np.cumsum([g.duration for g in pieces])])
         total = float(starts[-1])
-        N = max(1, int(math.ceil(total / T - 1e-9)))
+        N = max(1, int(math.ceil(total / T - 1e-9))) if math.isfinite(total) else math.inf
+        if N > MAX_SAMPLES:
+            raise PlanningError(f"{planner}: a profile of {total:.6g} s would take {N:.4g} samples at T = "
+                                f"{T:g} s, more than {MAX_SAMPLES:.0e}: not sampled")
         t = np.arange(N + 1) * T
         s = np.empty(N + 1)
         sd, sdd, sddd = np.zeros(N + 1), np.zeros(N + 1), np.zeros(N + 1)

@@ -163,3 +163,12 @@ def test_profile_from_pieces_samples_each_piece_at_its_own_time():
     assert np.array_equal(p.sddd[:-1], np.where(ramp, J, 0.0)[:-1])
     assert (p.s[-1], p.sd[-1], p.sdd[-1], p.sddd[-1]) == (L, 0.0, 0.0, 0.0)
     p.validate()
+
+
+@pytest.mark.parametrize("duration", [2.4e5, float("inf"), float("nan")])
+def test_a_profile_of_too_many_samples_is_refused_before_it_is_allocated(duration):
+    """A wild intermediate profile (2.4·10⁵ s at 250 µs: 7 GB) is a PlanningError naming its
+    length, not a memory error that kills the run; nothing is evaluated."""
+    from planners import PlanningError
+    with pytest.raises(PlanningError, match="more than 2e\\+07: not sampled"):
+        Profile.from_pieces("x", 250e-6, [_Piece(duration, 0.0, F=1.0, sampled=False)], Line([0, 0, 0], [1, 0, 0]))
