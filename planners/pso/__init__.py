@@ -19,7 +19,7 @@ optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.  Where its samples at T
 limit, the limit is held lower at the stations there and the swarm goes on (_search).
 
 Polish: the TOPP3-SOCP (topp3.py), linearised on each piece around the larger of the swarm's
-and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 3 solves; a first
+and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2 solves; a first
 solve within lin_tol of that reference's time ends them), then checked and repaired at T like
 `optimal`'s.  ``polish=False`` leaves it out.  The swarm's, the polished and the seed's times
 are in info (``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
@@ -58,7 +58,7 @@ COLLAPSE = 2.0
 
 def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 40,
          margin: float = 0.002, spread: float = 0.05, polish: bool = True, grid_mm: float = 0.1,
-         polish_linearisations: int = 3, time_budget_s: float | None = None, seed_profile=None) -> Profile:
+         polish_linearisations: int = 2, time_budget_s: float | None = None, seed_profile=None) -> Profile:
     """PSO-optimised feed (module docstring): ``particles`` per block swarm, ``iterations`` of
     every swarm, limits held at the stations to 1 − ``margin`` during the search; the polish
     (``polish``) at most ``polish_linearisations`` SOCP solves a piece before its repairs."""
