@@ -300,22 +300,38 @@ def move_tc(m, lim: Limits) -> TC:
     req = lim.feed_max if (m.rapid or not lim.programmed or m.feed_mm_s is None) else min(lim.feed_max, m.feed_mm_s)
     if g.kind == "line":
         worst = float(np.abs(g.direction).max())
+        v_max, a_max = lim.v_axis / worst, lim.a_axis / worst
     else:
-        n = g.normal if g.rise != 0 else np.zeros(3)
-        worst = float(np.sqrt((g.a / g.radius) ** 2 + (g.b / g.radius) ** 2 + n ** 2).max())
+        v_max, a_max = arc_feed_limits(g, lim)
     # emccanon.cc SET_MOTION_CONTROL_MODE: G64 → PARABOLIC (tolerance P, 0 = none), G61 →
     # EXACT, G61.1 → STOP; a rapid ↔ feed change makes it STOP when the next move comes
     mode = m.path_mode
     blend = mode[0] == "blend"
     term = PARABOLIC if blend else (EXACT if mode[1] == "path" else STOP)
     tc = TC("line" if g.kind == "line" else "circle", m.line, m.rapid, g.length,
-            min(lim.feed_max, lim.v_axis / worst), req, lim.a_axis / worst, term, float(mode[1]) if blend else 0.0)
+            min(lim.feed_max, v_max), min(req, v_max), a_max, term, float(mode[1]) if blend else 0.0)
     if g.kind == "line":
         tc.start, tc.end, tc.u = g.start, g.end, g.direction
     else:
         tc.arc = g
     clamp_by_length(tc, lim.T)
     return tc
+
+
+def arc_feed_limits(g, lim: Limits) -> tuple[float, float]:
+    """(max velocity, max acceleration) of an arc as emccanon.cc ARC_FEED gives them: the planar
+    speed within √(a·√3/2 · r_eff) (the centripetal bound, r_eff = √(dr² + r_min²)) and the
+    axis bound, stretched over the helix; the acceleration from the time the chord's axes and
+    the spiral's length need at the axis bound."""
+    r_min = min(g.radius, g.radius + g.spiral)
+    r_eff = math.hypot(g.spiral / g.angle, r_min)
+    v_planar = min(math.sqrt(lim.a_axis * math.sqrt(3.0) / 2.0 * r_eff), lim.v_axis)
+    chord = float(np.abs(g.end - g.start).max())            # getStraightVelocity/-Acceleration
+    spiral_length = math.hypot(r_min * g.angle, g.spiral)
+    total = math.hypot(spiral_length, float(np.dot(g.end - g.start, g.normal)))
+    v_max = total / max(chord / lim.v_axis, spiral_length / v_planar)
+    a_max = total / max(chord / lim.a_axis, spiral_length / lim.a_axis)
+    return v_max, a_max
 
 
 def build(moves, lim: Limits):

@@ -257,3 +257,23 @@ def test_trapezoid_matches_linuxcnc_on_a_parabolic_blend(tmp_path):
     tz = _trapezoid_within_the_acceptance_of_linuxcnc(gcode_path(tmp_path, "helix.ngc", text),
                                                       load_machine("linuxcnc_delta"))
     assert tz.info["parabolic_blends"] == 1
+
+
+@needs_linuxcnc
+def test_trapezoid_caps_a_small_helix_as_linuxcnc_canon_does():
+    # benchmarks/paths/corpus/helix_lcnc.ngc: its last helix (r = 6.657 mm, 3.5 turns, 16 mm
+    # rise) at F18000. emccanon.cc ARC_FEED caps the planar speed at √(a·√3/2·r), stretched over
+    # the helix: √(4330 · 6.657) · 1.006 = 170.8 mm/s; the tp's own cap (r + h²/r with the whole
+    # rise: 45 mm) would let 300 mm/s through, 2.67 × the Cartesian acceleration
+    from pathlib import Path
+    from planners.paths import resolve_path
+    from planners.verify import command_metrics
+    m = load_machine("linuxcnc_delta")
+    f = Path(__file__).resolve().parents[1] / "benchmarks/paths/corpus/helix_lcnc.ngc"
+    path = resolve_path(str(f))
+    tz = _trapezoid_within_the_acceptance_of_linuxcnc(path, m)
+    on_helix = tz.s > path.length - 2 * math.pi * 6.6573 * 3.5 * 0.95
+    feed = np.diff(tz.s) / tz.T
+    assert feed[on_helix[1:]].max() == pytest.approx(math.sqrt(5000 * math.sqrt(3) / 2 * 6.6573) * 1.006, rel=2e-3)
+    r = command_metrics(m, tz.path.point(tz.s), tz.T, tz.s)
+    assert r["cartesian_peak_ratio"]["acceleration"] <= 1 + 1e-6
