@@ -59,10 +59,12 @@ REFINE_RADII = 0.5
 REFINE_MIN_MM = 1e-3
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
 # read, doubled each round (windows next to a G1 join read above again by less each time);
-# then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit
+# then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit (a stretch
+# moves every later piece's samples at T, so a piece not stretched yet can read above next;
+# a 600 s kossel program with 200 pieces still read 1.0005 × its jerk limit after 8)
 MAX_REPAIRS = 8
 TIGHTEN_EXTRA = 1e-3
-MAX_STRETCHES = 8
+MAX_STRETCHES = 24
 LIMIT_COLUMNS = ("velocity", "acceleration", "jerk", "feed")
 # a stop inside a piece: a ≤ STOP_A of the piece's largest a (_stops_at_rest)
 STOP_A = 1e-6
