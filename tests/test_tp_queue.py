@@ -224,3 +224,20 @@ def test_a_short_tangent_segment_ramps_evenly_to_its_final_speed():
         assert 2 * dx / (v + 20.0) < 0.01
         expected = (20.0 ** 2 - v ** 2) / (2 * dx) if ramp else 500.0
         assert (sd[k + 1] - sd[k]) / T == pytest.approx(expected, rel=1e-9)
+
+
+def test_arc_bounds_are_emccanon_arc_feed_closed_forms():
+    """emccanon.cc ARC_FEED in closed form: a flat half circle of r = 10 mm under a = 5000 mm/s²
+    runs within √(a·√3/2·r) = 208.1 mm/s and gets a = π r / (π r / a) = 5000 mm/s²; a helix
+    of 3.5 turns (r = 6.657 mm, 16 mm rise) gets that planar bound stretched by its length
+    over its planar length, not the tp's r + h²/r with the whole rise (45 mm: 442 mm/s)."""
+    from planners.paths import Arc
+    lim = Q.Limits(1e-3, 300.0, 5000.0, 300.0)
+    half = Arc([10, 0, 0], [0, 0, 0], [0, 0, 1], math.pi)
+    v, a = Q.arc_feed_limits(half, lim)
+    assert v == pytest.approx(math.sqrt(5000 * math.sqrt(3) / 2 * 10), rel=1e-12) and a == pytest.approx(5000, rel=1e-12)
+    r, turns, rise = 6.6573, 3.5, 16.0
+    helix = Arc([r, 0, 0], [0, 0, 0], [0, 0, 1], 2 * math.pi * turns, rise)
+    v, _ = Q.arc_feed_limits(helix, lim)
+    planar = 2 * math.pi * turns * r
+    assert v == pytest.approx(math.sqrt(5000 * math.sqrt(3) / 2 * r) * math.hypot(planar, rise) / planar, rel=1e-12)
