@@ -108,12 +108,11 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
         # linearised around the larger of the swarm's and the seed's ṡ² at each station: the
         # tangent rows hold the limits around any reference, and they allow at most 3 × its ṡ²
         # in one solve, so a reference further below the optimum costs linearisations
-        info["polish_reference"] = []
+        info["polish_reference"] = "seed and swarm" if spans else "seed"
         for k, p in enumerate(pieces):
             p.reference = _seed_feed(seed_prof, p) ** 2
             if spans:
                 p.reference = np.maximum(p.reference, spans[k].a_at_stations())
-            info["polish_reference"].append("seed and swarm" if spans else "seed")
         try:
             pol = topp3.solve(path, machine, limits, settings, pieces)
             info["polished_time_s"] = pol.execution_time_s
