@@ -173,7 +173,7 @@ def run_one(entry: dict, planner: str, machine, path) -> Row:
     row.swarm_time_s = _finite((prof.info or {}).get("swarm_time_s"))
     T = machine.servo_period_s
     try:
-        met = command_metrics(machine, prof.path.point(prof.s), T, prof.s)
+        met = command_metrics(machine, prof.points(), T, prof.s)
     except Exception as e:                   # the profile leaves the workspace
         row.status, row.error = "error", f"{entry['name']}: check failed: {type(e).__name__}: {e}"
         return row

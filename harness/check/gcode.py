@@ -369,7 +369,7 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
     """Joint and Cartesian velocity, acceleration and jerk of the sampled profile, read as
     differences at T (planners.verify), one finding per G-code line and limit exceeded."""
     T = machine.servo_period_s
-    P = prof.path.point(prof.s)
+    P = prof.points()
     Q = machine.ik(P)
     slines = _lines_of(prof.path, prof.s)
     prog = prof.path.program

@@ -63,7 +63,7 @@ def main(args) -> int:
             print(f"  {name:14s} failed: {e}")
             failed += 1
             continue
-        met = command_metrics(m, prof.path.point(prof.s), m.servo_period_s, prof.s)
+        met = command_metrics(m, prof.points(), m.servo_period_s, prof.s)
         j = met["joint_peak_ratio"]
         print(f"  {name:14s} {prof.execution_time_s:9.4f} {prof.planning_time_s:8.3f} "
               f"{j['velocity']:6.3f} {j['acceleration']:6.3f} {j['jerk']:7.3f} {'yes' if met['feasible'] else 'NO':>9s}")
