@@ -44,12 +44,15 @@ from .constraints import (PathTable, PlanningError, check_limits, check_path,
                           chord_feed_cap, cross_norm, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile
+from .verify import FEASIBLE_TOL
 from .scurve_batch import Checker, Joined, drive
 from .scurve_pieces import Segment, no_profile, reachable, solver
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
 PEAK_BISECTION_TOL = 1e-3   # mm/s
+REPAIR_MIN_FACTOR = 0.05    # the lowest A or J factor the repair tries (TII 2022)
+AT_T_PASSES = 4             # checks of the sampled profile at T (each but the last may plan again)
 
 
 # -- the feed limiting function ----------------------------------------------------
@@ -106,6 +109,7 @@ class _Planner:
         fine = (np.diff(g) < 0.999 * self.table.hs[piece[:-1]]) & (piece[1:] == piece[:-1])
         self.fine_s = np.unique(np.concatenate([g[:-1][fine], g[1:][fine]]))
         self._passes = None             # consistent()'s inputs and passes of the last round
+        self.tight = None               # per segment, factors on its [v, a, j] check ratios (tighten)
 
     def F_at(self, s):
         """FLF at s from the tables (κ = |P′ × P″| for an arc-length parametrisation)."""
@@ -295,19 +299,20 @@ class _Planner:
         c = Checker(self).check([seg])[0]
         return c.r if reads else c.r0
 
-    def join_feed_factors(self, chk) -> list[float]:
+    def join_feed_factors(self, chk, i) -> list[float]:
         """Per end, the factor on its feed that brings the join's read plus the continuous jerk
         next to it within the limit (the read scales as v²; the continuous jerk is kept, which
         errs low), in [0.49, 0.98]: for a segment that violates only through its joins' reads.
         None where that would take more than halving the feed (the continuous jerk next to the
         join leaves no room: the segment's J has to come down, as for any other violation)."""
         f = [1.0, 1.0]
+        jlim = self.check.j if self.tight is None else self.check.j / self.tight[i, 2]
         for end, read, jmax, jmin in chk.reads:
             # per axis √(room / |read|), where the continuous jerk of the read's sign next to the
             # join leaves this much room (plain floats: numpy's call overhead was most of it)
             need = math.nan
             for r, hi, lo in zip(read.tolist(), jmax.tolist(), jmin.tolist()):
-                room = max(self.check.j - (hi if r > 0 else -lo), 0.0)
+                room = max(jlim - (hi if r > 0 else -lo), 0.0)
                 x = math.sqrt(room / abs(r)) if r != 0 else (math.inf if room > 0 else math.nan)
                 if x < need or need != need:          # the smallest, NaN ignored (np.nanmin)
                     need = x
@@ -354,11 +359,33 @@ class _Planner:
             return None
         return (yield "check", seg)
 
+    def lowest_factor(self, seg: Segment, attr: str, full: float) -> float:
+        """The lowest factor ≥ REPAIR_MIN_FACTOR on the segment's ``attr`` (A or J, at ``full``)
+        at which it has a profile between its end feeds. TII 2022's search starts at the
+        smallest factor; a short segment has no profile there, although a J a little lower
+        would fix it: a repair that gave up on J scaled its feeds instead, 5 % a round, for
+        up to 35 rounds on a CAM program (a jerk at J does not scale with the feed)."""
+        def none_at(f):
+            setattr(seg, attr, full * f)
+            return no_profile(seg.v0, seg.v1, seg.L, seg.A, seg.J)
+
+        lo, hi = REPAIR_MIN_FACTOR, 1.0
+        if not none_at(lo):
+            setattr(seg, attr, full)
+            return lo
+        # no profile at lo; one at 1 (the round's fit): the smallest A or J of a profile,
+        # to 1e-4, a little above it (no_profile is a bound: ruckig may still find none there)
+        while hi - lo > 1e-4:
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if none_at(mid) else (lo, mid)
+        setattr(seg, attr, full)
+        return min(hi * 1.001, 1.0)
+
     def repair(self, i, seg, chk, v, v_c, A, J, vcap):
         """One round's repair of segment i (its Check ``chk``) that broke a limit: its join feeds
         (a violation through the joins' reads only), else TII 2022's J, then A, then its feeds;
         updates the arrays in place. A generator for scurve_batch.drive."""
-        f = self.join_feed_factors(chk) if chk.ok0 else None
+        f = self.join_feed_factors(chk, i) if chk.ok0 else None
         if f is not None:
             # only the joins' reads at T break the limit: lower the feed at those joins
             v_c[i] = min(v_c[i], v[i] * f[0])
@@ -382,8 +409,9 @@ class _Planner:
         # TII 2022 axis repair: lower J, then A, to the largest value without violation
         for attr in ("J", "A"):
             full = getattr(seg, attr)
-            if (yield from ok(0.05, attr, full)):
-                lo, hi = 0.05, 1.0
+            low = self.lowest_factor(seg, attr, full)
+            if low < 0.99 and (yield from ok(low, attr, full)):
+                lo, hi = low, 1.0
                 while hi - lo > 0.01:
                     mid = 0.5 * (lo + hi)
                     lo, hi = (mid, hi) if (yield from ok(mid, attr, full)) else (lo, mid)
@@ -415,37 +443,45 @@ class _Planner:
         v_c[i] = min(v_c[i], v[i] * f)
         v_c[i + 1] = min(v_c[i + 1], v[i + 1] * f)
 
-    def run(self, max_rounds: int = 60):
+    def run(self):
+        """Plan the segments: (segments, info). The rounds' state is kept for :meth:`tighten`."""
         s_c, v_c = self.critical_points()
-        Ls = np.diff(s_c)
-        nseg = len(Ls)
+        self.s_c, self.Ls = s_c, np.diff(s_c)
+        nseg = len(self.Ls)
         # the FLF's largest value over each segment (the ceiling of its peak feed)
-        i0, i1 = np.searchsorted(self.grid, s_c[:-1]), np.searchsorted(self.grid, s_c[:-1] + Ls)
+        i0, i1 = np.searchsorted(self.grid, s_c[:-1]), np.searchsorted(self.grid, s_c[:-1] + self.Ls)
         self.fmax = [float(self.F[a:b + 1].max()) for a, b in zip(i0.tolist(), i1.tolist())]
         # the s-curve's own A, J: the Cartesian limits, tightened by the margin where those
         # are the checked limits (an axis-aligned stretch reads s⃛ = J on one axis)
         c = self.limits.cartesian
         shrink = 1.0 if self.joint else self.check.a / c.a
-        A = np.full(nseg, c.a * shrink)
-        J = np.full(nseg, c.j * shrink)
-        vcap = np.full(nseg, self.limits.feed_max)
-        repairs = 0
-        checker = Checker(self)
+        self.v_c = v_c
+        self.A = np.full(nseg, c.a * shrink)
+        self.J = np.full(nseg, c.j * shrink)
+        self.vcap = np.full(nseg, self.limits.feed_max)
+        self.repairs = self.rounds = 0
+        self.checker = Checker(self)
         # a segment whose end feeds, A, J and cap are those of the last round keeps its fit and
         # check; the others are fitted and checked together
-        got, r = [None] * nseg, np.zeros((nseg, 3))
-        last = np.full((5, nseg), np.nan)
-        for rnd in range(max_rounds):
+        self.got, self.r = [None] * nseg, np.zeros((nseg, 3))
+        self.last = np.full((5, nseg), np.nan)
+        return self._rounds()
+
+    def _rounds(self, max_rounds: int = 60):
+        """Repair rounds until every segment passes its check: (segments, info)."""
+        s_c, Ls, v_c, A, J, vcap, got, r = self.s_c, self.Ls, self.v_c, self.A, self.J, self.vcap, self.got, self.r
+        for _ in range(max_rounds):
+            self.rounds += 1
             v = self.consistent(v_c, Ls, A, J)
             now = np.array([v[:-1], v[1:], A, J, vcap])
-            new = np.nonzero((now != last).any(axis=0))[0].tolist()
-            last = now
+            new = np.nonzero((now != self.last).any(axis=0))[0].tolist()
+            self.last = now
             # plain floats (the same values): numpy scalars cost ~3× in the per-fit arithmetic;
             # those of the new segments only (after the first round, a fraction of them)
             at = np.array(new, np.intp)
             cl = vcap[at].tolist()
             fresh = [Segment(*x) for x in zip(*(y[at].tolist() for y in (s_c, Ls, v[:-1], v[1:], A, J)), cl)]
-            checks = self.fit_new(new, fresh, cl, checker)
+            checks = self.fit_new(new, fresh, cl, self.checker)
             for i, seg, chk in zip(new, fresh, checks):
                 if chk is None:
                     raise PlanningError(
@@ -455,12 +491,51 @@ class _Planner:
                 r[i] = chk.r
             bad = np.nonzero((r > 1.0).any(axis=1))[0].tolist()
             if not bad:
-                return [g[0] for g in got], {"rounds": rnd + 1, "repairs": repairs, "segments": nseg,
+                return [g[0] for g in got], {"rounds": self.rounds, "repairs": self.repairs, "segments": len(Ls),
                                              "critical_points_mm": s_c.tolist()}
-            repairs += len(bad)
-            drive([self.repair(i, got[i][0], got[i][1], v, v_c, A, J, vcap) for i in bad], checker)
-        raise PlanningError(f"scurve: axis-limit repair did not converge in {max_rounds} rounds "
+            self.repairs += len(bad)
+            drive([self.repair(i, got[i][0], got[i][1], v, v_c, A, J, vcap) for i in bad], self.checker)
+        raise PlanningError(f"scurve: axis-limit repair did not converge in {self.rounds} rounds "
                             f"({len(bad)} segment(s) still violate)")
+
+    def over_at_T(self, prof, segs) -> np.ndarray:
+        """Per segment, the largest [v, a, j] ratio the metric reads at T (planners.verify: a
+        difference at T, over each window that reaches into the segment) where above 1, else 1.
+        The segment checks read the continuous derivatives; where the curvature changes within
+        a few periods' travel a third difference at T reads more than they do (1.2 % on a
+        NURBS with weights at 250 mm/s, beyond the checks' 0.5 % margin)."""
+        T, lim = self.T, self.limits.joint if self.joint else self.limits.cartesian
+        X = prof.points()
+        X = self.machine.ik(X) if self.joint else X
+        starts = np.concatenate([[0.0], np.cumsum([g.duration for g in segs])])
+        over = np.ones((len(segs), 3))
+        # per axis (numpy's reductions over the 3 columns of an (N, 3) array are slow)
+        D = [np.ascontiguousarray(X[:, c]) for c in range(X.shape[1])]
+        for k, L in enumerate((lim.v, lim.a, lim.j)):
+            D = [np.diff(d) / T for d in D]
+            w = np.abs(D[0])
+            for d in D[1:]:
+                w = np.maximum(w, np.abs(d))
+            n = np.nonzero(w > L * (1.0 + FEASIBLE_TOL))[0]
+            # difference n of order k + 1 reads the samples n … n + k + 1: every segment of them
+            for o in range(k + 2):
+                seg = np.clip(np.searchsorted(starts, (n + o) * T, side="right") - 1, 0, len(segs) - 1)
+                np.maximum.at(over[:, k], seg, w[n] / L)
+        return over
+
+    def tighten(self, over):
+        """Tighten the checks of the segments that ``over`` (:meth:`over_at_T`) finds above the
+        limits at T by what they read there, and plan again: (segments, info)."""
+        if self.tight is None:
+            self.tight = np.ones((len(self.Ls), 3))
+        hit = np.nonzero((over > 1.0).any(axis=1))[0]
+        # the reading at T taken to scale with the continuous peak the check sees (r, with
+        # the tightening so far): the check must bring that peak down by the excess at T. A
+        # segment's own peak below half the limit is not what makes a window read above it
+        peak = np.maximum(self.r[hit], 0.5)
+        self.tight[hit] *= np.where(over[hit] > 1.0, over[hit] / peak * (1 + 1e-3), 1.0)
+        self.last[:, hit] = np.nan          # checked again, under the tightened limits
+        return self._rounds()
 
 
 def _sweep(dirty, carry, start, stop, update):
@@ -500,6 +575,16 @@ def _plan(path, machine, limits, joint: bool, margin: float, grid_mm: float) -> 
     pl = _Planner(path, machine, limits, joint, margin, grid_mm)
     segs, info = pl.run()
     prof = sample(segs, path, pl.T, name, info)
+    # the metric reads the profile at T: segments that break a limit there are planned again
+    # under tightened checks (a few passes; a profile still above is returned as it is, and
+    # the metrics say so)
+    for n in range(AT_T_PASSES):
+        over = pl.over_at_T(prof, segs)
+        if not (over > 1.0).any():
+            break
+        segs, info = pl.tighten(over)
+        prof = sample(segs, path, pl.T, name, info)
+    prof.info["passes_at_T"] = n + 1
     prof.planning_time_s = time.perf_counter() - t0
     return prof
 

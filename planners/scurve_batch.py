@@ -340,6 +340,9 @@ class Checker:
         mjr = mj if jrow_r is None else peak(jrow_r)
         r0 = np.column_stack([mv / lim.v, ma / lim.a, mj / lim.j])
         r = np.column_stack([mv / lim.v, ma / lim.a, mjr / lim.j])
+        if pl.tight is not None:         # checks tightened after a reading at T (scurve.tighten)
+            t = pl.tight[np.searchsorted(pl.s_c, st.s0[segs])]
+            r0, r = r0 * t, r * t
         ok, ok0 = (r <= 1.0).all(axis=1).tolist(), (r0 <= 1.0).all(axis=1).tolist()
         rr = (r, r0)
         return [Check(rr, ok[k], ok0[k], reads, k) for k in range(len(segs))]
