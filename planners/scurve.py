@@ -15,17 +15,20 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
    segment can change between its end feeds within its length.
 5. Axis-limit repair: a segment whose axes break a limit gets its J, then its A, lowered
    (a one-dimensional search for the largest value without violation, as TII 2022's golden
-   section; stop at a relative width of 1 %); if lowering A and J cannot fix it (a violation
-   caused by the feed itself, e.g. v or centripetal terms), its end and peak feeds are scaled
-   down.  Added for feasibility at T (issue 19): the check reads the jerk a G1 join's
-   acceleration jump shows at T next to the join (a segment broken by that alone gets its
-   join feeds lowered), both one-sided values at every jerk switch, and the table rows of
-   refined cells (lobe tips); the tables are refined at curvature peaks and NURBS knots.  `scurve` checks the Cartesian axes — the paper's method, which lets the joints of
-   a delta break their limits; `scurve_joint` checks the joints through the IK and adds the
-   joint-velocity cap V_joint / max|q′(s)| to the FLF: the conservative fix a user would try.
-
-The profile is sampled at exact multiples of T; segments join with a = 0 and the last sample
-lands on s = L at rest.
+   section; stop at a relative width of 1 %; the search starts at 5 % or, on a segment too
+   short to have a profile there, at the lowest value that has one); if lowering A and J
+   cannot fix it (a violation caused by the feed itself, e.g. v or centripetal terms), its
+   end and peak feeds are scaled down.  Added for feasibility at T (issue 19): the check
+   reads the jerk a G1 join's acceleration jump shows at T next to the join (a segment
+   broken by that alone gets its join feeds lowered), both one-sided values at every jerk
+   switch, and the table rows of refined cells (lobe tips); the tables are refined at
+   curvature peaks and NURBS knots.  `scurve` checks the Cartesian axes — the paper's
+   method, which lets the joints of a delta break their limits; `scurve_joint` checks the
+   joints through the IK and adds the joint-velocity cap V_joint / max|q′(s)| to the FLF:
+   the conservative fix a user would try.
+6. The profile is sampled at exact multiples of T (segments join with a = 0 and the last
+   sample lands on s = L at rest) and read at T as the metric reads it; the segments under a
+   difference above a limit get checks tightened by that excess and are planned again.
 
 The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve_pieces; the segment
 checks, run for all the segments of a round at once, planners.scurve_batch (the peak fit and
@@ -52,7 +55,7 @@ MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours eac
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
 PEAK_BISECTION_TOL = 1e-3   # mm/s
 REPAIR_MIN_FACTOR = 0.05    # the lowest A or J factor the repair tries (TII 2022)
-AT_T_PASSES = 4             # checks of the sampled profile at T (each but the last may plan again)
+AT_T_REPLANS = 4            # plans again after a reading at T above a limit, at most
 
 
 # -- the feed limiting function ----------------------------------------------------
@@ -576,15 +579,17 @@ def _plan(path, machine, limits, joint: bool, margin: float, grid_mm: float) -> 
     segs, info = pl.run()
     prof = sample(segs, path, pl.T, name, info)
     # the metric reads the profile at T: segments that break a limit there are planned again
-    # under tightened checks (a few passes; a profile still above is returned as it is, and
+    # under tightened checks (a few times; a profile still above is returned as it is, and
     # the metrics say so)
-    for n in range(AT_T_PASSES):
+    replans = 0
+    while replans < AT_T_REPLANS:
         over = pl.over_at_T(prof, segs)
         if not (over > 1.0).any():
             break
         segs, info = pl.tighten(over)
         prof = sample(segs, path, pl.T, name, info)
-    prof.info["passes_at_T"] = n + 1
+        replans += 1
+    prof.info["replans_at_T"] = replans
     prof.planning_time_s = time.perf_counter() - t0
     return prof
 

@@ -344,6 +344,44 @@ def test_scurve_keeps_the_cartesian_limits_at_T_on_contour_lcnc():
 
 
 
+@pytest.mark.parametrize("planner, space", [("scurve", "cartesian_peak_ratio"), ("scurve_joint", "joint_peak_ratio")])
+def test_segments_above_a_limit_at_T_are_planned_again_under_tighter_checks(planner, space, monkeypatch):
+    """corpus rand_3d_weights_keops (a NURBS with weights at ~250 mm/s): segments that pass
+    their continuous check read 1.0069 (Cartesian jerk, scurve) and 1.0056 (joint jerk,
+    scurve_joint) × the limit at T: the curvature changes within a few periods' travel. With
+    the reading at T the planner tightens those segments' checks and plans them again."""
+    from pathlib import Path
+    from planners.paths import resolve_path
+    m = load_machine("keops")
+    corpus = Path(__file__).resolve().parents[1] / "benchmarks" / "paths" / "corpus"
+    path = resolve_path(str(corpus / "rand_3d_weights_keops.json"), home=m.home)
+
+    def worst(p):
+        r = command_metrics(m, path.point(p.s), p.T, p.s)[space]
+        return max(v for k, v in r.items() if k != "feed")
+
+    p = plan(planner, path, m)
+    assert p.info["replans_at_T"] >= 1 and worst(p) <= 1 + 1e-6
+    monkeypatch.setattr(scurve, "AT_T_REPLANS", 0)         # never read at T
+    assert worst(plan(planner, path, m)) > 1.003
+
+
+def test_the_repair_lowers_j_on_a_segment_too_short_for_a_profile_at_5_percent_of_it():
+    """lowest_factor: the smallest J with a profile between the end feeds is the closed form
+    of min_distance (dv ≤ A²/J: (v0 + v1)·√(dv/J) = L); TII's first test at 0.05·J has none
+    on this 0.1 mm segment, and the repair scaled its feeds down instead (5 % a round)."""
+    v0, v1, L, A, J = 9.7, 10.03, 0.115, 1e4, 1e5
+    pl = scurve._Planner(line_x(), KEOPS, KEOPS.limits, False, 0.005, 0.05)
+    seg = scurve_pieces.Segment(0.0, L, v0, v1, A, J, 20.0)
+    j_min = (v1 - v0) * ((v0 + v1) / L) ** 2             # 9.7·10³ mm/s³: 9.7 % of J
+    assert scurve_pieces.no_profile(v0, v1, L, A, 0.05 * J)
+    f = pl.lowest_factor(seg, "J", J)
+    assert f == pytest.approx(j_min / J * 1.001, rel=2e-4) and seg.J == J
+    assert pl.lowest_factor(seg, "J", 100 * J) == scurve.REPAIR_MIN_FACTOR    # 0.05·J has one
+    seg.J = J * f
+    assert seg.compute(*scurve_pieces.solver())
+
+
 @pytest.mark.parametrize("name, machine", [("rand_edge_lcnc", "linuxcnc_delta"), ("rand_hairpin_keops", "keops")])
 def test_scurve_joint_is_joint_feasible_where_the_joint_jerk_peaks_between_samples(name, machine):
     """Corpus paths where the segment check missed the joint jerk's peak: rand_edge_lcnc at
