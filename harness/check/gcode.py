@@ -229,12 +229,14 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     jts = None if joints is None else joints[idx[first]].tolist()
     speeds = None if feed is None else feed[0][idx[first]].tolist()
     keep = _keep_feed(values, lines, feed[0], limit, lns) if feed is not None and feed[2] else [None] * len(lns)
+    # the parts of the message that do not change from line to line, formatted once
+    names = {} if jts is None else {j: f"joint {int(j) + 1} {what}" for j in set(jts)}
+    over = f" {unit} > limit {limit:g} {unit} (ratio "
     for k, (v, c) in enumerate(zip(vals, count)):
-        name = what if jts is None else f"joint {int(jts[k]) + 1} {what}"
+        name = what if jts is None else names[jts[k]]
         where = "" if speeds is None else _feed_note(speeds[k], feed[1].get(lns[k]), keep[k])
         out.append(Finding(kind, "error", [int(lns[k])], v, limit, unit,
-                           f"{name} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
-                           f"(ratio {abs(v) / limit:.3f}, {c} sample(s)){where}"))
+                           f"{name} {abs(v):.6g}{over}{abs(v) / limit:.3f}, {c} sample(s)){where}"))
     return out
 
 
