@@ -380,10 +380,9 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
     rep.stats["samples"] = int(len(P))
     rep.stats["execution_time_s"] = prof.execution_time_s
     for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
-        for k, order in enumerate(M.ORDERS, start=1):
+        for order, (worst, col) in zip(M.ORDERS, _diff_abs_max(X, len(M.ORDERS), T)):
             L = {"velocity": lim.v, "acceleration": lim.a, "jerk": lim.j}[order]
             unit = {"velocity": "mm/s", "acceleration": "mm/s²", "jerk": "mm/s³"}[order]
-            worst, col = _diff_abs_max(X, k, T)
             mask = worst > L * (1 + M.FEASIBLE_TOL)
             if not mask.any():
                 continue
@@ -413,21 +412,22 @@ def _path_speed(P, T):
 _BLOCK = 1 << 14          # samples per block of _diff_abs_max
 
 
-def _diff_abs_max(X, order: int, T: float):
-    """_abs_max of the ``order``-th differences at T of the columns of X (those of
-    M.differences, one order at a time), in blocks of samples: a 10⁶-sample profile's
+def _diff_abs_max(X, orders: int, T: float) -> list:
+    """[_abs_max of the k-th differences at T of the columns of X, for k = 1 … ``orders``]
+    (the differences of M.differences), in blocks of samples: a 10⁶-sample profile's
     temporaries stay in cache instead of being fresh 10⁶-element arrays each."""
-    n = max(len(X) - order, 0)
-    worst, col = np.empty(n), np.empty(n, np.intp)
-    for a in range(0, n, _BLOCK):
-        b = min(a + _BLOCK, n)
+    sizes = [max(len(X) - k, 0) for k in range(1, orders + 1)]
+    out = [(np.empty(n), np.empty(n, np.intp)) for n in sizes]
+    for a in range(0, sizes[0], _BLOCK):
         # one contiguous array per axis: numpy's reductions over the 3 columns of an (N, 3)
         # array run in inner loops of 3, several times slower than elementwise maxima
-        D = [np.ascontiguousarray(X[a:b + order, c]) for c in range(X.shape[1])]
-        for _ in range(order):
+        D = [np.ascontiguousarray(X[a:a + _BLOCK + orders, c]) for c in range(X.shape[1])]
+        for (worst, col), n in zip(out, sizes):
             D = [np.diff(d) / T for d in D]
-        worst[a:b], col[a:b] = _abs_max(D)
-    return worst, col
+            b = min(a + _BLOCK, n)
+            if b > a:
+                worst[a:b], col[a:b] = _abs_max([d[:b - a] for d in D])
+    return out
 
 
 def _abs_max(D):
