@@ -417,7 +417,9 @@ def _diff_abs_max(X, orders: int, T: float) -> list:
     (the differences of M.differences), in blocks of samples: a 10⁶-sample profile's
     temporaries stay in cache instead of being fresh 10⁶-element arrays each."""
     sizes = [max(len(X) - k, 0) for k in range(1, orders + 1)]
-    out = [(np.empty(n), np.empty(n, np.intp)) for n in sizes]
+    # the axis of each maximum as one byte (an axis number < 3): fresh memory is slow to
+    # touch the first time, and 6 such arrays of 10⁶ samples were 80 MB as np.intp
+    out = [(np.empty(n), np.empty(n, np.int8)) for n in sizes]
     for a in range(0, sizes[0], _BLOCK):
         # one contiguous array per axis: numpy's reductions over the 3 columns of an (N, 3)
         # array run in inner loops of 3, several times slower than elementwise maxima
