@@ -232,9 +232,10 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     # the parts of the message that do not change from line to line, formatted once
     names = {} if jts is None else {j: f"joint {int(j) + 1} {what}" for j in set(jts)}
     over = f" {unit} > limit {limit:g} {unit} (ratio "
+    progs = {} if feed is None else {f: _programmed(f) for f in set(map(feed[1].get, lns))}
     for k, (v, c) in enumerate(zip(vals, count)):
         name = what if jts is None else names[jts[k]]
-        where = "" if speeds is None else _feed_note(speeds[k], feed[1].get(lns[k]), keep[k])
+        where = "" if speeds is None else _feed_note(speeds[k], progs[feed[1].get(lns[k])], keep[k])
         out.append(Finding(kind, "error", [int(lns[k])], v, limit, unit,
                            f"{name} {abs(v):.6g}{over}{abs(v) / limit:.3f}, {c} sample(s)){where}"))
     return out
@@ -256,12 +257,16 @@ def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
     return [limit / gmax[x + 1] if 0 <= x + 1 < len(gmax) and gmax[x + 1] > 0 else None for x in lns]
 
 
-def _feed_note(speed: float, programmed, keep) -> str:
+def _feed_note(speed: float, prog: str, keep) -> str:
     """', at 12.5 mm/s (F1200 programmed); ≤ 9.8 mm/s keeps it within': what the machine does
-    on that line and, for a velocity, the feed that keeps the line within (``keep``, mm/s);
-    acceleration and jerk depend on the planner's ramps too."""
-    prog = "rapid" if programmed is None else f"F{60 * programmed:.6g} programmed"
+    on that line (``prog``: _programmed of its F) and, for a velocity, the feed that keeps the
+    line within (``keep``, mm/s); acceleration and jerk depend on the planner's ramps too."""
     return f", at {speed:.4g} mm/s ({prog})" + ("" if keep is None else f"; ≤ {keep:.4g} mm/s keeps it within")
+
+
+def _programmed(feed_mm_s) -> str:
+    """'F1200 programmed' (from the feed in mm/s), or 'rapid' (None)."""
+    return "rapid" if feed_mm_s is None else f"F{60 * feed_mm_s:.6g} programmed"
 
 
 def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5, *,
