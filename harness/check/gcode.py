@@ -245,15 +245,17 @@ def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
     """The largest feed at which each line's velocity stays within ``limit``: a joint or
     Cartesian velocity is the feed times a factor of the geometry (|q′(s)|), so limit / the
     line's largest factor, over all its samples (not only those over the limit)."""
-    ok = speed > 1e-9 * max(float(speed.max()), 1e-300)
-    ln, f = lines[ok], values[ok] / speed[ok]
-    if not len(ln):
-        return [None] * len(lns)
-    # the samples run along the path: a line's samples are runs, maxed per run, then per line
-    starts = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
-    run_line, run_max = ln[starts], np.maximum.reduceat(f, starts)
-    gmax = np.zeros(int(run_line.max()) + 2)
-    np.maximum.at(gmax, run_line + 1, run_max)          # + 1: line −1 (no line) at index 0
+    moving = 1e-9 * max(float(speed.max()), 1e-300)
+    gmax = np.zeros(int(lines.max()) + 2)               # 0: no sample of that line moves
+    # in blocks of samples as _diff_abs_max (fresh 10⁶-element arrays are slow to touch)
+    for a in range(0, len(lines), _BLOCK):
+        ok = speed[a:a + _BLOCK] > moving
+        ln, f = lines[a:a + _BLOCK][ok], values[a:a + _BLOCK][ok] / speed[a:a + _BLOCK][ok]
+        if not len(ln):
+            continue
+        # the samples run along the path: a line's samples are runs, maxed per run, then per line
+        starts = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
+        np.maximum.at(gmax, ln[starts] + 1, np.maximum.reduceat(f, starts))  # + 1: line −1 at 0
     return [limit / gmax[x + 1] if 0 <= x + 1 < len(gmax) and gmax[x + 1] > 0 else None for x in lns]
 
 
