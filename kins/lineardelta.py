@@ -12,6 +12,9 @@ import numpy as np
 from .machine import Kinematics, three_sphere_lower
 
 
+_BLOCK = 1 << 14          # points per block of _ik
+
+
 class LinearDelta(Kinematics):
     family = "lineardelta"
     GEOMETRY_KEYS = ("L", "R")
@@ -24,13 +27,17 @@ class LinearDelta(Kinematics):
 
     def _ik(self, P):
         # per tower on contiguous columns (the same operations): numpy runs (N, 3) arithmetic
-        # in inner loops of 3, and a check reads the IK of 10⁶ samples
-        x, y, z = (np.ascontiguousarray(P[:, c]) for c in range(3))
+        # in inner loops of 3, and a check reads the IK of 10⁶ samples; in blocks of points,
+        # so that the temporaries stay in cache instead of being 10⁶-element arrays each
         Q, rad = np.empty((len(P), 3)), np.empty((len(P), 3))
-        for k, (tx, ty) in enumerate(self.towers.tolist()):
-            dx, dy = tx - x, ty - y
-            rad[:, k] = r = self.L ** 2 - dx * dx - dy * dy
-            Q[:, k] = z + np.sqrt(np.maximum(r, 0.0))
+        towers = self.towers.tolist()
+        for a in range(0, len(P), _BLOCK):
+            b = a + _BLOCK
+            x, y, z = (np.ascontiguousarray(P[a:b, c]) for c in range(3))
+            for k, (tx, ty) in enumerate(towers):
+                dx, dy = tx - x, ty - y
+                rad[a:b, k] = r = self.L ** 2 - dx * dx - dy * dy
+                Q[a:b, k] = z + np.sqrt(np.maximum(r, 0.0))
         return Q, rad
 
     def _fk(self, Q):

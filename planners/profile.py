@@ -89,16 +89,23 @@ class Profile:
         t = np.arange(N + 1) * T
         s = np.empty(N + 1)
         sd, sdd, sddd = np.zeros(N + 1), np.zeros(N + 1), np.zeros(N + 1)
-        k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(pieces) - 1)
-        # k is sorted: each piece's samples are one slice (a mask per piece was O(pieces × N))
-        bounds = np.searchsorted(k, np.arange(len(pieces) + 1), side="left")
+        if (np.diff(starts) >= 0).all():
+            # each piece's samples are one slice: piece i (0 < i < last) starts at the first
+            # t ≥ its start (the slices of the per-sample piece index below, without its
+            # arrays of N samples, fresh memory that is slow to touch)
+            bounds = np.r_[0, np.searchsorted(t, starts[1:-1], side="left"), N + 1]
+        else:
+            k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(pieces) - 1)
+            # k is sorted: each piece's samples are one slice (a mask per piece was O(pieces × N))
+            bounds = np.searchsorted(k, np.arange(len(pieces) + 1), side="left")
         for i, g in enumerate(pieces):
             m = slice(bounds[i], bounds[i + 1])
             if m.stop > m.start:
                 p, v, a, j = g.at(t[m] - starts[i])
-                s[m], sd[m], sdd[m], sddd[m] = g.s0 + p, v, a, j
+                np.add(g.s0, p, out=s[m])           # s0 + p, straight into s
+                sd[m], sdd[m], sddd[m] = v, a, j
         L = path.length
-        s = np.minimum(np.maximum.accumulate(s), L)
+        s = np.minimum(np.maximum.accumulate(s, out=s), L, out=s)     # in place: no fresh arrays
         s[0] = 0.0
         s[-1], sd[-1], sdd[-1], sddd[-1] = L, 0.0, 0.0, 0.0
         return cls(planner, T, s, sd, sdd, sddd, path, info=dict(info or {}, continuous_time_s=total))

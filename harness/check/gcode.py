@@ -229,12 +229,15 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
     jts = None if joints is None else joints[idx[first]].tolist()
     speeds = None if feed is None else feed[0][idx[first]].tolist()
     keep = _keep_feed(values, lines, feed[0], limit, lns) if feed is not None and feed[2] else [None] * len(lns)
+    # the parts of the message that do not change from line to line, formatted once
+    names = {} if jts is None else {j: f"joint {int(j) + 1} {what}" for j in set(jts)}
+    over = f" {unit} > limit {limit:g} {unit} (ratio "
+    progs = {} if feed is None else {f: _programmed(f) for f in set(map(feed[1].get, lns))}
     for k, (v, c) in enumerate(zip(vals, count)):
-        name = what if jts is None else f"joint {int(jts[k]) + 1} {what}"
-        where = "" if speeds is None else _feed_note(speeds[k], feed[1].get(lns[k]), keep[k])
+        name = what if jts is None else names[jts[k]]
+        where = "" if speeds is None else _feed_note(speeds[k], progs[feed[1].get(lns[k])], keep[k])
         out.append(Finding(kind, "error", [int(lns[k])], v, limit, unit,
-                           f"{name} {abs(v):.6g} {unit} > limit {limit:g} {unit} "
-                           f"(ratio {abs(v) / limit:.3f}, {c} sample(s)){where}"))
+                           f"{name} {abs(v):.6g}{over}{abs(v) / limit:.3f}, {c} sample(s)){where}"))
     return out
 
 
@@ -242,24 +245,30 @@ def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
     """The largest feed at which each line's velocity stays within ``limit``: a joint or
     Cartesian velocity is the feed times a factor of the geometry (|q′(s)|), so limit / the
     line's largest factor, over all its samples (not only those over the limit)."""
-    ok = speed > 1e-9 * max(float(speed.max()), 1e-300)
-    ln, f = lines[ok], values[ok] / speed[ok]
-    if not len(ln):
-        return [None] * len(lns)
-    # the samples run along the path: a line's samples are runs, maxed per run, then per line
-    starts = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
-    run_line, run_max = ln[starts], np.maximum.reduceat(f, starts)
-    gmax = np.zeros(int(run_line.max()) + 2)
-    np.maximum.at(gmax, run_line + 1, run_max)          # + 1: line −1 (no line) at index 0
+    moving = 1e-9 * max(float(speed.max()), 1e-300)
+    gmax = np.zeros(int(lines.max()) + 2)               # 0: no sample of that line moves
+    # in blocks of samples as _diff_abs_max (fresh 10⁶-element arrays are slow to touch)
+    for a in range(0, len(lines), _BLOCK):
+        ok = speed[a:a + _BLOCK] > moving
+        ln, f = lines[a:a + _BLOCK][ok], values[a:a + _BLOCK][ok] / speed[a:a + _BLOCK][ok]
+        if not len(ln):
+            continue
+        # the samples run along the path: a line's samples are runs, maxed per run, then per line
+        starts = np.r_[0, np.nonzero(np.diff(ln))[0] + 1]
+        np.maximum.at(gmax, ln[starts] + 1, np.maximum.reduceat(f, starts))  # + 1: line −1 at 0
     return [limit / gmax[x + 1] if 0 <= x + 1 < len(gmax) and gmax[x + 1] > 0 else None for x in lns]
 
 
-def _feed_note(speed: float, programmed, keep) -> str:
+def _feed_note(speed: float, prog: str, keep) -> str:
     """', at 12.5 mm/s (F1200 programmed); ≤ 9.8 mm/s keeps it within': what the machine does
-    on that line and, for a velocity, the feed that keeps the line within (``keep``, mm/s);
-    acceleration and jerk depend on the planner's ramps too."""
-    prog = "rapid" if programmed is None else f"F{60 * programmed:.6g} programmed"
+    on that line (``prog``: _programmed of its F) and, for a velocity, the feed that keeps the
+    line within (``keep``, mm/s); acceleration and jerk depend on the planner's ramps too."""
     return f", at {speed:.4g} mm/s ({prog})" + ("" if keep is None else f"; ≤ {keep:.4g} mm/s keeps it within")
+
+
+def _programmed(feed_mm_s) -> str:
+    """'F1200 programmed' (from the feed in mm/s), or 'rapid' (None)."""
+    return "rapid" if feed_mm_s is None else f"F{60 * feed_mm_s:.6g} programmed"
 
 
 def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5, *,
@@ -378,15 +387,9 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
     rep.stats["samples"] = int(len(P))
     rep.stats["execution_time_s"] = prof.execution_time_s
     for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
-        # one contiguous array per axis: numpy's reductions over the 3 columns of an (N, 3)
-        # array run in inner loops of 3, several times slower than elementwise maxima
-        D = [np.ascontiguousarray(X[:, c]) for c in range(X.shape[1])]
-        for order in M.ORDERS:
-            # the differences of M.differences, one order at a time
-            D = [np.diff(d) / T for d in D]
+        for order, (worst, col) in zip(M.ORDERS, _diff_abs_max(X, len(M.ORDERS), T)):
             L = {"velocity": lim.v, "acceleration": lim.a, "jerk": lim.j}[order]
             unit = {"velocity": "mm/s", "acceleration": "mm/s²", "jerk": "mm/s³"}[order]
-            worst, col = _abs_max(D)
             mask = worst > L * (1 + M.FEASIBLE_TOL)
             if not mask.any():
                 continue
@@ -402,9 +405,38 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
 
 def _path_speed(P, T):
     """The path speed of each period: np.linalg.norm(np.diff(P, axis=0), axis=1) / T's operations
-    on the columns (on (N, 3) arrays numpy runs them in inner loops of 3)."""
-    dx, dy, dz = (np.diff(P[:, c]) for c in range(3))
-    return np.sqrt(dx * dx + dy * dy + dz * dz) / T
+    on the columns (on (N, 3) arrays numpy runs them in inner loops of 3), in blocks as
+    _diff_abs_max."""
+    n = max(len(P) - 1, 0)
+    speed = np.empty(n)
+    for a in range(0, n, _BLOCK):
+        b = min(a + _BLOCK, n)
+        dx, dy, dz = (np.diff(P[a:b + 1, c]) for c in range(3))
+        speed[a:b] = np.sqrt(dx * dx + dy * dy + dz * dz) / T
+    return speed
+
+
+_BLOCK = 1 << 14          # samples per block of _diff_abs_max
+
+
+def _diff_abs_max(X, orders: int, T: float) -> list:
+    """[_abs_max of the k-th differences at T of the columns of X, for k = 1 … ``orders``]
+    (the differences of M.differences), in blocks of samples: a 10⁶-sample profile's
+    temporaries stay in cache instead of being fresh 10⁶-element arrays each."""
+    sizes = [max(len(X) - k, 0) for k in range(1, orders + 1)]
+    # the axis of each maximum as one byte (an axis number < 3): fresh memory is slow to
+    # touch the first time, and 6 such arrays of 10⁶ samples were 80 MB as np.intp
+    out = [(np.empty(n), np.empty(n, np.int8)) for n in sizes]
+    for a in range(0, sizes[0], _BLOCK):
+        # one contiguous array per axis: numpy's reductions over the 3 columns of an (N, 3)
+        # array run in inner loops of 3, several times slower than elementwise maxima
+        D = [np.ascontiguousarray(X[a:a + _BLOCK + orders, c]) for c in range(X.shape[1])]
+        for (worst, col), n in zip(out, sizes):
+            D = [np.diff(d) / T for d in D]
+            b = min(a + _BLOCK, n)
+            if b > a:
+                worst[a:b], col[a:b] = _abs_max([d[:b - a] for d in D])
+    return out
 
 
 def _abs_max(D):

@@ -95,10 +95,17 @@ def _linkable(start, offsets, p, path_mode) -> bool:
     s0, s1, s2 = start
     M0, M1, M2 = p[0] - s0, p[1] - s1, p[2] - s2
     mm = M0 * M0 + M1 * M1 + M2 * M2
+    # a point whose squared distance is clearly below q² (by far more than the rounding of
+    # either form) is within: the exact sqrt(sum(…)) > q is only evaluated near the limit
+    # (and always for a q whose square under- or overflows)
+    q2 = q * q * (1.0 - 1e-9) if 1e-150 < q < 1e150 else -1.0
     for d0, d1, d2 in offsets:
         t = (M0 * d0 + M1 * d1 + M2 * d2) / mm
         t = 0.0 if 0.0 > t else (1.0 if 1.0 < t else t)
-        if math.sqrt(sum(((d0 - t * M0) ** 2, (d1 - t * M1) ** 2, (d2 - t * M2) ** 2))) > q:
+        e0, e1, e2 = d0 - t * M0, d1 - t * M1, d2 - t * M2
+        if e0 * e0 + e1 * e1 + e2 * e2 <= q2:
+            continue
+        if math.sqrt(sum((e0 ** 2, e1 ** 2, e2 ** 2))) > q:
             return False
     return True
 
