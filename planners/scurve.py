@@ -47,7 +47,7 @@ from .constraints import (PathTable, PlanningError, check_limits, check_path,
                           chord_feed_cap, cross_norm, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from .feed import feed_ceiling
 from .profile import Profile
-from .verify import FEASIBLE_TOL
+from .verify import FEASIBLE_TOL, difference_peaks
 from .scurve_batch import Checker, Joined, drive
 from .scurve_pieces import Segment, no_profile, reachable, solver
 
@@ -528,13 +528,7 @@ class _Planner:
         X = self.machine.ik(X) if self.joint else X
         starts = np.concatenate([[0.0], np.cumsum([g.duration for g in segs])])
         over = np.ones((len(segs), 3))
-        # per axis (numpy's reductions over the 3 columns of an (N, 3) array are slow)
-        D = [np.ascontiguousarray(X[:, c]) for c in range(X.shape[1])]
-        for k, L in enumerate((lim.v, lim.a, lim.j)):
-            D = [np.diff(d) / T for d in D]
-            w = np.abs(D[0])
-            for d in D[1:]:
-                w = np.maximum(w, np.abs(d))
+        for k, ((w, _), L) in enumerate(zip(difference_peaks(X, T), (lim.v, lim.a, lim.j))):
             n = np.nonzero(w > L * (1.0 + FEASIBLE_TOL))[0]
             # difference n of order k + 1 reads the samples n … n + k + 1: every segment of them
             for o in range(k + 2):

@@ -15,6 +15,7 @@ from kins.machine import Limits
 
 FEASIBLE_TOL = 1e-6          # DESIGN.md: feasible ⇔ every peak ratio ≤ 1 + 1e-6
 ORDERS = ("velocity", "acceleration", "jerk")
+BLOCK = 1 << 14               # samples per block of difference_peaks
 
 
 def differences(X: np.ndarray, T: float) -> dict[str, np.ndarray]:
@@ -99,3 +100,35 @@ def stretch_need(Q: np.ndarray, s: np.ndarray, T: float, limits) -> np.ndarray:
     need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
     need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
     return need
+
+
+def difference_peaks(X, T: float, orders: int = 3) -> list:
+    """Per window, the largest |k-th difference at T| over the columns of X and the column of
+    it (the first of equals, as np.argmax), for k = 1 … ``orders``: [(peaks, columns)] of the
+    differences of :func:`differences`, in blocks of samples (a 10⁶-sample profile's
+    temporaries stay in cache instead of being fresh 10⁶-element arrays each)."""
+    sizes = [max(len(X) - k, 0) for k in range(1, orders + 1)]
+    # the axis of each maximum as one byte (an axis number < 3): fresh memory is slow to
+    # touch the first time, and 6 such arrays of 10⁶ samples were 80 MB as np.intp
+    out = [(np.empty(n), np.empty(n, np.int8)) for n in sizes]
+    for a in range(0, sizes[0], BLOCK):
+        # one contiguous array per axis: numpy's reductions over the 3 columns of an (N, 3)
+        # array run in inner loops of 3, several times slower than elementwise maxima
+        D = [np.ascontiguousarray(X[a:a + BLOCK + orders, c]) for c in range(X.shape[1])]
+        for (worst, col), n in zip(out, sizes):
+            D = [np.diff(d) / T for d in D]
+            b = min(a + BLOCK, n)
+            if b > a:
+                worst[a:b], col[a:b] = _abs_max([d[:b - a] for d in D])
+    return out
+
+
+def _abs_max(D):
+    """(max |d| over the axes per sample, the axis of it: the first of equals, as np.argmax)
+    of the per-axis arrays ``D``."""
+    worst, col = np.abs(D[0]), np.zeros(len(D[0]), np.intp)
+    for c, d in enumerate(D[1:], start=1):
+        a = np.abs(d)
+        col[a > worst] = c
+        worst = np.maximum(worst, a)
+    return worst, col

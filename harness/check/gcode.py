@@ -247,10 +247,10 @@ def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
     line's largest factor, over all its samples (not only those over the limit)."""
     moving = 1e-9 * max(float(speed.max()), 1e-300)
     gmax = np.zeros(int(lines.max()) + 2)               # 0: no sample of that line moves
-    # in blocks of samples as _diff_abs_max (fresh 10⁶-element arrays are slow to touch)
-    for a in range(0, len(lines), _BLOCK):
-        ok = speed[a:a + _BLOCK] > moving
-        ln, f = lines[a:a + _BLOCK][ok], values[a:a + _BLOCK][ok] / speed[a:a + _BLOCK][ok]
+    # in blocks of samples as verify.difference_peaks (fresh 10⁶-element arrays are slow to touch)
+    for a in range(0, len(lines), M.BLOCK):
+        ok = speed[a:a + M.BLOCK] > moving
+        ln, f = lines[a:a + M.BLOCK][ok], values[a:a + M.BLOCK][ok] / speed[a:a + M.BLOCK][ok]
         if not len(ln):
             continue
         # the samples run along the path: a line's samples are runs, maxed per run, then per line
@@ -387,7 +387,7 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
     rep.stats["samples"] = int(len(P))
     rep.stats["execution_time_s"] = prof.execution_time_s
     for space, X, lim in (("joint", Q, machine.limits.joint), ("Cartesian", P, machine.limits.cartesian)):
-        for order, (worst, col) in zip(M.ORDERS, _diff_abs_max(X, len(M.ORDERS), T)):
+        for order, (worst, col) in zip(M.ORDERS, M.difference_peaks(X, T, len(M.ORDERS))):
             L = {"velocity": lim.v, "acceleration": lim.a, "jerk": lim.j}[order]
             unit = {"velocity": "mm/s", "acceleration": "mm/s²", "jerk": "mm/s³"}[order]
             mask = worst > L * (1 + M.FEASIBLE_TOL)
@@ -406,45 +406,11 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
 def _path_speed(P, T):
     """The path speed of each period: np.linalg.norm(np.diff(P, axis=0), axis=1) / T's operations
     on the columns (on (N, 3) arrays numpy runs them in inner loops of 3), in blocks as
-    _diff_abs_max."""
+    verify.difference_peaks."""
     n = max(len(P) - 1, 0)
     speed = np.empty(n)
-    for a in range(0, n, _BLOCK):
-        b = min(a + _BLOCK, n)
+    for a in range(0, n, M.BLOCK):
+        b = min(a + M.BLOCK, n)
         dx, dy, dz = (np.diff(P[a:b + 1, c]) for c in range(3))
         speed[a:b] = np.sqrt(dx * dx + dy * dy + dz * dz) / T
     return speed
-
-
-_BLOCK = 1 << 14          # samples per block of _diff_abs_max
-
-
-def _diff_abs_max(X, orders: int, T: float) -> list:
-    """[_abs_max of the k-th differences at T of the columns of X, for k = 1 … ``orders``]
-    (the differences of M.differences), in blocks of samples: a 10⁶-sample profile's
-    temporaries stay in cache instead of being fresh 10⁶-element arrays each."""
-    sizes = [max(len(X) - k, 0) for k in range(1, orders + 1)]
-    # the axis of each maximum as one byte (an axis number < 3): fresh memory is slow to
-    # touch the first time, and 6 such arrays of 10⁶ samples were 80 MB as np.intp
-    out = [(np.empty(n), np.empty(n, np.int8)) for n in sizes]
-    for a in range(0, sizes[0], _BLOCK):
-        # one contiguous array per axis: numpy's reductions over the 3 columns of an (N, 3)
-        # array run in inner loops of 3, several times slower than elementwise maxima
-        D = [np.ascontiguousarray(X[a:a + _BLOCK + orders, c]) for c in range(X.shape[1])]
-        for (worst, col), n in zip(out, sizes):
-            D = [np.diff(d) / T for d in D]
-            b = min(a + _BLOCK, n)
-            if b > a:
-                worst[a:b], col[a:b] = _abs_max([d[:b - a] for d in D])
-    return out
-
-
-def _abs_max(D):
-    """(max |d| over the axes per sample, the axis of it: the first of equals, as np.argmax)
-    of the per-axis arrays ``D``."""
-    worst, col = np.abs(D[0]), np.zeros(len(D[0]), np.intp)
-    for c, d in enumerate(D[1:], start=1):
-        a = np.abs(d)
-        col[a > worst] = c
-        worst = np.maximum(worst, a)
-    return worst, col
