@@ -263,7 +263,10 @@ class Interpreter(Offsets, Motion, Flow):
             endp[i] = w[a] * u if m.absolute else prog[i] + w[a] * u
         if mm == 10 and not m.feed:
             raise LineError("G1 feed move with a zero feed rate: give F")
-        self.emit("rapid" if mm == 0 else "feed", self.to_machine(endp))
+        end = self.to_machine(endp)
+        self.out.moves.append(CanonMove("rapid" if mm == 0 else "feed", self.cur_line, self.frames[-1].src.name,
+                                        tuple(self.pos), tuple(end), None if mm == 0 else m.feed, m.path))
+        self.pos = end
 
     def _feed_speed_tool(self, w, groups) -> None:
         """F (in the units of the line: a G20/G21 on it counts), S and T."""
