@@ -243,30 +243,11 @@ class Interpreter(Offsets, Motion, Flow):
             if mm is None or mm == 800:
                 if axes:
                     raise LineError("axis words with no motion mode in force (G0/G1/G2/G3)")
-            elif (mm == 0 or mm == 10) and not ("i" in w or "j" in w or "k" in w or "r" in w):
-                self._straight_fast(mm, w, axes)
             else:
                 self.motion(mm, dict(w), axes, False)
         for letter in w:
             if letter in "ijkr" and not self._arc_done:
                 raise LineError(f"{letter.upper()} word with no code on the line that uses it")
-
-    def _straight_fast(self, mm: int, w, axes) -> None:
-        """Motion.motion of a G0/G1 without I J K R, @ ^ or G53, written out (the same
-        arithmetic): most moves of a CAM program come here."""
-        m = self.m
-        u = MM_PER_INCH if m.units == 20 else 1.0
-        prog = self.to_program(self.pos)
-        endp = prog[:]
-        for a in axes:
-            i = 0 if a == "x" else (1 if a == "y" else 2)
-            endp[i] = w[a] * u if m.absolute else prog[i] + w[a] * u
-        if mm == 10 and not m.feed:
-            raise LineError("G1 feed move with a zero feed rate: give F")
-        end = self.to_machine(endp)
-        self.out.moves.append(CanonMove("rapid" if mm == 0 else "feed", self.cur_line, self.frames[-1].src.name,
-                                        tuple(self.pos), tuple(end), None if mm == 0 else m.feed, m.path))
-        self.pos = end
 
     def _feed_speed_tool(self, w, groups) -> None:
         """F (in the units of the line: a G20/G21 on it counts), S and T."""
