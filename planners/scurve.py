@@ -212,7 +212,8 @@ class _Planner:
         c, d = b - r * (b - a), a + r * (b - a)
         fc, fd = self.F_at(c), self.F_at(d)
         width = float((b - a).max())
-        for _ in range(max(0, math.ceil(math.log(xtol / width) / math.log(r))) if width > xtol else 0):
+        steps = math.ceil(math.log(xtol / width) / math.log(r)) if width > xtol else 0
+        for _ in range(steps):
             # left: the minimum is in [a, d], the old c becomes d; else in [c, b], the old d becomes c
             left = fc <= fd
             a, b = np.where(left, a, c), np.where(left, d, b)
