@@ -94,8 +94,8 @@ def tokenise(raw: str) -> Block | None:
     if _SIMPLE.fullmatch(s):                 # the common CAM line: words with plain numbers
         words = [(letter, float(v)) for letter, v in _SIMPLE_WORD.findall(s) if letter != "n"]
         # every field given: the default factories' empty lists cost ~8 % of this function
-        return Block(delete, words, [], None, None, [], comment,
-                     None if comment is not None or delete else _fast_of(words))
+        return Block(delete=delete, words=words, assigns=[], okey=None, olabel=None, oargs=[], comment=comment,
+                     fast=None if comment is not None or delete else _fast_of(words))
     b = Block(delete=delete, comment=comment)
     r = Reader(s)
     if r.peek() == "n":                       # N number: first on the line, then ignored
