@@ -30,9 +30,18 @@ def segment_feeds(path, feed_max: float) -> np.ndarray | None:
     prog = path.program           # only a SegmentPath read from G-code has one
     if prog is None or path.feed_mode == "max":
         return None
+    # kept on the path: planners ask per piece or per point (toppra 10³ times, scurve's FLF
+    # minima per bracket), and building it is a pass over every move and segment
+    key = (feed_max, id(path.segments))
+    cached = path.__dict__.get("_segment_feeds")
+    if cached is not None and cached[0] == key:
+        return cached[1]
     # a blend arc carries the line number of a move of the program, so it gets that F
     by_line = {m.line: (m.feed_mm_s if not m.rapid else None) for m in prog.moves}
-    return np.array([min(feed_max, by_line.get(g.line) or feed_max) for g in path.segments])
+    f = np.array([min(feed_max, by_line.get(g.line) or feed_max) for g in path.segments])
+    f.flags.writeable = False
+    path._segment_feeds = (key, f)
+    return f
 
 
 def feed_ceiling(path, s, feed_max: float) -> np.ndarray:

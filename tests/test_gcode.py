@@ -280,3 +280,19 @@ def test_one_move_program_is_a_move_from_home():
     # a program with two moves is read as before: home does not change it
     two = "G0 X0 Y0 Z0\nG1 X1 F60\n"
     assert np.array_equal(ends(parse_gcode(two, "t", home=[5, 5, 5])), ends(parse_gcode(two, "t")))
+
+
+def test_programmed_feeds_are_each_moves_f_capped_by_f_max_and_follow_the_feed_mode():
+    """planners.feed.segment_feeds, kept on the path (toppra asked for it per piece, 10³ times
+    on a long program): F per segment, rapids at F_max, a new F_max or the --max-feed mark
+    read anew, and the kept array cannot be changed by a caller."""
+    from planners.feed import feed_ceiling, segment_feeds, use_max_feed
+    path = program_path(parse_gcode("G21 G90 G61\nG0 X0 Y0 Z-400\nG1 X10 F600\nG1 Y10 F1200\nG0 X0\n"))
+    f = segment_feeds(path, 50.0)
+    assert f.tolist() == [10.0, 20.0, 50.0] and segment_feeds(path, 50.0) is f
+    assert segment_feeds(path, 15.0).tolist() == [10.0, 15.0, 15.0]
+    assert feed_ceiling(path, [5.0, 15.0, 25.0], 15.0).tolist() == [10.0, 15.0, 15.0]
+    with pytest.raises(ValueError):
+        segment_feeds(path, 15.0)[0] = 1.0
+    assert segment_feeds(use_max_feed(path), 50.0) is None
+    assert segment_feeds(use_max_feed(path, False), 50.0).tolist() == [10.0, 20.0, 50.0]
