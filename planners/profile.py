@@ -49,8 +49,8 @@ class Profile:
 
     def points(self) -> np.ndarray:
         """path.point(s), the commanded Cartesian positions, computed once: a planner that reads
-        its own result at T and the metrics after it read the same array (a NURBS takes ~10 µs
-        a point; a 10⁵-line program has 2·10⁶ of them)."""
+        its own result at T and the metrics after it read the same array (a NURBS point is a
+        Newton solve of its arc length)."""
         if self._points is None or self._points[0] is not self.s:
             self._points = (self.s, self.path.point(self.s))
         return self._points[1]

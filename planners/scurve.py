@@ -205,8 +205,8 @@ class _Planner:
     def minimise_F(self, lo, hi, xtol: float = 1e-6):
         """(s, FLF) of the FLF's minimum in each bracket [lo, hi], by golden-section search on
         all brackets at once, to xtol: the joint velocity cap of scurve_joint has a minimum on
-        most lines of a CAM program, and a scalar search per minimum (scipy's bounded Brent)
-        took 8 of the 15 s of a 10⁵-line check."""
+        most lines of a CAM program, and a scalar search per minimum pays a Python call per
+        evaluation (docs/TUNING.md)."""
         r = (math.sqrt(5.0) - 1.0) / 2.0
         a, b = np.asarray(lo, float).copy(), np.asarray(hi, float).copy()
         c, d = b - r * (b - a), a + r * (b - a)
@@ -383,8 +383,8 @@ class _Planner:
         """The lowest factor ≥ REPAIR_MIN_FACTOR on the segment's ``attr`` (A or J, at ``full``)
         at which it has a profile between its end feeds. TII 2022's search starts at the
         smallest factor; a short segment has no profile there, although a J a little lower
-        would fix it: a repair that gave up on J scaled its feeds instead, 5 % a round, for
-        up to 35 rounds on a CAM program (a jerk at J does not scale with the feed)."""
+        would fix it: a repair that gave up on J scaled its feeds instead, round after round,
+        and a jerk at J does not scale with the feed (docs/TUNING.md)."""
         def none_at(f):
             setattr(seg, attr, full * f)
             return no_profile(seg.v0, seg.v1, seg.L, seg.A, seg.J)
@@ -522,8 +522,8 @@ class _Planner:
         """Per segment, the largest [v, a, j] ratio the metric reads at T (planners.verify: a
         difference at T, over each window that reaches into the segment) where above 1, else 1.
         The segment checks read the continuous derivatives; where the curvature changes within
-        a few periods' travel a third difference at T reads more than they do (1.2 % on a
-        NURBS with weights at 250 mm/s, beyond the checks' 0.5 % margin)."""
+        a few periods' travel a third difference at T reads more than they do, beyond the
+        checks' margin."""
         T, lim = self.T, self.limits.joint if self.joint else self.limits.cartesian
         X = prof.points()
         X = self.machine.ik(X) if self.joint else X
