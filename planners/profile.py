@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import PlanningError
+from planners.errors import PlanningError
 
 HEADER = "t,s,sd,sdd,sddd"
 # samples a profile may have (5 arrays of them: 0.8 GB): 83 min at 250 µs.  A planner's wild

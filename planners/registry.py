@@ -33,9 +33,9 @@ BUILTIN = {
     "scurve": ("planners.scurve", "plan"),
     "scurve_joint": ("planners.scurve", "plan_joint"),
     "pso": ("planners.pso", "plan"),
-    "toppra": ("planners.toppra_ref", "plan"),
+    "toppra": ("planners.optimal.toppra", "plan"),
     "optimal": ("planners.optimal", "plan"),
-    "copp": ("planners.copp_ref", "plan"),       # COPP's TOPP3-SOCP (copp-py): a second jerk-limited reference
+    "copp": ("planners.optimal.copp", "plan"),       # COPP's TOPP3-SOCP (copp-py): a second jerk-limited reference
     "linuxcnc": ("planners.linuxcnc", "plan"),   # the real LinuxCNC 2.9, run headless
 }
 

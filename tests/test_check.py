@@ -209,7 +209,7 @@ def test_dynamics_findings_read_the_metrics_differences(tmp_path):
 
 
 def test_trapezoid_check_builds_only_the_blends_it_runs(tmp_path, monkeypatch):
-    # trapezoid re-blends a program as LinuxCNC's tp queues it (planners.tp_queue): the check
+    # trapezoid re-blends a program as LinuxCNC's tp queues it (planners.trapezoid.queue): the check
     # must not build the standard blends too, and its geometry is that of the path that ran
     import planners.paths.gcode.reader as reader
     calls = []

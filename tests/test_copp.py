@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import ruckig
 
-import planners.topp3 as topp3
+import planners.optimal.topp3 as topp3
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
 from planners.paths import Line, SegmentPath, resolve_path

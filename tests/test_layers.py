@@ -72,7 +72,7 @@ def test_a_planted_upward_import_is_caught(tmp_path):
     f = tmp_path / "planners" / "profile.py"
     f.write_text(f.read_text() + "\n\ndef _planted():\n    from harness.cosim.run import run_case  # noqa\n")
     g = tmp_path / "harness" / "cli" / "plan.py"
-    g.write_text(g.read_text() + "\nfrom planners.scurve import _Planner  # noqa\n")
+    g.write_text(g.read_text() + "\nfrom planners.scurve.planner import _Planner  # noqa\n")
     found = violations(tmp_path)
     assert any("planners/profile.py" in v and "harness.cosim.run (a higher layer)" in v for v in found), found
     assert any("harness/cli/plan.py" in v and "private _Planner" in v for v in found), found

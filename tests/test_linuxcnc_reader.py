@@ -1,4 +1,4 @@
-"""--reader linuxcnc (planners.rs274.linuxcnc_reader): LinuxCNC's own interpreter as front end.
+"""--reader linuxcnc (planners.paths.gcode.rs274.linuxcnc_reader): LinuxCNC's own interpreter as front end.
 The two readers must give the same program, move for move: the geometry to 1e-9 mm (LinuxCNC's
 module reports inches), the same lines, feeds, blend tolerances, G64 Q joins, stops and events.
 Skips where LinuxCNC is not installed (make linuxcnc)."""
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from planners.paths.gcode import GCodeError, read_gcode
-from planners.rs274.reference import available
+from planners.paths.gcode.rs274.reference import available
 
 WHY = available()
 pytestmark = pytest.mark.skipif(WHY is not None, reason=str(WHY))
@@ -66,7 +66,7 @@ def test_spiral_arcs_keep_linuxcncs_centre_in_both_readers(tmp_path):
     """An I/J arc whose end radius differs: LinuxCNC's gcode module gives its centre and end
     (ARC_FEED); both readers keep that centre, and the segment's radius is r0 + (r1 − r0)·φ/θ at
     each point's angle φ, to 1e-9 mm."""
-    from planners.rs274.reference import linuxcnc_moves
+    from planners.paths.gcode.rs274.reference import linuxcnc_moves
     f = tmp_path / "spirals.ngc"
     f.write_text(SPIRALS)
     ref = [m for m in linuxcnc_moves(f)[0] if m["kind"] == "arc"]

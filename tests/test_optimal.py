@@ -1,4 +1,4 @@
-"""optimal: the TOPP3-SOCP (planners/topp3.py) against the jerk-limited closed form on a line that
+"""optimal: the TOPP3-SOCP (planners/optimal/topp3.py) against the jerk-limited closed form on a line that
 drives the joints 1:1, its station relaxation, the choice between it and scurve_joint, order
 against toppra, errors; the IPOPT NLP (the polish and the SOCP's fallback) on its own."""
 import math
@@ -8,7 +8,8 @@ import pytest
 
 from planners.verify import command_metrics
 from kins import Limits, MachineLimits, load_machine
-from planners import PlanningError, optimal, plan
+from planners import PlanningError, plan
+from planners.optimal import planner as optimal
 from planners.constraints import join_jumps, rest_pieces, table_feed_cap
 from planners.paths import Line, SegmentPath
 

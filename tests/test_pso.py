@@ -6,7 +6,7 @@ import pytest
 
 from kins import load_machine
 from planners import PlanningError, plan
-from planners import topp3
+from planners.optimal import topp3
 from planners.paths import Arc, Line, SegmentPath
 from planners.pso.feed import KNOT_STEP_TU, MIN_SPAN_STATIONS, FeedSpline
 from planners.pso.span import FeedSpan

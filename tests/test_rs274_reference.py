@@ -1,4 +1,4 @@
-"""planners.rs274 against LinuxCNC's own interpreter (the `gcode` module of linuxcnc-uspace,
+"""planners.paths.gcode.rs274 against LinuxCNC's own interpreter (the `gcode` module of linuxcnc-uspace,
 full precision; `rs274`'s 4-decimal text where that module cannot run): same canonical moves
 to 1e-9 mm on every program of benchmarks/paths/programs/ and on the constructs below.
 Skips when LinuxCNC is not installed (`make linuxcnc`)."""
@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from planners.rs274 import RS274Error, interpret
-from planners.rs274.interp import _read_text
-from planners.rs274.reference import RS274_DECIMALS_TOL, available, compare, linuxcnc_moves
+from planners.paths.gcode.rs274 import RS274Error, interpret
+from planners.paths.gcode.rs274.interp import _read_text
+from planners.paths.gcode.rs274.reference import RS274_DECIMALS_TOL, available, compare, linuxcnc_moves
 
 WHY = available()
 pytestmark = pytest.mark.skipif(WHY is not None, reason=str(WHY))

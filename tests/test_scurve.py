@@ -7,8 +7,9 @@ import pytest
 from planners.verify import command_metrics
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
-from planners import scurve, scurve_pieces
-from planners.scurve_batch import Checker
+from planners.scurve import planner as scurve
+from planners.scurve import pieces as scurve_pieces
+from planners.scurve.batch import Checker
 from planners.paths import Arc, Line, SegmentPath
 
 KEOPS = load_machine("keops")
@@ -209,7 +210,7 @@ def test_phase_samples_equal_numpy_linspace_per_phase():
     version, just inside each phase's end, 0 and the duration, as a set, bit for bit."""
     from types import SimpleNamespace
 
-    from planners.scurve_batch import _Layout
+    from planners.scurve.batch import _Layout
     rng = np.random.default_rng(5)
     T, m = 1e-3, 300
     d = rng.choice([0.0, 1e-9, 3e-4, 2e-3, 0.4, 7.0], size=(m, 7)) * rng.uniform(0.5, 1.5, (m, 7))
@@ -437,7 +438,7 @@ def test_window_search_equals_searchsorted_on_grouped_queries():
     """The checks' grid search (each segment's samples among the rows between its extremes)
     against np.searchsorted: a grid holding joins twice, queries on rows (joins too), between
     them and at the grid's ends, groups that share rows and groups out of order (searched whole)."""
-    from planners.scurve_batch import _window_search
+    from planners.scurve.batch import _window_search
     rng = np.random.default_rng(4)
     grid = np.sort(np.concatenate([rng.uniform(0, 100, 3000), np.repeat(rng.uniform(0, 100, 40), 2), [0.0, 100.0]]))
     for shuffle in (False, True):

@@ -150,9 +150,9 @@ def test_path_file_spiral_field_round_trip(tmp_path):
 
 def test_line_spiral_blends_are_tangent_circles_within_the_tolerance():
     # line → spiral (G3, r 5 → 5.02 about the programmed centre) → line under G64 P0.01, as
-    # trapezoid queues it (planners.tp_queue): each corner gets a blend arc that leaves the line
+    # trapezoid queues it (planners.trapezoid.queue): each corner gets a blend arc that leaves the line
     # tangentially and meets the trimmed spiral on it and tangent to it
-    from planners import tp_queue as Q
+    from planners.trapezoid import queue as Q
     text = ("G21 G90 G17 G64 P0.01\nG0 X-10 Y-3 Z-250\nG1 X0 Y0 F1200\n"
             "G3 X5.02 Y5 I0 J5\nG1 X15\nM2\n")
     runs, _ = Q.build(parse_gcode(text).moves, Q.Limits(1e-3, 20.0, 500.0, 20.0))
@@ -176,7 +176,7 @@ def test_line_spiral_blends_are_tangent_circles_within_the_tolerance():
 def test_trapezoid_caps_a_spiral_by_its_radius_of_curvature_at_the_start():
     # LinuxCNC's pmCircleEffectiveMinRadius: the spiral's own radius of curvature at the start
     # radius, i.e. 1/κ(0) of the path; the arc's speed cap is √(a_n·ρ) below the machine's
-    from planners.trapezoid import ACC_RATIO_NORMAL, segment_limits
+    from planners.trapezoid.planner import ACC_RATIO_NORMAL, segment_limits
     arc = Arc([0.5, 0, 0], [0, 0, 0], [0, 0, 1], 2.0, spiral=0.4)
     path = SegmentPath([arc])
     vmax, _ = segment_limits(path, 1000.0, 100.0, 1000.0)

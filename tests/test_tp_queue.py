@@ -1,4 +1,4 @@
-"""planners.tp_queue / tp_blend / tp_plan (LinuxCNC 2.9's motion queue) against closed forms.
+"""planners.trapezoid.queue / tp_blend / tp_plan (LinuxCNC 2.9's motion queue) against closed forms.
 
 The numbers come from tp.c / blendmath.c / tc.c read at LinuxCNC f1270d6ed7 and worked out by
 hand here; where the real LinuxCNC was run on the same program its figure is in the comment
@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from kins import load_machine
-from planners import plan, tp_queue as Q
+from planners import plan
+from planners.trapezoid import queue as Q
 from planners.paths.gcode import parse_gcode, program_path
 
 # kossel-like: 1 ms period, 20 mm/s and 500 mm/s² on every axis, F_max 20 mm/s; a corner in
@@ -213,7 +214,7 @@ def test_a_short_tangent_segment_ramps_evenly_to_its_final_speed():
     # tp.c tpActivateSegment / tpCalculateRampAccel: a tangent segment that lasts less than
     # 1/ARC_BLEND_RAMP_FREQ (10 ms) from its first full period on accelerates at the constant
     # (v_f² − v²)/(2·dx) that reaches its final speed at its end, not at the limit (500 mm/s²)
-    from planners.tp_run import simulate
+    from planners.trapezoid.cycle import simulate
     L, T = [5.0, 0.05, 5.0], 1e-3
     runs = [simulate(L, [19.0, 20.0, 20.0], [500.0] * 3, [19.0, 20.0, 0.0], T, sum(L), ramps=r)
             for r in (None, [None, 20.0, None])]

@@ -1,4 +1,4 @@
-"""planners.trapezoid (LinuxCNC type 0) against closed forms and the independent metrics."""
+"""planners.trapezoid.planner (LinuxCNC type 0) against closed forms and the independent metrics."""
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -91,7 +91,7 @@ def test_exact_stop_corner_and_gcode_program(keops):
 
 
 def test_registry_and_bad_input(keops):
-    assert get_planner("trapezoid").__module__ == "planners.trapezoid"
+    assert get_planner("trapezoid").__module__ == "planners.trapezoid.planner"
     with pytest.raises(PlanningError, match="unknown planner.*nope; valid: trapezoid, scurve"):
         get_planner("nope")
     bad = replace(keops.limits, cartesian=replace(keops.limits.cartesian, a=0.0))
@@ -166,7 +166,7 @@ def test_programmed_feed_option(keops, tmp_path):
 def _simulate_reference(path, vmax, amax, vf, T):
     """The per-cycle loop as first written (min/max builtins, values read per pass): the
     reference the faster trapezoid.simulate must reproduce bit for bit."""
-    from planners.trapezoid import MAX_CYCLES
+    from planners.trapezoid.planner import MAX_CYCLES
     L = [g.length for g in path.segments]
     vmax, amax, vf = np.asarray(vmax).tolist(), np.asarray(amax).tolist(), np.asarray(vf).tolist()
     n = len(L)
@@ -211,7 +211,8 @@ def _simulate_reference(path, vmax, amax, vf, T):
                                           ("kossel", "cam")])
 def test_simulate_equals_the_reference_loop_bit_for_bit(tmp_path, machine, name):
     import importlib.util
-    from planners.trapezoid import final_velocities, prepare_geometry, segment_limits, simulate
+    from planners.paths.post import prepare_geometry
+    from planners.trapezoid.planner import final_velocities, segment_limits, simulate
     m = load_machine(machine)
     if name == "cam":
         spec = importlib.util.spec_from_file_location(

@@ -9,7 +9,7 @@ blended (documented limits): corners touching an arc segment (kept as exact stop
 near-reversals (turn > π − 1e-6 rad).
 
 LinuxCNC's own blends, sized to the speed one corner at a time as its tp queues the moves
-(and line↔arc, arc↔arc corners), are the ``trapezoid`` planner's: planners.tp_blend.
+(and line↔arc, arc↔arc corners), are the ``trapezoid`` planner's: planners.trapezoid.blend.
 """
 from __future__ import annotations
 

@@ -26,7 +26,7 @@ from scipy.interpolate import BSpline
 from scipy import sparse
 from scipy.sparse.linalg import lsqr
 
-from ..verify import FEASIBLE_TOL
+from planners.verify import FEASIBLE_TOL
 
 # one knot per this many t_u of TOPP2-RA's time (a jerk-limited rise from 0 to A takes 1 t_u)
 KNOT_STEP_TU = 0.25

@@ -1,6 +1,6 @@
 """G-code → line/arc segments, each tagged with its source line.
 
-The program runs through :mod:`planners.rs274`, an RS274NGC interpreter with LinuxCNC 2.9's
+The program runs through :mod:`planners.paths.gcode.rs274`, an RS274NGC interpreter with LinuxCNC 2.9's
 semantics (expressions, parameters, O-words, work offsets, G92, tool length offsets, G28/G30,
 G53, polar @ ^, M70–M73, …; what it does not support is refused naming the construct and the
 line). Its canonical moves (machine coordinates, mm) become Line/Arc segments here;
@@ -11,7 +11,7 @@ Corners: the path-control mode in force when a move is read governs the corner a
 (LinuxCNC's term_cond): G61/G61.1 → exact stop; G64 P p → blended within p mm;
 G64 without P (or P0) → LinuxCNC's "best possible speed": blended with no tolerance other
 than the room available (half of each adjoining segment); the ``trapezoid`` planner re-blends
-the program as LinuxCNC's tp does instead (planners.tp_queue). G64 … Q q joins runs of short moves that stay within q
+the program as LinuxCNC's tp does instead (planners.trapezoid.queue). G64 … Q q joins runs of short moves that stay within q
 of one line into that line first, as LinuxCNC's canon does (:mod:`.naivecam`). Blending is done by
 :mod:`planners.paths.blend`, the one module all planners share. The default mode is G64 (as in
 LinuxCNC).
@@ -57,7 +57,7 @@ class Move:
     # feed: tp.c handleModeChange never blends them) or "end"; None otherwise
     stop: str | None = None
     parabolic_end: bool = False    # G64 end with nothing to blend with (tc.c: half acceleration)
-    # the path-control mode in force (planners.rs274 CanonMove.path_mode), kept when
+    # the path-control mode in force (planners.paths.gcode.rs274 CanonMove.path_mode), kept when
     # ``blend_mm`` becomes None at a stop: LinuxCNC's term_cond and tolerance of the move
     path_mode: tuple = ("exact", "stop")
 
@@ -114,7 +114,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
                 reader: str = "pkmbench") -> GCodeProgram:
     """Read G-code text into moves (lines/arcs in mm, machine coordinates, each with its line).
 
-    The text runs through the RS274NGC interpreter (:mod:`planners.rs274`, LinuxCNC's semantics);
+    The text runs through the RS274NGC interpreter (:mod:`planners.paths.gcode.rs274`, LinuxCNC's semantics);
     its canonical moves become segments here. Start point:
 
     - ``start`` given: LinuxCNC's rule: the tool is there, every move is a segment from it;
@@ -125,14 +125,14 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
 
     Zero-length moves are dropped (a note; an M code on their line still counts: ``events``).
     ``reader="linuxcnc"``: LinuxCNC's own interpreter reads the file ``source`` instead
-    (planners.rs274.linuxcnc_reader; ``text`` is not used, nor tools, subroutine path, block delete).
+    (planners.paths.gcode.rs274.linuxcnc_reader; ``text`` is not used, nor tools, subroutine path, block delete).
     """
     opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete)
     if max_loops is not None:
         opts["max_loops"] = max_loops
     if reader == "linuxcnc":
-        from planners.rs274 import RS274Error
-        from planners.rs274.linuxcnc_reader import linuxcnc_canon
+        from planners.paths.gcode.rs274 import RS274Error
+        from planners.paths.gcode.rs274.linuxcnc_reader import linuxcnc_canon
         try:
             cp, positioning = linuxcnc_canon(source, start, home)
         except RS274Error as e:
@@ -183,7 +183,7 @@ def _refused_line(e, text: str, source: str, start, home, opts) -> int:
 def _interpret(text: str, source: str, start, home, opts):
     """(canonical program, positioning?): the interpreter's run from ``start``; without one, from
     an unknown point (NaN) that the first move must set (positioning), else again from ``home``."""
-    from planners.rs274 import RS274Error, interpret
+    from planners.paths.gcode.rs274 import RS274Error, interpret
     positioning = start is None
     at = start if start is not None else (math.nan,) * 3     # unknown: NaN marks it
     try:

@@ -30,8 +30,8 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
    sample lands on s = L at rest) and read at T as the metric reads it; the segments under a
    difference above a limit get checks tightened by that excess and are planned again.
 
-The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve_pieces; the segment
-checks, run for all the segments of a round at once, planners.scurve_batch (the peak fit and
+The 1-D pieces (a ruckig segment, reachable feeds) are planners.scurve.pieces; the segment
+checks, run for all the segments of a round at once, planners.scurve.batch (the peak fit and
 the repair are generators whose tests scurve_batch.drive runs in lockstep).
 Size: ~490 lines: the FLF, the critical points, the peak fit and the repair loop of one
 method (TII 2022), kept together.
@@ -43,13 +43,13 @@ import time
 
 import numpy as np
 
-from .constraints import (PathTable, PlanningError, check_limits, check_path,
+from planners.constraints import (PathTable, PlanningError, check_limits, check_path,
                           chord_feed_cap, cross_norm, corner_list, ik_along, joint_derivs, second_derivative_jumps)
-from .feed import feed_ceiling
-from .profile import Profile
-from .verify import FEASIBLE_TOL, difference_peaks
-from .scurve_batch import Checker, Joined, drive
-from .scurve_pieces import Segment, no_profile, reachable, solver
+from planners.feed import feed_ceiling
+from planners.profile import Profile
+from planners.verify import FEASIBLE_TOL, difference_peaks
+from planners.scurve.batch import Checker, Joined, drive
+from planners.scurve.pieces import Segment, no_profile, reachable, solver
 
 MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours each side
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s

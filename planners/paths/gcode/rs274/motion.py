@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 
-from planners.rs274.codes import AXES, MM_PER_INCH, PLANES
-from planners.rs274.errors import LineError
+from planners.paths.gcode.rs274.codes import AXES, MM_PER_INCH, PLANES
+from planners.paths.gcode.rs274.errors import LineError
 
 # interp_internal.hh: R-form reach tolerance and the spiral tolerance of I/J/K arcs (mm)
 RADIUS_TOLERANCE_MM = 0.00005 * MM_PER_INCH

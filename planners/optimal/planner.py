@@ -3,7 +3,7 @@
 The jerk-limited reference on the shared constraint set (joint v, a, j; F_max; the chord-error
 feed cap; the G1-join reads).  Two transcriptions:
 
-* the default, COPP's TOPP3-SOCP over arc length (planners/topp3.py, copp-py + Clarabel):
+* the default, COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel):
   stations ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by
   tangents (a restriction: the time never grows from one linearisation to the next), at
   `copp`'s settings (its profile is this one: optimal is never slower), checked at T and
@@ -13,7 +13,7 @@ feed cap; the G1-join reads).  Two transcriptions:
   limits held at the stations only (a bound of this transcription from its local solution,
   not a certificate of the continuous problem: IPOPT's time-domain NLP found 1.7668 s on
   keops/bird against a station relaxation of 1.76725 s);
-* the time-domain NLP (CasADi + IPOPT, planners/optimal_nlp.py): direct multiple shooting with
+* the time-domain NLP (CasADi + IPOPT, planners/optimal/nlp.py): direct multiple shooting with
   constant jerk on each interval, the limits at the nodes, started from that profile.  It runs
   with ``polish=True`` and, by default, where its nodes resolve every piece (_nlp_resolves);
   the faster of it and its start is returned.
@@ -35,11 +35,11 @@ import time
 
 import numpy as np
 
-from .constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
+from planners.constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
                           table_feed_cap)
-from .optimal_nlp import LIMIT_KINDS, IpoptFailure, _Piece
-from . import topp3
-from .profile import Profile
+from planners.optimal.nlp import LIMIT_KINDS, IpoptFailure, _Piece
+from planners.optimal import topp3
+from planners.profile import Profile
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
 # read at T peaked 2 % above the limit between them.
@@ -174,7 +174,7 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | Non
     limits = machine.limits if limits is None else limits
     check_limits(limits, "optimal")
     check_path(path, "optimal")
-    from .scurve import plan_joint
+    from planners.scurve import plan_joint
     candidates, notes = [], {}
     try:
         socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm))

@@ -3,7 +3,7 @@ named #<_x> (local named ones live in the call frame). Stored values of the syst
 (#5161 G28, #5181 G30, #5211 G92, #5221… G54–G59.3) are in mm here."""
 from __future__ import annotations
 
-from planners.rs274.errors import LineError
+from planners.paths.gcode.rs274.errors import LineError
 
 MAX_PARAMETER = 5602        # rs274ngc's RS274NGC_MAX_PARAMETERS − 1
 

@@ -1,6 +1,6 @@
 """The NLP of `optimal` on one rest-to-rest piece (CasADi Opti, solved by IPOPT): its
 variables, the constant-jerk dynamics, the G1-join, feed-cap and joint v/a/j constraints, the
-objective.  The formulation and why it is built so: planners/optimal.py's docstring."""
+objective.  The formulation and why it is built so: planners/optimal/planner.py's docstring."""
 from __future__ import annotations
 
 import os
@@ -8,7 +8,7 @@ import os
 import casadi as ca
 import numpy as np
 
-from .constraints import JUMP_READ_FACTOR, PlanningError
+from planners.constraints import JUMP_READ_FACTOR, PlanningError
 
 # IPOPT's own progress table, for diagnosing a solve: PKM_IPOPT_PRINT=5 (default 0, silent)
 IPOPT_PRINT_LEVEL = int(os.environ.get("PKM_IPOPT_PRINT", "0"))

@@ -22,8 +22,8 @@ import toppra
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from .constraints import PathTable, PlanningError, check_limits, check_path, feed_cap, rest_pieces
-from .profile import Profile
+from planners.constraints import PathTable, PlanningError, check_limits, check_path, feed_cap, rest_pieces
+from planners.profile import Profile
 
 toppra.setup_logging("ERROR")   # a failed interpolation-scheme try is handled below
 

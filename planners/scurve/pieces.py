@@ -1,4 +1,4 @@
-"""The 1-D pieces of the s-curve (planners.scurve): how far a jerk-limited feed change needs,
+"""The 1-D pieces of the s-curve (planners.scurve.planner): how far a jerk-limited feed change needs,
 the largest feed reachable in a length, and one ruckig profile between two critical points
 (`Segment`)."""
 from __future__ import annotations
@@ -83,7 +83,7 @@ class Segment:
     """One ruckig profile between two critical points. ``prof`` holds s0, L, v0, v1, the duration,
     the seven phases' durations and jerks and the eight boundary states a, v, p (ruckig's) as
     one buffer of 43 doubles: the checks stack many segments' buffers into one array
-    (planners.scurve_batch) at the cost of a copy."""
+    (planners.scurve.batch) at the cost of a copy."""
 
     __slots__ = ("s0", "L", "v0", "v1", "A", "J", "vpeak", "prof", "duration")
     HEAD, T, J_, A_, V_, P_ = slice(0, 5), slice(5, 12), slice(12, 19), slice(19, 27), slice(27, 35), slice(35, 43)

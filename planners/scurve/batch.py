@@ -1,4 +1,4 @@
-"""The s-curve's segment checks (planners.scurve) for many segments in one numpy pass.
+"""The s-curve's segment checks (planners.scurve.planner) for many segments in one numpy pass.
 
 A round of the repair loop checks every changed segment, and each repair tests a segment at
 several J and A values: a Python pass per test (~30 numpy calls on ~100 samples) made a
@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constraints import JUMP_READ_FACTOR
-from .scurve_pieces import Segment
+from planners.constraints import JUMP_READ_FACTOR
+from planners.scurve.pieces import Segment
 
 CHUNK_POINTS = 32_768     # samples per numpy pass (16 384: +8 % CPU, 65 536: +2 %, once the checks had fewer passes)
 
@@ -194,7 +194,7 @@ class _Layout:
 
 
 class Checker:
-    """The tests of :meth:`planners.scurve._Planner.fit_peak` and of the segment check, for many
+    """The tests of :meth:`planners.scurve.planner._Planner.fit_peak` and of the segment check, for many
     segments at once; ``pl`` is the planner (its grid, FLF, tables, joins and check limits)."""
 
     def __init__(self, pl):

@@ -47,10 +47,10 @@ import math
 import copp_py as copp
 import numpy as np
 
-from .constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
+from planners.constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
                           check_path, feed_cap, join_jumps, joint_derivs, rest_pieces)
-from .profile import Profile
-from .verify import FEASIBLE_TOL
+from planners.profile import Profile
+from planners.verify import FEASIBLE_TOL
 
 # stations ≤ REFINE_RADII curvature radii apart (the jerk between stations at lobe tips and
 # blend arcs read above the limit where they were sparser), no closer than REFINE_MIN_MM

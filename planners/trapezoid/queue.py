@@ -12,7 +12,7 @@ MAX_FEED_OVERRIDE 1, initraj.cc):
 * each corner (``tpHandleBlendArc``): a near-tangent junction whose "kink" needs little
   acceleration is run through as is, the segments' acceleration reduced by the kink's share
   (``tpSetupTangent``, tc.c ``tcSetKinkProperties``); otherwise a blend arc is made
-  (blendmath.c; planners.tp_blend) and ``tpChooseBestBlend`` keeps the fastest of the blend
+  (blendmath.c; planners.trapezoid.blend) and ``tpChooseBestBlend`` keeps the fastest of the blend
   arc (its max velocity), the tangent kink (its kink velocity) and a parabolic blend (half
   its blend velocity, ``estimateParabolicBlendPerformance``);
 * a blend arc whose previous line would be left shorter than ``GAP_CYCLES`` periods at the
@@ -363,7 +363,7 @@ def build(moves, lim: Limits):
 
 def handle_blend(queue: list, prev: TC, tc: TC, lim: Limits) -> bool:
     """tp.c tpHandleBlendArc: the junction prev → tc; True if a blend arc consumed prev."""
-    from planners import tp_blend
+    from planners.trapezoid import blend as tp_blend
     if setup_tangent(prev, tc, lim.T, lim.a_axis) != "no_action":
         return False
     b = None

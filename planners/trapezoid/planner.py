@@ -2,8 +2,8 @@
 
 What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of LinuxCNC 2.9):
 
-* A G-code program runs as LinuxCNC's tp queues it (planners.tp_queue, planners.tp_blend,
-  planners.tp_plan): one move at a time, each corner a blend arc sized to the speed (which
+* A G-code program runs as LinuxCNC's tp queues it (planners.trapezoid.queue, planners.trapezoid.blend,
+  planners.trapezoid.program): one move at a time, each corner a blend arc sized to the speed (which
   may take a short previous line into itself), a parabolic blend or a near-tangent "kink",
   whichever ``tpChooseBestBlend`` finds fastest; every segment lasts at least a servo period
   (``tcClampVelocityByLength``); the look-ahead is tp.c's, 50 segments deep; a parabolic
@@ -20,7 +20,7 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
   speed (tc.c ``tcUpdateCircleAccRatio``), the last one 0.5; its speed is capped at
   √(0.866·a·ρ) (``BLEND_ACC_RATIO_NORMAL``). The look-ahead is the whole path: v_start =
   √(v_final² + 2·a·L) backwards, a tangent-discontinuous junction ends at rest.
-* Per-cycle update, both (planners.tp_run: tp.c ``tpCalculateTrapezoidalAccel``,
+* Per-cycle update, both (planners.trapezoid.cycle: tp.c ``tpCalculateTrapezoidalAccel``,
   ``tcUpdateDistFromAccel``, ``tpHandleSplitCycle``): the largest new speed that can still
   stop at the segment's final speed, v = −a·dt/2 + √(v_f² + a(2·dx − v·dt) + (a·dt/2)²),
   capped at the segment's velocity, the acceleration clamped to ±a, the distance advanced
@@ -39,36 +39,16 @@ import numpy as np
 
 from planners.constraints import check_limits, check_path_in_workspace
 from planners.errors import PlanningError
-from planners.paths.blend import blend_corners
-from planners.paths.lines import cut_into_lines
-from planners.paths import NurbsPath, Path, SegmentPath
+from planners.paths import PathError, SegmentPath
+from planners.paths.post import prepare_geometry
 from planners.profile import Profile
-from planners import tp_plan, tp_queue, tp_run
-from planners.tp_run import MAX_CYCLES  # noqa: F401  (the cycle cap, also read by tests)
+from planners.trapezoid import program as tp_plan
+from planners.trapezoid import queue as tp_queue
+from planners.trapezoid import cycle as tp_run
+from planners.trapezoid.cycle import MAX_CYCLES  # noqa: F401  (the cycle cap, also read by tests)
 
 ACC_RATIO_TANGENTIAL = 0.5                               # blendmath.h
 ACC_RATIO_NORMAL = math.sqrt(1 - ACC_RATIO_TANGENTIAL**2)  # ≈ 0.866
-
-
-def prepare_geometry(path: Path, chord_tol: float, blend_tol: float | None):
-    """(segment path planned on, info) — a NURBS cut into G1 lines and blended, as a CAM post
-    would give it to LinuxCNC; a segment path as it is (a G-code program is planned by
-    planners.tp_plan instead)."""
-    if isinstance(path, SegmentPath):
-        return path, {"geometry_deviation_mm": 0.0, "chord_deviation_mm": 0.0,
-                      "blend_deviation_mm": 0.0, "segments": len(path.segments)}
-    if not isinstance(path, NurbsPath):
-        raise PlanningError(f"trapezoid: cannot plan on a {type(path).__name__}")
-    poly, chord_dev = cut_into_lines(path, chord_tol)
-    n = len(poly.segments)
-    tol = [blend_tol] * (n - 1)
-    segs, done = blend_corners(poly.segments, tol)
-    blend_dev = max((d for _, d in done), default=0.0)
-    planned = SegmentPath(segs, f"{path.source} (G1 lines, G64 P{blend_tol:g})" if blend_tol
-                          else f"{path.source} (G1 lines, G61)")
-    return planned, {"geometry_deviation_mm": chord_dev + blend_dev, "chord_deviation_mm": chord_dev,
-                     "blend_deviation_mm": blend_dev, "g1_lines": n, "segments": len(segs),
-                     "blends": len(done)}
 
 
 def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: float):
@@ -133,7 +113,7 @@ def final_velocities(path: SegmentPath, vmax: np.ndarray, amax: np.ndarray, stop
 
 
 def simulate(path: SegmentPath, vmax, amax, vf, T: float):
-    """Cycle-by-cycle LinuxCNC update on the path's segments (planners.tp_run.simulate):
+    """Cycle-by-cycle LinuxCNC update on the path's segments (planners.trapezoid.cycle.simulate):
     (s, sd, excess) at every period."""
     s, sd, excess, _ = tp_run.simulate([g.length for g in path.segments], np.asarray(vmax).tolist(),
                                        np.asarray(amax).tolist(), np.asarray(vf).tolist(), T, path.length)
@@ -142,7 +122,7 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
 
 def _run_program(path: SegmentPath, limits, T: float, programmed_feed: bool):
     """(geometry, s, sd, info) of a G-code program as LinuxCNC's tp queues and runs it
-    (planners.tp_plan), with the rests at its queue syncs."""
+    (planners.trapezoid.program), with the rests at its queue syncs."""
     prog = path.program
     programmed = programmed_feed and path.feed_mode != "max"
     lim = tp_queue.Limits(T, limits.cartesian.v, limits.cartesian.a, limits.feed_max, programmed)
@@ -152,7 +132,7 @@ def _run_program(path: SegmentPath, limits, T: float, programmed_feed: bool):
     waits = tp_plan.move_waits(prog)
     s, sd = tp_plan.insert_waits(s, sd, [(run_end_s[k], w) for k, w in waits.items()], T)
     info.update({"geometry_deviation_mm": 0.0, "segments": len(geometry),
-                 "blends": "LinuxCNC tp queue (planners.tp_queue)",
+                 "blends": "LinuxCNC tp queue (planners.trapezoid.queue)",
                  "lookahead": f"{tp_queue.OPT_DEPTH} segments", "programmed_feed": programmed,
                  "queue_waits_s": {int(k): float(w) for k, w in waits.items()}})
     return planned, s, sd, info
@@ -184,7 +164,10 @@ def plan(path: Path, machine, limits=None, *, blend_tolerance_mm: float | None =
         planned, s, sd, info = _run_program(path, limits, T, programmed_feed)
         check_path_in_workspace(planned, machine, check_workspace_step_mm)
     else:
-        planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
+        try:
+            planned, info = prepare_geometry(path, chord, blend if blend > 0 else None)
+        except PathError as e:
+            raise PlanningError(f"trapezoid: {e}") from None
         check_path_in_workspace(planned if isinstance(path, SegmentPath) else path, machine,
                                 check_workspace_step_mm)
         vmax, amax = segment_limits(planned, limits.cartesian.v, limits.cartesian.a, limits.feed_max)

@@ -7,8 +7,8 @@ interp (execution order of a block), with codes (words, G/M codes and their grou
 canon (canonical moves in machine mm).
 ``linuxcnc.py`` runs LinuxCNC's own interpreter, the reference of the tests.
 """
-from planners.rs274.canon import CanonEvent, CanonMove, CanonProgram
-from planners.rs274.errors import RS274Error
-from planners.rs274.interp import Interpreter, interpret
+from planners.paths.gcode.rs274.canon import CanonEvent, CanonMove, CanonProgram
+from planners.paths.gcode.rs274.errors import RS274Error
+from planners.paths.gcode.rs274.interp import Interpreter, interpret
 
 __all__ = ["CanonEvent", "CanonMove", "CanonProgram", "Interpreter", "RS274Error", "interpret"]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from planners.rs274.errors import LineError
+from planners.paths.gcode.rs274.errors import LineError
 
 TOLERANCE_EQUAL = 1e-6     # interp_internal.hh: EQ/NE/GE/LE compare within this
 

@@ -22,16 +22,16 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from planners.rs274.canon import CanonEvent, CanonMove, CanonProgram
-from planners.rs274.errors import RS274Error
-from planners.rs274.reference import HERE, SYSTEM_PYTHON, available
+from planners.paths.gcode.rs274.canon import CanonEvent, CanonMove, CanonProgram
+from planners.paths.gcode.rs274.errors import RS274Error
+from planners.paths.gcode.rs274.reference import HERE, SYSTEM_PYTHON, available
 
 _CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
 _MOTION = ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED")
 # canon calls that end a G64 Q chain (emccanon.cc flush_segments) without being an event here
 _FLUSH = ("SET_FEED_RATE", "SET_SPINDLE_SPEED", "SET_MOTION_CONTROL_MODE", "SET_G5X_OFFSET",
           "SET_G92_OFFSET", "USE_TOOL_LENGTH_OFFSET")
-# canon call → (event kind, value) as planners.rs274 records the M code, dwell, tool or message
+# canon call → (event kind, value) as planners.paths.gcode.rs274 records the M code, dwell, tool or message
 _EVENTS = {"START_SPINDLE_CLOCKWISE": ("m", 3), "START_SPINDLE_COUNTERCLOCKWISE": ("m", 4),
            "STOP_SPINDLE_TURNING": ("m", 5), "MIST_ON": ("m", 7), "FLOOD_ON": ("m", 8),
            "FLOOD_OFF": ("m", 9), "PROGRAM_STOP": ("m", 0), "OPTIONAL_PROGRAM_STOP": ("m", 1),

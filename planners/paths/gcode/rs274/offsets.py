@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import math
 
-from planners.rs274.codes import AXES, MM_PER_INCH
-from planners.rs274.errors import LineError
+from planners.paths.gcode.rs274.codes import AXES, MM_PER_INCH
+from planners.paths.gcode.rs274.errors import LineError
 
 
 class Offsets:

@@ -3,7 +3,7 @@ convert_control_functions, where a sub/call/return/if/while/do/repeat/break/cont
 the program counter of the current frame (the jump targets are found once by owords.SourceFile)."""
 from __future__ import annotations
 
-from planners.rs274.errors import LineError
+from planners.paths.gcode.rs274.errors import LineError
 
 MAX_CALL_DEPTH = 50
 

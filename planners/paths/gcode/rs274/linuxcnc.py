@@ -9,7 +9,7 @@ machine coordinates (mm), converted as AXIS's glcanon does: rotate X/Y by the XY
 then add the G5x, G92 and tool offsets. The interpreter calls back in inches (gcodemodule
 reports every length in inches), so lengths are multiplied by 25.4.
 
-    /usr/bin/python3 planners/rs274/linuxcnc.py PROGRAM.ngc [--tool-table FILE] [--start X,Y,Z]
+    /usr/bin/python3 planners/paths/gcode/rs274/linuxcnc.py PROGRAM.ngc [--tool-table FILE] [--start X,Y,Z]
       → {"kind": "rapid"|"feed"|"arc"|"dwell"|"mcode"|..., "line": N, ...} per line, then
         {"kind": "end", "result": CODE, "line": N, "error": TEXT|null}
 """

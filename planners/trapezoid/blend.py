@@ -1,4 +1,4 @@
-"""LinuxCNC 2.9's blend arcs, one corner at a time, for the queue model (planners.tp_queue).
+"""LinuxCNC 2.9's blend arcs, one corner at a time, for the queue model (planners.trapezoid.queue).
 
 Follows tp.c ``tpCreateLineLineBlend`` / ``tpCreateLineArcBlend`` / ``tpCreateArcLineBlend``
 (source read at LinuxCNC commit f1270d6ed7): blendmath.c ``blendInit3FromLineLine``,
@@ -6,7 +6,7 @@ Follows tp.c ``tpCreateLineLineBlend`` / ``tpCreateLineArcBlend`` / ``tpCreateAr
 ``blendCheckConsume``; ``blendInit3FromLineArc`` / ``blendInit3FromArcLine`` and
 ``blendLineArcPostProcess`` / ``blendArcLinePostProcess`` for a line↔arc corner.
 Each function returns a :class:`Blend` (or None: no blend arc, LinuxCNC then chooses a
-parabolic or tangent junction) without changing the segments; planners.tp_queue connects it.
+parabolic or tangent junction) without changing the segments; planners.trapezoid.queue connects it.
 Arc↔arc corners follow ``tpCreateArcArcBlend`` (``blendInit3FromArcArc``,
 ``blendArcArcPostProcess``). Not followed: blendmath.c ``checkTangentAngle`` (exact circles
 pass it) and helices (no blend arc: LinuxCNC's coplanarity test refuses nearly all of them).
@@ -132,7 +132,7 @@ def _check_consume(b: Blend, prev, rest: float, T: float) -> None:
     """blendmath.c blendCheckConsume: a previous line left shorter than GAP_CYCLES periods at
     the blend's speed is taken into the blend segment, unless a parabolic blend ends in it
     (tc.c tcCanConsume; its synced I/O and spindle-at-speed conditions are not modelled)."""
-    from planners.tp_queue import GAP_CYCLES
+    from planners.trapezoid.queue import GAP_CYCLES
     b.consume = prev.kind == "line" and not prev.blend_prev and rest / b.v_plan < GAP_CYCLES * T
     b.line_length = rest if b.consume else 0.0
 

@@ -1,5 +1,5 @@
-"""trapezoid on a G-code program: LinuxCNC's motion queue (planners.tp_queue) run cycle by cycle
-(planners.tp_run), and the geometry the tool follows.
+"""trapezoid on a G-code program: LinuxCNC's motion queue (planners.trapezoid.queue) run cycle by cycle
+(planners.trapezoid.cycle), and the geometry the tool follows.
 
 The geometry is the queue's segments laid end to end (lines, circles, blend arcs with the
 line they consumed); a parabolic blend (tp.c ``tpDoParabolicBlending``) moves the tool by the
@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 
-from planners import tp_queue as Q
+from planners.trapezoid import queue as Q
 from planners.paths.base import norm3
 from planners.paths.segments import Arc, Line
-from planners.tp_run import simulate
+from planners.trapezoid.cycle import simulate
 
 TINY = 1e-9                  # mm: a piece or polyline step shorter than this is dropped
 

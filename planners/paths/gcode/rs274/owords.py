@@ -3,8 +3,8 @@
 O number or name, as rs274ngc's control blocks do."""
 from __future__ import annotations
 
-from planners.rs274.errors import LineError, RS274Error
-from planners.rs274.tokens import percent_lines, tokenise
+from planners.paths.gcode.rs274.errors import LineError, RS274Error
+from planners.paths.gcode.rs274.tokens import percent_lines, tokenise
 
 
 class SourceFile:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from planners.rs274.errors import LineError
+from planners.paths.gcode.rs274.errors import LineError
 
 MM_PER_INCH = 25.4
 # G codes (×10, as interp_read.cc's read_g) → modal group

@@ -11,8 +11,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from planners.rs274.errors import LineError
-from planners.rs274.expr import Reader
+from planners.paths.gcode.rs274.errors import LineError
+from planners.paths.gcode.rs274.expr import Reader
 
 # the common CAM line: an optional leading N, then words of the letters in LETTERS (no O,
 # @ or ^) with plain numbers; the letters are checked here rather than word by word after it

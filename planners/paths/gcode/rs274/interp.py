@@ -15,17 +15,17 @@ from __future__ import annotations
 import math
 from pathlib import Path as FsPath
 
-from planners.rs274 import expr as X
-from planners.rs274.canon import CanonEvent, CanonMove, CanonProgram
-from planners.rs274.codes import (AXES, MM_PER_INCH, check_axis_words, check_other_codes, g_groups, m_groups,
+from planners.paths.gcode.rs274 import expr as X
+from planners.paths.gcode.rs274.canon import CanonEvent, CanonMove, CanonProgram
+from planners.paths.gcode.rs274.codes import (AXES, MM_PER_INCH, check_axis_words, check_other_codes, g_groups, m_groups,
                                   read_words)
-from planners.rs274.errors import LineError, RS274Error
-from planners.rs274.flow import Flow, Frame
-from planners.rs274.modal import Modal
-from planners.rs274.motion import Motion
-from planners.rs274.offsets import Offsets
-from planners.rs274.owords import SourceFile
-from planners.rs274.params import Parameters
+from planners.paths.gcode.rs274.errors import LineError, RS274Error
+from planners.paths.gcode.rs274.flow import Flow, Frame
+from planners.paths.gcode.rs274.modal import Modal
+from planners.paths.gcode.rs274.motion import Motion
+from planners.paths.gcode.rs274.offsets import Offsets
+from planners.paths.gcode.rs274.owords import SourceFile
+from planners.paths.gcode.rs274.params import Parameters
 
 DEFAULT_MAX_LOOPS = 1_000_000
 

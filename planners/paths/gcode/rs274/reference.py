@@ -1,4 +1,4 @@
-"""Compare the interpreter with LinuxCNC's own (planners/rs274/linuxcnc.py under the system
+"""Compare the interpreter with LinuxCNC's own (planners/paths/gcode/rs274/linuxcnc.py under the system
 Python that has LinuxCNC's ``gcode`` module): the tests' reference, and ``--reader linuxcnc``."""
 from __future__ import annotations
 
@@ -144,9 +144,9 @@ def _diff(a, b, tol):
 
 
 if __name__ == "__main__":
-    # python -m planners.rs274.reference FILE…: compare each, one line per program
-    from planners.rs274 import RS274Error, interpret
-    from planners.rs274.interp import _read_text
+    # python -m planners.paths.gcode.rs274.reference FILE…: compare each, one line per program
+    from planners.paths.gcode.rs274 import RS274Error, interpret
+    from planners.paths.gcode.rs274.interp import _read_text
     for f in sys.argv[1:]:
         try:
             ref, end = linuxcnc_moves(f)

@@ -1,0 +1,231 @@
+"""`pso` — feed profile optimised by particle swarm (Erwinski, Szczepanski, Tarczewski,
+IOP Conf. Ser. MSE 1140, 2021: a B-spline feed searched by PSO; extended to a delta's joints as
+planned in Erwinski et al., NU·ROBOTI·FTS 2022, shared/SOURCES.md §A), memetic: a local
+convex polish after the swarm.
+
+Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations): joint v, a, j
+limits, F_max and the chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at
+T added to the continuous jerk.
+
+Parametrisation (feed.py): per rest-to-rest piece w = ṡ^{3/2} as a cubic B-spline over arc
+length, its knots placed by the limits (equal steps of the jerk-free optimum's time), so the
+swarm's dimension follows the path and its limits, never a seed profile's segments or switch
+times, and nothing is chosen per path.
+
+Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
+the stations the block moves; the context (every block's best) stays within the limits at the
+stations.  It starts from the better of two fits made feasible by local scaling: the jerk-free
+optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.  Where its samples at T read above a
+limit, the limit is held lower at the stations there and the swarm goes on (_search).
+
+Polish: the TOPP3-SOCP (topp3.py), linearised on each piece around the larger of the swarm's
+and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2 solves; a first
+solve within lin_tol of that reference's time ends them), then checked and repaired at T like
+`optimal`'s.  ``polish=False`` leaves it out.  The swarm's, the polished and the seed's times
+are in info (``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
+
+Returned: the fastest of the polished profile, the swarm's and the seed, each checked at T
+(joint limits and F_max), so `pso` is never slower than its seed (info["returned"]).  The
+swarm's own profile is sampled from the exact time map of its spline (span.py) and stretched
+per piece by what its samples at T read above a limit.
+
+Deterministic: ``seed`` drives every random number, the iteration count ends the search (an
+optional wall-clock ``time_budget_s`` would make the result depend on the machine: off by
+default, reported in info["stopped_by"] when it ends the search).
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from planners.constraints import PlanningError, check_limits, check_path
+from planners.profile import Profile
+from planners.optimal import topp3
+from planners.pso.feed import FeedSpline
+from planners.pso.span import FeedSpan
+from planners.pso.swarm import BlockSwarm
+
+__all__ = ["plan"]
+
+SWARM_REPAIRS = 4          # rounds of tightening where the swarm's samples at T read above a limit
+REPAIR_ITERATIONS = 10     # swarm iterations after each
+# a repair whose context takes this many times the last one's time stops the repairs: the
+# tightened limits made a stretch crawl (a G1 join's read at T the station rows do not follow)
+COLLAPSE = 2.0
+
+
+def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 40,
+         margin: float = 0.002, spread: float = 0.05, polish: bool = True, grid_mm: float = 0.1,
+         polish_linearisations: int = 2, time_budget_s: float | None = None, seed_profile=None) -> Profile:
+    """PSO-optimised feed (module docstring): ``particles`` per block swarm, ``iterations`` of
+    every swarm, limits held at the stations to 1 − ``margin`` during the search; the polish
+    (``polish``) at most ``polish_linearisations`` SOCP solves a piece before its repairs."""
+    from planners.scurve import plan_joint
+    from planners.verify import command_metrics
+
+    t0 = time.perf_counter()
+    limits = machine.limits if limits is None else limits
+    check_limits(limits, "pso")
+    check_path(path, "pso")
+    if particles < 2 or iterations < 0:
+        raise PlanningError(f"pso: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
+    T = machine.servo_period_s
+    rng = np.random.default_rng(seed)
+    settings = topp3.Settings("pso", grid_mm, max_linearisations=polish_linearisations)
+    pieces = topp3.pieces_of(path, machine, limits, settings)
+    seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
+
+    feeds, starts, started_from = [], [], []
+    for p in pieces:
+        feed = FeedSpline(p, margin)
+        # each fit made feasible locally, or else by a uniform stretch
+        cands = {}
+        for name, sd in (("topp2_ra", np.sqrt(feed.a_ra)), ("seed", _seed_feed(seed_prof, p))):
+            c = feed.fit(sd)
+            cands[name] = _first_not_none(feed.start_locally(c), feed.scaled_within(c))
+        name = min(cands, key=lambda k: feed.time(cands[k]) if feed.within(cands[k]) else np.inf)
+        feeds.append(feed)
+        starts.append(cands[name] if feed.within(cands[name]) else None)
+        started_from.append(name)
+    no_start = [p.where() for p, c in zip(pieces, starts) if c is None]
+    swarm_prof, spans, progress, repairs = (None, None, _Progress(t0, None, time_budget_s), []) if no_start else \
+        _search(feeds, starts, rng, particles, spread, iterations, time_budget_s, t0, T, path, machine, limits,
+                10 * seed_prof.execution_time_s)
+    history = progress.history
+    info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
+            "stopped_by": progress.stopped_by, "control_points": [f.K for f in feeds],
+            "started_from": started_from, "start_time_s": None if no_start else progress.history[0][1] * pieces[0].tu,
+            "seed_time_s": float(seed_prof.execution_time_s), "swarm_repairs": repairs,
+            **({"swarm": f"no start within the limits on {', '.join(no_start)}"} if no_start else {}),
+            "history": [[h[0], h[1] * pieces[0].tu] for h in history[:: max(1, len(history) // 50)] + history[-1:]
+                        if h[1] is not None]}
+    info["swarm_time_s"] = swarm_prof.execution_time_s if swarm_prof is not None else None
+    info["swarm_planning_s"] = time.perf_counter() - t0
+    candidates = [("swarm", swarm_prof)] if swarm_prof is not None else []
+    if polish:
+        # linearised around the larger of the swarm's and the seed's ṡ² at each station: the
+        # tangent rows hold the limits around any reference, and they allow at most 3 × its ṡ²
+        # in one solve, so a reference further below the optimum costs linearisations
+        info["polish_reference"] = "seed and swarm" if spans else "seed"
+        for k, p in enumerate(pieces):
+            p.reference = _seed_feed(seed_prof, p) ** 2
+            if spans:
+                p.reference = np.maximum(p.reference, spans[k].a_at_stations())
+        try:
+            pol = topp3.solve(path, machine, limits, settings, pieces)
+            info["polished_time_s"] = pol.execution_time_s
+            candidates.append(("polished", pol))
+        except PlanningError as e:
+            info["polish"] = str(e)
+    candidates.append(("seed", seed_prof))
+    ok = []
+    for name, prof in candidates:
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0.0) <= 1 + 1e-6:
+            ok.append((prof.execution_time_s, name, prof))
+    if not ok:
+        raise PlanningError("pso: neither the swarm's, the polished nor the seed's profile is within the limits at T"
+                            + "".join(f"; {k}: {info[k]}" for k in ("swarm", "polish") if k in info))
+    _, name, best = min(ok, key=lambda x: x[:2])
+    prof = dataclasses.replace(best, planner="pso", info=dict(best.info, **info, returned=name))
+    prof.planning_time_s = time.perf_counter() - t0
+    return prof
+
+
+def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, path, machine, limits, too_slow):
+    """(the swarm's profile or None, its spans, the progress, the repairs' windows): the swarm
+    from ``starts``, its iterations, then its repairs at T (below).  A profile slower than
+    ``too_slow`` (10 × the seed's time) is no candidate: sampling it would only cost memory."""
+    swarms = [BlockSwarm(f, c, rng, particles, spread) for f, c in zip(feeds, starts)]
+    progress = _Progress(t0, _total(swarms), budget)
+    progress.run(swarms, iterations)
+    tu = feeds[0].piece.tu
+    # the swarm's limits hold at the stations; where its samples at T read above one, the
+    # limit is held lower at the stations there and the swarm goes on from its context made
+    # feasible again (as topp3 repairs its SOCP).  The swarm's profile: the faster of the one
+    # before the repairs, stretched per piece by its excess at T, and the one after them.
+    repairs, found = [], []
+    for rnd in range(SWARM_REPAIRS + 1):
+        spans = [FeedSpan(f, sw.c, k) for k, (f, sw) in enumerate(zip(feeds, swarms))]
+        if sum(sp.duration for sp in spans) > too_slow:
+            break
+        at_T = Profile.from_pieces("pso", T, spans, path)
+        above = topp3.reads_above(at_T, machine, path, limits)
+        if not above or rnd == SWARM_REPAIRS:
+            found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
+            break
+        if rnd == 0:
+            found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
+        for col, i, width, ratio in above:
+            lo, hi = at_T.s[i], at_T.s[min(i + width, len(at_T.s) - 1)]
+            for f in feeds:
+                if f.piece.s0 <= hi and f.piece.s1 >= lo:
+                    f.tighten(col, lo, hi, ratio, topp3.TIGHTEN_EXTRA * 2 ** rnd)
+        again = [sw.feed.start_locally(sw.c) for sw in swarms]
+        if any(c is None for c in again) or \
+                sum(sw.feed.time(c) for sw, c in zip(swarms, again)) > COLLAPSE * _total(swarms):
+            break       # no context within the tightened limits, or one that collapsed somewhere
+        repairs.append(len(above))
+        for sw, c in zip(swarms, again):
+            sw.c = c
+        progress.run(swarms, REPAIR_ITERATIONS)
+    found = [(prof, sp) for prof, sp in found if prof is not None]
+    prof, spans = min(found, key=lambda x: x[0].execution_time_s) if found else (None, spans)
+    return prof, spans, progress, repairs
+
+
+class _Progress:
+    """The swarms' iterations: the best total after each (``history``: (seconds since t0, scaled
+    time)), and what stopped them."""
+
+    def __init__(self, t0, start, budget):
+        self.t0, self.budget = t0, budget
+        self.history, self.stopped_by = [(0.0, start)], "iterations"
+
+    def run(self, swarms, iterations):
+        for _ in range(iterations):
+            if self.budget is not None and time.perf_counter() - self.t0 > self.budget:
+                self.stopped_by = "time budget"
+                return
+            for sw in swarms:
+                sw.step()
+            self.history.append((round(time.perf_counter() - self.t0, 4), _total(swarms)))
+
+
+def _first_not_none(*xs):
+    return next(x for x in xs if x is not None)
+
+
+def _total(swarms) -> float:
+    """The swarms' contexts' time in scaled time (their own station model)."""
+    return float(sum(sw.feed.time(sw.c) for sw in swarms))
+
+
+def _seed_feed(seed_prof, piece):
+    """The seed's feed (scaled time) at the piece's stations."""
+    return np.interp(piece.grid, seed_prof.s, seed_prof.sd) * piece.tu
+
+
+def _stretched_at_T(spans, T, path, machine, limits, too_slow):
+    """The spans sampled at T, each rest-to-rest piece stretched by the worst need of its samples
+    (planners.verify.stretch_need), up to 8 times; None if still above a limit or slower than
+    ``too_slow``."""
+    from planners.verify import command_metrics, stretch_need
+    for _ in range(8):
+        if sum(sp.duration for sp in spans) > too_slow:
+            return None
+        prof = Profile.from_pieces("pso", T, spans, path)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
+            return prof
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
+        starts = np.concatenate([[0.0], np.cumsum([sp.duration for sp in spans])])
+        g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(spans) - 1)
+        worst = np.zeros(len(spans))
+        np.maximum.at(worst, g, need)
+        for sp, w in zip(spans, worst):
+            if w > 1.0:
+                sp.lam *= w * (1 + 1e-4)
+    return None
