@@ -71,7 +71,7 @@ class Row:
     def own_limits_ok(self) -> bool | None:
         """Within every limit the planner declares it keeps (planners.registry.guarantees);
         None when it declares none (trapezoid, linuxcnc: nothing they keep was measured)."""
-        from planners import registry
+        from planners import registry   # planners load on first use (`pkmbench --help` stays fast)
         g = registry.guarantees(self.planner)
         if not g:
             return None
@@ -200,7 +200,7 @@ def run_corpus(selection: list[tuple[dict, list[str]]], progress=None, seeds: in
     comparable), a stochastic planner once per seed 0 … seeds − 1. A path that cannot be
     loaded gives one failed row per planner."""
     from kins import load_machine
-    from planners import registry
+    from planners import registry   # planners load on first use (`pkmbench --help` stays fast)
     from planners.paths import resolve_path
 
     rows, machines = [], {}

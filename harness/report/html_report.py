@@ -18,6 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from harness import perfprofile
+from harness.corpus.analysis import load_reference, reference_for
+from harness.report.sweep_report import t_ref_cell
+
 TABLE_HEAD_COLOUR = "#1f3b5c"    # tests/test_html_report.py finds the table in a screenshot by it
 MAX_POINTS = 1500                # per trace: the report stays a few MB
 TREND_METRICS = ("execution_time_s", "joint_peak_ratio.jerk", "planning_time_ratio")
@@ -50,7 +54,6 @@ def _profile_runs(rows: list[dict], worst: bool | None = None):
 
 def _references(rows: list[dict]) -> dict:
     """case → T_reference_s of the cases whose path is a corpus path on its machine."""
-    from harness.corpus.analysis import load_reference, reference_for
     ref = load_reference()
     out = {}
     for r in rows:
@@ -145,32 +148,35 @@ def _comparison(doc: _Doc, rows, groups, reference: str) -> None:
                  f"|derivative| / limit on the commanded joints (feasible ⇔ all ≤ 1). ÷ best: execution "
                  f"time over the fastest planner's on the same case; ÷ {html.escape(reference)}: over "
                  f"{html.escape(reference)}'s.</p>")
-    cols = ["planner", "seed", "execution time s", "÷ best", f"÷ {reference}", "feasible", "joint v", "joint a",
+    cols = ["planner", "seed", "execution time s", "÷ best", f"÷ {reference}", "÷ T_ref", "feasible", "joint v", "joint a",
             "joint j", "following µm", "contour µm", "planning s", "status"]
     parts.append("<h2>Comparison</h2>")
+    refs = load_reference()
     for key in sorted(groups):
+        t_ref = reference_for(key[0], key[1], refs)
         rs = sorted(groups[key], key=lambda r: (r["planner"], r["seed"]))
         t = {(r["seed"], r["planner"]): r["metrics"]["execution_time_s"] for r in rs if r["status"] == "ok"}
         parts.append(f"<h3>{html.escape(' / '.join(map(str, key)))}</h3><table class='comparison'><tr>"
                      + "".join(f"<th>{html.escape(c)}</th>" for c in cols) + "</tr>")
         for r in rs:
-            cells = _cells(r, t, reference)
+            cells = _cells(r, t, reference, t_ref)
             cls = " class='bad'" if r["status"] != "ok" or not (r["metrics"] or {}).get("feasible") else ""
             parts.append(f"<tr{cls}>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
         parts.append("</table>")
 
 
-def _cells(r, t: dict, reference: str) -> list[str]:
-    """One run's table cells; ``t``: (seed, planner) → execution time of the case's ok runs."""
+def _cells(r, t: dict, reference: str, t_ref=None) -> list[str]:
+    """One run's table cells; ``t``: (seed, planner) → execution time of the case's ok runs;
+    ``t_ref``: (T_reference_s, error_s) of a corpus path."""
     if r["status"] != "ok":
-        return [r["planner"], str(r["seed"])] + ["—"] * 10 + [f"FAILED: {r['error']}"]
+        return [r["planner"], str(r["seed"])] + ["—"] * 11 + [f"FAILED: {r['error']}"]
     m = r["metrics"]
     jp = m.get("joint_peak_ratio", {})
     et = m["execution_time_s"]
     best = min(v for (sd, _), v in t.items() if sd == r["seed"])
     ref = t.get((r["seed"], reference))
     return [r["planner"], str(r["seed"]), _f(et), _f(et / best, "{:.3f}"),
-            _f(et / ref if ref else None, "{:.3f}"), "yes" if m.get("feasible") else "NO",
+            _f(et / ref if ref else None, "{:.3f}"), t_ref_cell(et, t_ref), "yes" if m.get("feasible") else "NO",
             _f(jp.get("velocity"), "{:.3f}"), _f(jp.get("acceleration"), "{:.3f}"),
             _f(jp.get("jerk"), "{:.3f}"), _f(m.get("max_following_error_um")),
             _f(m.get("max_contour_error_um")), _f(m.get("planning_time_s"), "{:.3g}"), "ok"]
@@ -182,7 +188,6 @@ def _profile_section(doc: _Doc, rows) -> None:
     several seeds per case as the ECDF of its runs, its best-to-worst-seed band shaded."""
     import plotly.graph_objects as go
 
-    from harness import perfprofile
     ref = _references(rows)
     runs = _profile_runs(rows)
     cases = list(dict.fromkeys(c for c, _, _ in runs))

@@ -55,10 +55,10 @@ from planners.constraints import (JUMP_READ_FACTOR, PathTable, breakpoints, corn
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
-VERSION = 4                    # bump when the transcription changes: every cached entry is redone
+VERSION = 5                    # bump when the transcription changes: every cached entry is redone
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
-LEVELS = 4
+LEVELS = 3
 SLOW_FRACTION = 0.25           # a break whose speed cap is below this part of F_max is graded like a stop
 TURN_RAD = 0.1                 # level 0: a node at least every 0.1 rad of turn
 SIDE = 1e-7                    # mm: one-sided derivatives either side of a join or knot
@@ -80,7 +80,7 @@ def curvature_peaks(path, s0, s1, step=0.02):
 
 class Map:
     """The monotone map σ ∈ [0, n] → s of one rest piece: nodes at σ = k/2^level, ``breaks`` at
-    integer σ. Monitor w(s) = 1/h + κ/TURN_RAD, and around each of ``slow`` (the rest ends and
+    integer σ. Monitor w(s) = 1/h + (κ + √|P‴|)/TURN_RAD, and around each of ``slow`` (the rest ends and
     the G1 joins and the points where the speed cap falls low) the grading (ℓ/d)^(2/3)/h within ℓ
     of it (ℓ at most half the way to the next): near a stop ṡ ∝ d^(2/3), which these nodes
     (d ∝ σ³) resolve as smoothly as the rest, and a join's read uses the one-sided da/ds of the
@@ -107,7 +107,10 @@ class Map:
             near = [c + sg * e * cube for c, e in zip(centres, ells) if a - e <= c <= b + e for sg in (-1, 1)]
             x = np.unique(np.clip(np.concatenate([np.linspace(a, b, m)] + near), a, b))
             inner = np.clip(x, a + SIDE, b - SIDE) if b - a > 4 * SIDE else x
-            w = 1.0 / h + path.curvature(inner) / TURN_RAD
+            # turn per node, and the length scale of the curvature's change (1/√|P‴|, as the
+            # planners' tables use): a lobe whose curvature grows 80-fold in 1.6 mm gets its nodes
+            _, _, P2, P3 = path.derivs(inner)
+            w = 1.0 / h + (np.linalg.norm(P2, axis=1) + np.sqrt(np.linalg.norm(P3, axis=1))) / TURN_RAD
             M = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(x))])
             M = M + G(x) - G(a)
             n = max(3, int(math.ceil(M[-1] - 1e-9)))
