@@ -320,17 +320,21 @@ def refine_warm(v, a, n_fine):
 
 # --- a path -------------------------------------------------------------------------------
 def richardson(T):
-    """(T*, error, order p) from the times of nested grids (each halving the cells)."""
+    """(T*, error, order p) from the times of nested grids (each halving the cells): per triple
+    the observed order p = log2(d1/d2) and T* = T₃ + d₂/(2^p − 1); the bar is the larger of the
+    last correction |T* − T₃| and the change of T* from the triple before. A triple whose
+    differences change sign or grow has no order (p NaN): T* = T₃ with the bar max(|d₁|, |d₂|)."""
     if len(T) < 3:
         return T[-1], abs(T[-1] - T[-2]) if len(T) > 1 else math.inf, math.nan
     est = []
     for t0, t1, t2 in zip(T[:-2], T[1:-1], T[2:]):
         d1, d2 = t1 - t0, t2 - t1
-        p = math.log2(d1 / d2) if d1 * d2 > 0 and abs(d1) > abs(d2) else 1.0
-        p = min(max(p, 0.5), 4.0)
-        est.append((t2 + d2 / (2 ** p - 1), p))
-    Ts, p = est[-1]
-    err = abs(Ts - T[-1])
+        if d1 * d2 > 0 and abs(d1) > abs(d2):
+            p = min(math.log2(d1 / d2), 4.0)
+            est.append((t2 + d2 / (2 ** p - 1), p, abs(d2 / (2 ** p - 1))))
+        else:
+            est.append((t2, math.nan, max(abs(d1), abs(d2))))
+    Ts, p, err = est[-1]
     if len(est) > 1:
         err = max(err, abs(Ts - est[-2][0]))
     return Ts, err, p
@@ -387,7 +391,7 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
         if log:
             log(f"  level {level}: {nodes} nodes T = {total:.9f} s ({g['solve_s']} s CPU, {iters} it)")
     Ts, err, p = richardson([g["T_s"] for g in grids])
-    return {"T_reference_s": Ts, "error_s": err, "order": p, "grids": grids,
+    return {"T_reference_s": Ts, "error_s": err, "order": None if math.isnan(p) else p, "grids": grids,
             "check_at_T": check_at_T(path, machine, prof)}
 
 
@@ -473,7 +477,10 @@ def main(argv=None):
         key = entry_key(e)
         old = data["paths"].get(e["name"])
         if old and old.get("key") == key and not args.force:
-            print(f"{e['name']}: cached T_ref = {old['T_reference_s']:.6f} ± {old['error_s']:.2g} s")
+            # the extrapolation is arithmetic on the stored study: redone, never stale
+            Ts, err, p = richardson([g["T_s"] for g in old["grids"]])
+            old.update(T_reference_s=Ts, error_s=err, order=None if math.isnan(p) else p)
+            print(f"{e['name']}: cached T_ref = {Ts:.6f} ± {err:.2g} s")
             continue
         m = machines.get(e["machine"]) or machines.setdefault(e["machine"], load_machine(e["machine"]))
         path = resolve_path(str(HERE / e["file"]), home=m.home)
@@ -490,9 +497,11 @@ def main(argv=None):
         data["paths"] = dict(sorted(data["paths"].items()))
         write(data, args.out)
         c = r["check_at_T"]
-        print(f"{e['name']}: T_ref = {r['T_reference_s']:.6f} ± {r['error_s']:.2g} s (order {r['order']:.2f}); "
+        print(f"{e['name']}: T_ref = {r['T_reference_s']:.6f} ± {r['error_s']:.2g} s (order {r['order']}); "
               f"finest at T: {c['execution_time_s']:.6f} s, joint v/a/j {c['joint_peak_ratio']} "
               f"({r['cpu_s']} s CPU)", flush=True)
+    data["paths"] = dict(sorted(data["paths"].items()))
+    write(data, args.out)
     return 0
 
 
