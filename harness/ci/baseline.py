@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import platform
 import time
 from dataclasses import dataclass
 from xml.sax.saxutils import escape, quoteattr
@@ -132,12 +131,6 @@ def reference_workload_s(repeat: int = 5, stat: str = "min") -> float:
         np.linalg.solve(A, b)
         times.append(time.perf_counter() - t0)
     return min(times) if stat == "min" else sum(times) / len(times)
-
-
-def host_info() -> dict:
-    import os
-    return {"node": platform.node(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "python": platform.python_version(), "numpy": np.__version__}
 
 
 # -- the CI task wrapper (runs on the workers) ---------------------------------------------

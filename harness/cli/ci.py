@@ -20,6 +20,7 @@ from pathlib import Path
 
 from harness.cli import CliError
 from harness.outdir import output_dir, output_file
+from harness.provenance import host_info
 from kins.resources import BASELINE, CI_DIR, SUITE_DIR, repo_relative
 
 
@@ -182,7 +183,7 @@ def _update_baseline(args, baseline_file: Path, task_fn: str, version: str, refe
         print(f"ci: {len(errors)} task(s) failed; baseline NOT updated")
         return ci.compare({"entries": entries}, entries, errors, tolerances), False
     doc = {"format": ci.FORMAT, "suite": args.suite, "task_fn": task_fn,
-           "code_version": version, "reference_s": reference_s, "host": ci.host_info(),
+           "code_version": version, "reference_s": reference_s, "host": host_info(),
            "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
            "entries": entries}
     baseline_file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
