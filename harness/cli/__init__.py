@@ -10,6 +10,7 @@ import importlib
 import math
 import sys
 
+from harness.outdir import OutDirError
 from harness.provenance import git_commit, package_version
 
 DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics machines through FMI "
@@ -98,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     mod = modules[args.command]
     try:
         return int(mod.main(args) or 0)
-    except CliError as e:
+    except (CliError, OutDirError) as e:
         print(f"pkmbench {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
