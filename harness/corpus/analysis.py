@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from harness import perfprofile
-from harness.corpus.run import CORPUS_DIR, Row
+from harness.corpus.run import CORPUS_DIR, CorpusError, Row, load_manifest
 
 REFERENCE = CORPUS_DIR / "reference.json"
 
@@ -43,7 +43,6 @@ def load_reference(file=REFERENCE) -> dict[str, tuple[float, float]]:
 def reference_for(machine: str, path: str, reference: dict | None = None) -> tuple[float, float] | None:
     """(T_reference_s, error_s) of a sweep's or a report's (machine, path) when the path is a
     corpus path (its file stem a manifest name) on its own machine, else None."""
-    from harness.corpus.run import CorpusError, load_manifest
     name = Path(str(path)).stem
     reference = load_reference() if reference is None else reference
     if name not in reference:
@@ -53,6 +52,15 @@ def reference_for(machine: str, path: str, reference: dict | None = None) -> tup
     except CorpusError:
         return None
     return reference[name] if machines.get(name) == machine else None
+
+
+def reference_cell(T, ref) -> str:
+    """A table cell: T / T_reference ± the reference's error bar (as a ratio); '—' without
+    a reference or a time."""
+    if not ref or not T:
+        return "—"
+    q = T / ref[0]
+    return f"{q:.4f} ± {q * ref[1] / ref[0]:.1g}"
 
 
 def counts(r: Row) -> bool:

@@ -20,7 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
+from harness.sweep.suite import SuiteError, suite_runs
+from kins import load_machine
 from kins.resources import REPO
+from planners import registry
+from planners.paths import resolve_path
+from planners.verify import command_metrics, within
 
 CORPUS_DIR = REPO / "benchmarks" / "paths" / "corpus"
 MANIFEST = CORPUS_DIR / "manifest.json"
@@ -28,7 +34,6 @@ FAST_PLANNERS = ("trapezoid", "scurve", "scurve_joint")
 # --quick: one small path per machine × the fast planners (the part `make test` runs)
 QUICK_PATHS = ("rand_planar_kossel", "rand_3d_weights_keops", "contour_lcnc")
 SEEDS = 10                  # runs of a stochastic planner per path (issue 32: a distribution)
-TOL = 1e-6                  # planners.verify.FEASIBLE_TOL: a ratio ≤ 1 + 1e-6 is within its limit
 
 
 class CorpusError(ValueError):
@@ -71,13 +76,12 @@ class Row:
     def own_limits_ok(self) -> bool | None:
         """Within every limit the planner declares it keeps (planners.registry.guarantees);
         None when it declares none (trapezoid, linuxcnc: nothing they keep was measured)."""
-        from planners import registry   # planners load on first use (`pkmbench --help` stays fast)
         g = registry.guarantees(self.planner)
         if not g:
             return None
         if self.status != "ok":
             return False
-        return all(self.ratio(space, o) <= 1 + TOL for space, orders in g.items() for o in orders)
+        return all(within(self.ratio(space, o)) for space, orders in g.items() for o in orders)
 
     @property
     def joint_worst(self) -> float:
@@ -123,7 +127,6 @@ def entries_from_suite(file) -> list[tuple[dict, list[str]]]:
     described by the manifest; any other path file gets kind '-')."""
     import tomllib
 
-    from harness.sweep.suite import SuiteError, suite_runs
     try:
         text = Path(file).read_text()
         suite = tomllib.loads(text)
@@ -154,8 +157,6 @@ def finite(x) -> float:
 def run_one(entry: dict, planner: str, machine, path, seed: int | None = None) -> Row:
     """Plan ``planner`` (with ``seed`` when given) on a loaded path and check its profile;
     never raises for a planner's failure (the row carries the error)."""
-    import planners
-    from planners.verify import command_metrics
 
     row = Row(entry["name"], entry["machine"], entry.get("kind", "-"), planner, seed=seed)
     t0 = time.perf_counter()
@@ -184,11 +185,10 @@ def run_one(entry: dict, planner: str, machine, path, seed: int | None = None) -
     row.cart_v, row.cart_a, row.cart_j = (finite(c[k]) for k in ("velocity", "acceleration", "jerk"))
     row.feed = finite(c.get("feed"))
     row.feasible = bool(met["feasible"])
-    row.cartesian_feasible = bool(max(row.cart_v, row.cart_a, row.cart_j) <= 1 + TOL)
+    row.cartesian_feasible = bool(within(max(row.cart_v, row.cart_a, row.cart_j)))
     src = (prof.info or {}).get("source")
     row.source = str(src) if src is not None else ""
-    if row.source and row.source != planner and planners.registry.known(row.source) \
-            and not planners.registry.is_spec(row.source):
+    if row.source and row.source != planner and registry.known(row.source) and not registry.is_spec(row.source):
         # the profile is another planner's (a fallback): the row reports it, as that row's failure
         row.status = "fallback"
         row.error = f"{entry['name']}: returned {row.source}'s profile (info['source']), not its own"
@@ -199,9 +199,6 @@ def run_corpus(selection: list[tuple[dict, list[str]]], progress=None, seeds: in
     """Every (entry, planners) of the selection, serially (planning-time measurements stay
     comparable), a stochastic planner once per seed 0 … seeds − 1. A path that cannot be
     loaded gives one failed row per planner."""
-    from kins import load_machine
-    from planners import registry   # planners load on first use (`pkmbench --help` stays fast)
-    from planners.paths import resolve_path
 
     rows, machines = [], {}
     for entry, names in selection:

@@ -19,8 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from harness import perfprofile
-from harness.corpus.analysis import load_reference, reference_for
-from harness.report.sweep_report import t_ref_cell
+from harness.corpus.analysis import load_reference, reference_cell, reference_for
 
 TABLE_HEAD_COLOUR = "#1f3b5c"    # tests/test_html_report.py finds the table in a screenshot by it
 MAX_POINTS = 1500                # per trace: the report stays a few MB
@@ -176,7 +175,7 @@ def _cells(r, t: dict, reference: str, t_ref=None) -> list[str]:
     best = min(v for (sd, _), v in t.items() if sd == r["seed"])
     ref = t.get((r["seed"], reference))
     return [r["planner"], str(r["seed"]), _f(et), _f(et / best, "{:.3f}"),
-            _f(et / ref if ref else None, "{:.3f}"), t_ref_cell(et, t_ref), "yes" if m.get("feasible") else "NO",
+            _f(et / ref if ref else None, "{:.3f}"), reference_cell(et, t_ref), "yes" if m.get("feasible") else "NO",
             _f(jp.get("velocity"), "{:.3f}"), _f(jp.get("acceleration"), "{:.3f}"),
             _f(jp.get("jerk"), "{:.3f}"), _f(m.get("max_following_error_um")),
             _f(m.get("max_contour_error_um")), _f(m.get("planning_time_s"), "{:.3g}"), "ok"]
