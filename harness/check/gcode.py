@@ -272,19 +272,20 @@ def _programmed(feed_mm_s) -> str:
 
 
 def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5, *,
-                  start=None, reader: str = "pkmbench") -> Report:
+                  start=None, reader: str = "pkmbench", setup=None) -> Report:
     """Check a program as ``planner`` runs it on ``machine`` (``start``: the machine position
     before it, see planners.paths.gcode.parse_gcode; default: its first positioning move or
-    the machine's home; ``reader``: the G-code interpreter, pkmbench or linuxcnc)."""
+    the machine's home; ``reader``: the G-code interpreter, pkmbench or linuxcnc; ``setup``: the
+    tool table, var file and work offsets it starts with, planners.paths.gcode.rs274.setup)."""
     from planners.paths.base import gc_paused
 
     # the cyclic GC's full passes over the 10⁵–10⁶ objects a long program makes (segments,
     # findings, planner pieces) cost ~15 % of a check; none of them needs it to be freed
     with gc_paused():
-        return _check(file, machine, planner, workspace_step_mm, start, reader)
+        return _check(file, machine, planner, workspace_step_mm, start, reader, setup)
 
 
-def _check(file, machine, planner: str, workspace_step_mm: float, start, reader: str) -> Report:
+def _check(file, machine, planner: str, workspace_step_mm: float, start, reader: str, setup=None) -> Report:
     import planners
     from planners.paths.gcode import GCodeError, program_path, read_gcode
 
@@ -296,7 +297,7 @@ def _check(file, machine, planner: str, workspace_step_mm: float, start, reader:
         raise CheckError(f"{file}: no such file")
     # 1. compile
     try:
-        prog = read_gcode(file, start, home=machine.home, reader=reader)   # a one-move program starts at home
+        prog = read_gcode(file, start, home=machine.home, reader=reader, setup=setup)   # a one-move program starts at home
     except GCodeError as e:
         rep.invalid = True
         rep.findings.append(Finding("compile", "error", [int(e.line)], None, None, "", e.message))

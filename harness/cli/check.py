@@ -2,7 +2,7 @@
 1 findings, 2 invalid program)."""
 from __future__ import annotations
 
-from harness.cli import CliError, add_gcode_arguments, parse_start
+from harness.cli import CliError, add_gcode_arguments, gcode_setup, parse_start
 
 
 def add_arguments(p):
@@ -22,7 +22,8 @@ def main(args) -> int:
 
     try:
         m = load_machine(args.machine)
-        rep = check_program(args.program, m, args.planner, start=parse_start(args.start), reader=args.reader)
+        rep = check_program(args.program, m, args.planner, start=parse_start(args.start), reader=args.reader,
+                            setup=gcode_setup(args))
     except (MachineFileError, CheckError) as e:
         raise CliError(str(e)) from None
     print(rep.to_json() if args.json else rep.text(limit=None if args.all else TEXT_LIMIT))

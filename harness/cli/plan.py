@@ -1,7 +1,7 @@
 """`pkmbench plan`: plan feed profiles only (no co-simulation), write them, print their metrics."""
 from __future__ import annotations
 
-from harness.cli import CliError, add_gcode_arguments, parse_start
+from harness.cli import CliError, add_gcode_arguments, gcode_setup, parse_start
 from harness.outdir import output_dir
 
 
@@ -15,6 +15,11 @@ def add_arguments(p):
     add_gcode_arguments(p)
     p.add_argument("--max-feed", action="store_true", help="run G-code at F_max, ignoring its F words")
     p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
+
+
+def _setup_option(args) -> dict:
+    setup = gcode_setup(args)
+    return {"setup": setup} if setup else {}
 
 
 def list_planners() -> int:
@@ -42,7 +47,8 @@ def main(args) -> int:
 
     try:
         m = load_machine(args.machine)
-        path = resolve_path(args.path, home=m.home, start=parse_start(args.start), reader=args.reader)
+        path = resolve_path(args.path, home=m.home, start=parse_start(args.start), reader=args.reader,
+                            **_setup_option(args))
     except (MachineFileError, PathError) as e:
         raise CliError(str(e)) from None
     from harness.cosim.run import feed_summary

@@ -73,13 +73,16 @@ def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None
 def run_case(machine_name: str, path_name: str, planner_names: list[str], out_dir, *, seed: int = 0,
              jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
              planner_options: dict | None = None, recordings: bool = True, progress=None,
-             max_feed: bool = False, fmus: dict | None = None, start=None, reader: str = "pkmbench") -> dict:
+             max_feed: bool = False, fmus: dict | None = None, start=None, reader: str = "pkmbench",
+             setup=None) -> dict:
     """``max_feed``: run a G-code program at F_max instead of its programmed F (planner-only
     comparisons); summary.json's ``feed`` says which. ``fmus``: {block: user .fmu} in place of
     ours (harness.cosim.blocks), checked before anything runs; summary.json's ``fmus`` names them.
     ``start``: G-code only, the machine position before the program (default: its first positioning
     move, else the machine's home; planners.paths.gcode.parse_gcode); ``reader``: G-code read by
-    pkmbench's interpreter or LinuxCNC's (summary.json names it when it is not pkmbench's)."""
+    pkmbench's interpreter or LinuxCNC's (summary.json names it when it is not pkmbench's);
+    ``setup``: G-code only, the tool table, var file and work offsets it starts with
+    (planners.paths.gcode.rs274.setup.Setup; summary.json's ``gcode_setup`` names them)."""
     from kins import load_machine
     from kins.machine import MachineFileError
     import planners
@@ -90,7 +93,8 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     except MachineFileError as e:
         raise RunError(str(e)) from None
     try:
-        path = resolve_path(path_name, home=machine.home, start=start, reader=reader)
+        path = resolve_path(path_name, home=machine.home, start=start, reader=reader,
+                            **({"setup": setup} if setup else {}))
     except PathError as e:
         raise RunError(str(e)) from None
     from planners.feed import use_max_feed
@@ -118,13 +122,13 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         with run_lock(output_dir(out_dir)):
             return _run(machine, path, path_name, planner_names, out_dir, seed=seed, jitter=jitter, ideal=ideal,
                         engine=engine, jacobi=jacobi, planner_options=planner_options, recordings=recordings,
-                        progress=progress, fmus=fmus, start=start, reader=reader)
+                        progress=progress, fmus=fmus, start=start, reader=reader, setup=setup)
     except OutDirError as e:
         raise RunError(str(e)) from None
 
 
 def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter, ideal, engine, jacobi,
-         planner_options, recordings, progress, fmus=None, start=None, reader="pkmbench") -> dict:
+         planner_options, recordings, progress, fmus=None, start=None, reader="pkmbench", setup=None) -> dict:
     """run_case's work, with the folder locked: nothing of an earlier run may look like this one's."""
     import planners
 
@@ -140,6 +144,8 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
         summary["start_mm"] = [float(v) for v in start]
     if reader != "pkmbench":
         summary["gcode_reader"] = reader
+    if setup:      # only then: the summaries of other runs keep their bytes
+        summary["gcode_setup"] = [f"{kind}: {what}" for kind, what in setup.sources]
     if fmus:   # only then: the summaries of runs with our chain keep their bytes
         summary["fmus"] = {b: str(f) for b, f in sorted(fmus.items())}
     timing = {}

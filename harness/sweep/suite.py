@@ -7,6 +7,9 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
     machine = "keops"            # or machines = [...]; an id of benchmarks/machines/ or a .toml file
     path = "bird"                # or paths = [...]; an id of benchmarks/paths/ or a .json/.ngc file
     planners = ["trapezoid", "scurve"]
+    tool_table = "my.tbl"        # optional, G-code: LinuxCNC tool table, var file (paths relative
+    var_file = "my.var"          # to the suite file) and work offsets (as --offset), see
+    offset = ["G54=0,0,-300"]    # planners/paths/gcode/rs274/setup.py
     [planner_options.pso]        # optional, passed to the planner
     iterations = 40
     [sweep]                      # optional axes, crossed with every run
@@ -40,7 +43,8 @@ CODE_DIRS = ("kins", "planners", "harness")
 
 
 TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus")
-RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed")
+RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed",
+            "tool_table", "var_file", "offset")
 
 
 class SuiteError(ValueError):
@@ -58,10 +62,12 @@ def _line_of(text: str | None, key: str) -> str:
     return ":line ?"
 
 
-def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list, bool]]:
-    """The (machines, paths, planners, max_feed) of each [[run]] table, keys checked: what
+def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list, bool, dict]]:
+    """The (machines, paths, planners, max_feed, gcode) of each [[run]] table, keys checked: what
     `pkmbench run` runs and :func:`expand` crosses with the sweep axes. ``max_feed = true`` runs
-    G-code at F_max instead of its programmed F (planner-only comparisons)."""
+    G-code at F_max instead of its programmed F (planner-only comparisons); ``gcode``: the
+    run's tool_table / var_file (Paths, relative to the suite file's folder) and offset specs,
+    {} when it has none (:func:`gcode_setup` makes them a Setup)."""
     for key in suite:
         if key not in TOP_KEYS:
             raise SuiteError(f"{src}{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(TOP_KEYS))})")
@@ -74,12 +80,50 @@ def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> li
         for key in run:
             if key not in RUN_KEYS:
                 raise SuiteError(f"{src}{_line_of(text, key)}: {where}: unknown key '{key}' "
-                                 f"(valid: machine(s), path(s), planner(s), max_feed)")
+                                 f"(valid: machine(s), path(s), planner(s), max_feed, tool_table, var_file, offset)")
         if not isinstance(run.get("max_feed", False), bool):
             raise SuiteError(f"{src}{_line_of(text, 'max_feed')}: {where}: max_feed must be true or false")
         out.append((_list(run, "machine", "machines", src, where), _list(run, "path", "paths", src, where),
-                    _list(run, "planner", "planners", src, where), run.get("max_feed", False)))
+                    _list(run, "planner", "planners", src, where), run.get("max_feed", False),
+                    _gcode_keys(run, src, text, where)))
     return out
+
+
+def _gcode_keys(run: dict, src: str, text: str | None, where: str) -> dict:
+    """A [[run]]'s tool_table, var_file (resolved next to the suite file) and offset, each
+    checked by reading it (a bad file or spec: SuiteError naming it)."""
+    base = Path(src).parent if src != "<suite>" else Path(".")
+    g = {}
+    for key in ("tool_table", "var_file"):
+        if key in run:
+            if not isinstance(run[key], str):
+                raise SuiteError(f"{src}{_line_of(text, key)}: {where}: {key} must be a file name")
+            f = Path(run[key])
+            g[key] = f if f.is_absolute() else base / f
+    if "offset" in run:
+        specs = [run["offset"]] if isinstance(run["offset"], str) else run["offset"]
+        if not (isinstance(specs, list) and all(isinstance(x, str) for x in specs)):
+            raise SuiteError(f"{src}{_line_of(text, 'offset')}: {where}: offset must be a list of "
+                             f"'CODE=X,Y,Z' strings")
+        g["offset"] = list(specs)
+    if g:
+        try:
+            gcode_setup(g)
+        except SuiteError as e:
+            raise SuiteError(f"{src}: {where}: {e}") from None
+    return g
+
+
+def gcode_setup(g: dict):
+    """The planners.paths.gcode.rs274 Setup of a run's gcode keys (None without them)."""
+    if not g:
+        return None
+    from planners.paths.gcode.rs274 import RS274Error
+    from planners.paths.gcode.rs274.setup import make_setup
+    try:
+        return make_setup(g.get("tool_table"), g.get("var_file"), g.get("offset", ()))
+    except (RS274Error, ValueError) as e:
+        raise SuiteError(str(e)) from None
 
 
 def _list(d: dict, one: str, many: str, src: str, where: str) -> list:
@@ -161,7 +205,7 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
             raise SuiteError(f"{src}: [[sweep.variation]] '{v['name']}': set must be a table")
     options = suite.get("planner_options", {})
     tasks, seen = [], set()
-    for machines, paths, planners, max_feed in runs:
+    for machines, paths, planners, max_feed, gcode in runs:
         for m in machines:
             mfile = resolve_machine(m, base)
             for p in paths:
@@ -174,12 +218,21 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
                                               options.get(pl, {}))
                                 if max_feed:       # only then: the other tasks' keys stay as they were
                                     t["max_feed"] = True
+                                if gcode:          # likewise; the files' contents travel with the task
+                                    t["gcode_setup"] = _gcode_contents(gcode)
                                 ident = (t["machine"], t["path"], pl, seed, preset, v["name"])
                                 if ident in seen:
                                     continue           # the same task listed twice runs once
                                 seen.add(ident)
                                 tasks.append(t)
     return tasks
+
+
+def _gcode_contents(g: dict) -> dict:
+    out = {k: Path(g[k]).read_text() for k in ("tool_table", "var_file") if k in g}
+    if "offset" in g:
+        out["offset"] = list(g["offset"])
+    return out
 
 
 def with_user_fmus(tasks: list[dict], suite: dict | None, suite_file=None, specs=()) -> list[dict]:
@@ -242,6 +295,8 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     """sha256 of everything that determines a task's result."""
     ident = {k: task[k] for k in ("planner", "planner_options", "seed", "preset", "variation", "files")}
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
+    if task.get("gcode_setup"):   # only then, likewise
+        ident["gcode_setup"] = task["gcode_setup"]
     if task.get("fmus"):    # only then: the keys of tasks on our own chain stay as they were
         ident["fmus"] = {b: [d["file"], d["sha256"]] for b, d in task["fmus"].items()}
     from planners.registry import plugin_version

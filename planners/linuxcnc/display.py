@@ -94,7 +94,7 @@ def run(program, start, cfg, timeout):
     c.mode(linuxcnc.MODE_MDI)
     wait(lambda: s.task_mode == linuxcnc.MODE_MDI, "MDI mode")
     # the program's positioning move, done before sampling: pkmbench's path starts there
-    c.mdi("G21 G90 G0 " + start)
+    c.mdi("G21 G90 G53 G0 " + start)      # machine coordinates: a var file may offset G54
     wait(lambda: s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos,
          "the move to the start point", 120.0)
     c.mode(linuxcnc.MODE_AUTO)

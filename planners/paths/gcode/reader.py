@@ -73,6 +73,7 @@ class GCodeProgram:
     moves: list[Move] = field(default_factory=list)
     notes: list[tuple[int, str]] = field(default_factory=list)
     events: list = field(default_factory=list)   # rs274 CanonEvent: M codes, dwells, tool changes (line, index)
+    setup: object = None           # rs274 Setup: tool table, var file, offsets it was read with
 
     def segments(self):
         return [m.segment for m in self.moves]
@@ -111,7 +112,7 @@ READERS = ("pkmbench", "linuxcnc")
 
 def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, tools=None,
                 subroutine_path=(), block_delete: bool = False, max_loops: int | None = None,
-                reader: str = "pkmbench") -> GCodeProgram:
+                reader: str = "pkmbench", setup=None) -> GCodeProgram:
     """Read G-code text into moves (lines/arcs in mm, machine coordinates, each with its line).
 
     The text runs through the RS274NGC interpreter (:mod:`planners.paths.gcode.rs274`, LinuxCNC's semantics);
@@ -126,11 +127,16 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     Zero-length moves are dropped (a note; an M code on their line still counts: ``events``).
     ``reader="linuxcnc"``: LinuxCNC's own interpreter reads the file ``source`` instead
     (planners.paths.gcode.rs274.linuxcnc_reader; ``text`` is not used, nor tools, subroutine path, block delete).
+    ``setup``: the machine's tool table, var file and work offsets at the start
+    (planners.paths.gcode.rs274.setup.Setup; kept on the program for the ``linuxcnc`` planner).
     """
-    opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete)
+    opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete, setup=setup)
     if max_loops is not None:
         opts["max_loops"] = max_loops
     if reader == "linuxcnc":
+        if setup:
+            raise GCodeError(source, 0, "--reader linuxcnc does not take a tool table, var file or offset; "
+                                        "use the built-in reader (it is checked against LinuxCNC's with them)")
         from planners.paths.gcode.rs274 import RS274Error
         from planners.paths.gcode.rs274.linuxcnc_reader import linuxcnc_canon
         try:
@@ -143,7 +149,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         raise GCodeError(source, 0, f"unknown G-code reader {reader!r}; valid: {', '.join(READERS)}")
     # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
     canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M, cp.flushes)
-    prog = GCodeProgram(source, None)
+    prog = GCodeProgram(source, None, setup=setup or None)
     prog.notes += cp.notes
     first = 0
     if positioning and canon:

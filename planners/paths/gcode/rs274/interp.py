@@ -33,10 +33,11 @@ DEFAULT_MAX_LOOPS = 1_000_000
 class Interpreter(Offsets, Motion, Flow):
     """Run one program. ``start``: the machine position before it (mm); ``tools``: tool number
     → {"Z": length offset mm, …}; ``subroutine_path``: folders searched for ``name.ngc`` when
-    ``O<name> call`` names no subroutine of the file; ``block_delete``: skip '/' lines."""
+    ``O<name> call`` names no subroutine of the file; ``block_delete``: skip '/' lines;
+    ``setup``: a tool table, var file and offsets the machine holds at the start (setup.py)."""
 
     def __init__(self, start=(0.0, 0.0, 0.0), tools=None, subroutine_path=(), block_delete=False,
-                 max_loops: int = DEFAULT_MAX_LOOPS):
+                 max_loops: int = DEFAULT_MAX_LOOPS, setup=None):
         self.pos = [float(v) for v in start]      # machine position (mm)
         self.tools = tools or {}
         self.sub_path = [FsPath(p) for p in subroutine_path]
@@ -54,6 +55,8 @@ class Interpreter(Offsets, Motion, Flow):
         self.value = 0.0
         self.value_returned = 0.0
         self._files: dict[str, SourceFile] = {}
+        if setup:
+            setup.apply(self)
 
     # ------------------------------------------------------------------ parameters
     def read_param(self, n: float) -> float:
@@ -266,6 +269,7 @@ class Interpreter(Offsets, Motion, Flow):
         if "t" in w:
             if w["t"] < 0 or w["t"] != int(w["t"]):
                 raise LineError(f"T{w['t']:g}: tool numbers are integers ≥ 0")
+            self.check_tool(int(w["t"]), f"T{int(w['t'])}")
             m.selected_tool = int(w["t"])
 
     def _m_codes(self, mg, w, fr: Frame) -> None:
@@ -279,6 +283,7 @@ class Interpreter(Offsets, Motion, Flow):
             else:                                     # M61 Q: set the tool number, no change
                 if "q" not in w or w["q"] < 0:
                     raise LineError("M61 needs Q ≥ 0 (the tool number)")
+                self.check_tool(int(w["q"]), f"M61 Q{int(w['q'])}")
                 self.tool = int(w["q"])
             self.params.set(5400, float(self.tool))
         if 7 in mg:

@@ -30,16 +30,25 @@ def available() -> str | None:
     return None
 
 
-def linuxcnc_moves(file, tool_table=None, timeout=120):
-    """(moves, end) of LinuxCNC's interpreter: dicts as linuxcnc.py prints them."""
+def linuxcnc_moves(file, tool_table=None, timeout=120, setup=None):
+    """(moves, end) of LinuxCNC's interpreter: dicts as linuxcnc.py prints them. ``setup``
+    (planners.paths.gcode.rs274.setup.Setup): its tool table and var file, given to LinuxCNC
+    in its standalone interpreters' machine units (inches) so that both read the same mm."""
+    import tempfile
     cmd = [SYSTEM_PYTHON, str(HERE / "linuxcnc.py"), str(file)]
-    if tool_table:
-        cmd += ["--tool-table", str(tool_table)]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    with tempfile.TemporaryDirectory() as d:
+        if setup is not None:
+            tool_table = None
+            if setup.tools:
+                cmd += ["--tool-table", str(_write(Path(d) / "mm.tbl", setup.tool_table_text()))]
+            cmd += ["--var-file", str(_write(Path(d) / "in.var", setup.var_text(25.4)))]
+        elif tool_table:
+            cmd += ["--tool-table", str(tool_table)]
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     if r.returncode < 0:
         # the gcode module crashes on tool changes without a running LinuxCNC (its tool
         # data lives in LinuxCNC's shared memory): fall back to rs274's text output
-        return rs274_moves(file, tool_table, timeout)
+        return rs274_moves(file, tool_table, timeout, setup)
     rows = [json.loads(x) for x in r.stdout.splitlines() if x.startswith("{")]
     if not rows or rows[-1].get("kind") != "end":
         raise RuntimeError(f"LinuxCNC's interpreter failed on {file}: {r.stderr[-500:]}")
@@ -50,26 +59,34 @@ _CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
 RS274_DECIMALS_TOL = 0.5e-4 * 25.4 + 1e-9   # rs274 prints 4 decimals (in inches for G20)
 
 
-def rs274_moves(file, tool_table=None, timeout=120):
+def rs274_moves(file, tool_table=None, timeout=120, setup=None):
     """LinuxCNC's ``rs274`` program: canonical calls as text with 4 decimals and no source line
-    numbers ("line" is None); same dicts as linuxcnc_moves, plus "decimals": 4."""
+    numbers ("line" is None); same dicts as linuxcnc_moves, plus "decimals": 4. ``setup``: as
+    linuxcnc_moves (rs274's machine units are inches: the files are written in inches)."""
     import tempfile
     with tempfile.TemporaryDirectory() as d:
+        var = []
+        if setup is not None:
+            var = ["-v", str(_write(Path(d) / "in.var", setup.var_text(25.4)))]
+            if setup.tools:
+                tool_table = _write(Path(d) / "in.tbl", setup.tool_table_text(25.4))
         if not tool_table:
             # rs274's built-in table has tool 1 at Z 0.511 in; ours is empty (offsets 0): give
             # rs274 tools 1…999 with zero offsets so both read the same program
             tool_table = Path(d) / "zero.tbl"
             tool_table.write_text("".join(f"T{t} P{t} Z0\n" for t in range(1, 1000)))
-        cmd = ["rs274", "-g", "-t", str(tool_table), str(file)]
+        cmd = ["rs274", "-g", "-t", str(tool_table), *var, str(file)]
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
     unit, g5x, g92, tlo, rot, plane = 1.0, [0.0] * 3, [0.0] * 3, [0.0] * 3, 0.0, 17
     out = []
 
     def mach(x, y, z):
+        # emccanon.cc rotate_and_offset_pos: G92, the XY rotation, then G5x and the tool offset
+        x, y, z = x + g92[0], y + g92[1], z + g92[2]
         if rot:
             c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
             x, y = x * c - y * s, x * s + y * c
-        return [(v + g5x[i] + g92[i] + tlo[i]) * unit for i, v in enumerate((x, y, z))]
+        return [(v + g5x[i] + tlo[i]) * unit for i, v in enumerate((x, y, z))]
 
     for row in r.stdout.splitlines():
         m = _CALL.match(row)
@@ -107,6 +124,11 @@ def rs274_moves(file, tool_table=None, timeout=120):
     err = [x for x in r.stdout.splitlines() if x and not _CALL.match(x) and not x.startswith("executing")]
     return out, {"kind": "end", "result": r.returncode, "line": None, "decimals": 4,
                  "error": None if r.returncode == 0 else (err[-1] if err else "error")}
+
+
+def _write(f: Path, text: str) -> Path:
+    f.write_text(text)
+    return f
 
 
 def compare(ours, ref, tol=1e-9):
