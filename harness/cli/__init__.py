@@ -65,12 +65,13 @@ def add_gcode_arguments(p) -> None:
 def gcode_setup(args):
     """The rs274 Setup of --tool-table, --var-file and --offset (None when none is given);
     CliError naming the file and line, or the spec."""
-    if not (args.tool_table or args.var_file or args.offset):
+    tbl, var, offsets = (getattr(args, k, None) for k in ("tool_table", "var_file", "offset"))
+    if not (tbl or var or offsets):
         return None
     from planners.paths.gcode.rs274 import RS274Error
     from planners.paths.gcode.rs274.setup import make_setup
     try:
-        return make_setup(args.tool_table, args.var_file, args.offset)
+        return make_setup(tbl, var, offsets or ())
     except (RS274Error, ValueError) as e:
         raise CliError(str(e)) from None
 
