@@ -52,7 +52,18 @@ def linuxcnc_moves(file, tool_table=None, timeout=120, setup=None):
     rows = [json.loads(x) for x in r.stdout.splitlines() if x.startswith("{")]
     if not rows or rows[-1].get("kind") != "end":
         raise RuntimeError(f"LinuxCNC's interpreter failed on {file}: {r.stderr[-500:]}")
-    return [m for m in rows[:-1] if m["kind"] in ("rapid", "feed", "arc")], rows[-1]
+    return _with_feeds(rows[:-1]), rows[-1]
+
+
+def _with_feeds(rows):
+    """The motion rows, each feed move with the feed rate (mm/min) set before it."""
+    out, feed = [], 0.0
+    for m in rows:
+        if m["kind"] == "feed_rate":
+            feed = m["mm_per_min"]
+        elif m["kind"] in ("rapid", "feed", "arc"):
+            out.append(m if m["kind"] == "rapid" else dict(m, feed=feed))
+    return out
 
 
 _CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
@@ -77,7 +88,7 @@ def rs274_moves(file, tool_table=None, timeout=120, setup=None):
             tool_table.write_text("".join(f"T{t} P{t} Z0\n" for t in range(1, 1000)))
         cmd = ["rs274", "-g", "-t", str(tool_table), *var, str(file)]
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
-    unit, g5x, g92, tlo, rot, plane = 1.0, [0.0] * 3, [0.0] * 3, [0.0] * 3, 0.0, 17
+    unit, g5x, g92, tlo, rot, plane, feed = 1.0, [0.0] * 3, [0.0] * 3, [0.0] * 3, 0.0, 17, 0.0
     out = []
 
     def mach(x, y, z):
@@ -104,11 +115,13 @@ def rs274_moves(file, tool_table=None, timeout=120, setup=None):
             tlo = [num(0), num(1), num(2)]
         elif name == "SET_XY_ROTATION":
             rot = num(0)
+        elif name == "SET_FEED_RATE":
+            feed = num(0) * unit
         elif name == "SELECT_PLANE":
             plane = {"CANON_PLANE_XY": 17, "CANON_PLANE_YZ": 19, "CANON_PLANE_XZ": 18}[a[0]]
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             out.append({"kind": "rapid" if name == "STRAIGHT_TRAVERSE" else "feed", "line": None,
-                        "end": mach(num(0), num(1), num(2))})
+                        "end": mach(num(0), num(1), num(2))} | ({} if name == "STRAIGHT_TRAVERSE" else {"feed": feed}))
         elif name == "ARC_FEED":
             fe, se, fa, sa, rt, ae = num(0), num(1), num(2), num(3), int(a[4]), num(5)
             if plane == 17:
@@ -120,10 +133,11 @@ def rs274_moves(file, tool_table=None, timeout=120, setup=None):
             c = mach(*cen)
             c[ax] = None
             out.append({"kind": "arc", "line": None, "end": mach(*end), "center": c, "rotation": rt,
-                        "plane": plane})
-    err = [x for x in r.stdout.splitlines() if x and not _CALL.match(x) and not x.startswith("executing")]
+                        "plane": plane, "feed": feed})
+    # rs274 prints (on stderr) the error's text, then the line it refused
+    err = [x for x in (r.stdout + r.stderr).splitlines() if x and not _CALL.match(x) and not x.startswith("executing")]
     return out, {"kind": "end", "result": r.returncode, "line": None, "decimals": 4,
-                 "error": None if r.returncode == 0 else (err[-1] if err else "error")}
+                 "error": None if r.returncode == 0 else (" / ".join(err) if err else "error")}
 
 
 def _write(f: Path, text: str) -> Path:
@@ -131,26 +145,31 @@ def _write(f: Path, text: str) -> Path:
     return f
 
 
-def compare(ours, ref, tol=1e-9):
+def compare(ours, ref, tol=1e-9, feeds: bool = False):
     """First difference between our canonical moves and LinuxCNC's, or None (ends, arc centres,
-    turns, kinds, lines)."""
+    turns, kinds, lines; ``feeds``: also the feed rate of each feed move, to 1e-9 relative, or to
+    rs274's 4 decimals in its units when ``tol`` is rs274's)."""
     if len(ours) != len(ref):
         n = min(len(ours), len(ref))
         for i in range(n):
-            d = _diff(ours[i], ref[i], tol)
+            d = _diff(ours[i], ref[i], tol, feeds)
             if d:
                 return f"move {i}: {d}"
         return f"{len(ours)} moves, LinuxCNC has {len(ref)}"
     for i, (a, b) in enumerate(zip(ours, ref)):
-        d = _diff(a, b, tol)
+        d = _diff(a, b, tol, feeds)
         if d:
             return f"move {i}: {d}"
     return None
 
 
-def _diff(a, b, tol):
+def _diff(a, b, tol, feeds=False):
     if a.kind != b["kind"]:
         return f"line {a.line}: {a.kind}, LinuxCNC line {b['line']}: {b['kind']}"
+    if feeds and a.kind != "rapid":
+        f_tol = tol if tol > 1e-9 else 1e-9 * max(1.0, abs(b["feed"]))
+        if not abs(a.feed_mm_min - b["feed"]) <= f_tol:
+            return f"line {a.line}: feed {a.feed_mm_min:.9g} mm/min, LinuxCNC {b['feed']:.9g} mm/min"
     e = max(abs(x - y) for x, y in zip(a.end, b["end"]))
     if not e <= tol:
         return f"line {a.line}: end {a.end} vs {b['end']} ({e:.3g} mm)"
