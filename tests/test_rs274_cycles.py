@@ -326,3 +326,61 @@ def test_check_reports_messages_as_info(tmp_path):
     assert d["warnings"] == sum(x["severity"] == "warning" for x in d["findings"])
     r = _cli("check", str(f), "--machine", "kossel")
     assert f"{f}:2: message:  insert the probe" in r.stdout
+
+
+@needs_linuxcnc
+def test_parameters_then_comment_then_modal_restore_before_coolant(tmp_path):
+    # rs274ngc_pre.cc: a line's #-settings are stored before execute_block runs its comment;
+    # M72 restores the state saved by M70 before the M8 of its line (LinuxCNC drops the rest
+    # of a line with M72 and a move: not a case here)
+    f = write(tmp_path, "G21 G0 X0 Y0 Z0 F100\n#1=7 (DEBUG,#1)\nM70\nG91\nM72\nG1 X1\nM2\n")
+    rows, _ = linuxcnc_rows(f)
+    cp = ours(f)
+    assert [(e.line, e.value) for e in cp.events if e.kind == "message"] == \
+        [(r["line"], r["text"]) for r in rows if r["kind"] == "message"] == [(2, "7.000000")]
+    assert compare(cp.moves, [r for r in rows if r["kind"] in ("rapid", "feed")], 1e-9) is None
+    it = Interpreter()
+    it.run("M7\nM70\nM9\nM72 M8\nM2\n", "c.ngc")
+    assert it.m.coolant == 8
+
+
+@needs_linuxcnc
+@pytest.mark.parametrize("text", ["G38.2 F10", "G38.3 F10", "G82 R1 P1"])
+def test_probe_and_cycle_codes_without_axes_as_linuxcnc(text, tmp_path):
+    f = write(tmp_path, f"G21 G0 X0 Y0 Z0\n{text}\nM2\n")
+    _, end = linuxcnc_moves(f)
+    assert end["error"] == "All axes missing with motion code"
+    with pytest.raises(RS274Error, match="All axes missing with motion code") as e:
+        ours(f)
+    assert e.value.line == 2
+
+
+@needs_linuxcnc
+def test_benchmark_cam_program_with_drilling_reads_as_linuxcnc(tmp_path):
+    # benchmarks/perf/cam_program.py's cycles variant (the 10⁵-line check benchmark's program):
+    # drilling patterns of one cycle block and X Y lines between raster rows
+    import importlib.util        # a benchmark script, not a package: loaded from its file
+    spec = importlib.util.spec_from_file_location("cam_program", ROOT / "benchmarks" / "perf" / "cam_program.py")
+    cam = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cam)
+    f = tmp_path / "camc.ngc"
+    text = cam.make_cam_program(7000, seed=2, cycles=True, file=f)
+    assert all(g in text for g in ("G81", "G83", "G73"))
+    ref, end = linuxcnc_moves(f)
+    assert end["error"] is None
+    assert compare(ours(f).moves, ref, 1e-9) is None
+
+
+def test_trapezoid_plans_the_drilling_program_to_its_end(tmp_path):
+    # the profile ends exactly at the planned path's length (they summed the same lengths in
+    # another order and parted by rounding: 1.6e-12 mm here, over 1e-9 on the 10⁵-line program)
+    import importlib.util        # a benchmark script, not a package: loaded from its file
+    import planners
+    from kins import load_machine
+    from planners.paths import resolve_path
+    spec = importlib.util.spec_from_file_location("cam_program", ROOT / "benchmarks" / "perf" / "cam_program.py")
+    cam = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cam)
+    cam.make_cam_program(4000, seed=2, cycles=True, file=tmp_path / "camc.ngc")
+    prof = planners.plan("trapezoid", resolve_path(str(tmp_path / "camc.ngc")), load_machine("kossel"))
+    assert prof.s[-1] == prof.path.length and "G81" in (tmp_path / "camc.ngc").read_text()

@@ -96,6 +96,8 @@ class Report:
         if "nothing_to_check" in self.stats:
             return head + f"\n  nothing to check: {self.stats['nothing_to_check']}"
         messages = [f"  {self.program}:{f.lines[0]}: message: {f.message}" for f in self.findings if f.severity == "info"]
+        if limit is not None and len(messages) > limit:
+            messages = messages[:limit] + [f"  … {len(messages) - limit} more message(s): --all prints every one"]
         problems = [f for f in self.findings if f.severity != "info"]
         if not problems:
             return "\n".join([head] + messages + [f"  clean: {self.stats.get('moves', 0)} moves, "

@@ -1,10 +1,12 @@
 """The RS274NGC interpreter: blocks → canonical moves, following LinuxCNC 2.9's rs274ngc.
 
-Per block, the order of execution is rs274ngc's execute_block/convert_* order: O-word control,
-parameter settings (after the whole line is read, so ``#1=2 #2=#1`` sees the old #1), F, S, T,
-M6/M61, M3-5, M7-9, M70-73, other M codes, G4, plane, units, cutter compensation (G40 only),
-tool length offset, coordinate system, path control, distance modes, retract mode, the
-non-modal G10/G28/G30/G92/G53, motion, then M0/M1/M2/M30/M60.
+Per block, the order of execution is rs274ngc's execute_block/convert_* order (LinuxCNC's
+documented table): O-word control, parameter settings (after the whole line is read, so
+``#1=2 #2=#1`` sees the old #1), the comment ((MSG,…), (ABORT,…)), F (in the units before the
+line's G20/G21), S, T, M6/M61, M3-5, M70-73, M7-9, other M codes, G4, plane, units, cutter
+compensation (G40 only), tool length offset, coordinate system, path control, distance modes,
+retract mode, the non-modal G10/G28/G30/G92/G53, motion (canned cycles: cycles.py), then
+M0/M1/M2/M30/M60.
 
 This module holds that order (``execute`` and its steps), the parameters and the run loop; the
 word and code checks are in codes.py, offsets and coordinate systems in offsets.py, motion and
@@ -207,9 +209,9 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
         # codes of the line still set this object (as the interpreter always did; issue 18
         # keeps behaviour)
         m = self.m
-        if b.comment is not None:
-            self.comment(b.comment, fr)
         if not b.words and not b.assigns:
+            if b.comment is not None:
+                self.comment(b.comment, fr)
             return
         w, gs, ms = read_words(b.words, self.evaluate, fr)
         if b.assigns:
@@ -220,6 +222,10 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
         if b.assigns:
             for t, v in vals:
                 self.assign(t, v, fr)
+        # rs274ngc_pre.cc execute: the line's parameter settings, then execute_block: its
+        # comment first
+        if b.comment is not None:
+            self.comment(b.comment, fr)
         self._feed_speed_tool(w, groups)
         self._m_codes(mg, w, fr)
         g0 = groups.get(0)
@@ -335,7 +341,7 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
             m.selected_tool = int(w["t"])
 
     def _m_codes(self, mg, w, fr: Frame) -> None:
-        """M6/M61 (tool change), M3-5 (spindle), M7-9 (coolant), M70-73 (modal state), then
+        """M6/M61 (tool change), M3-5 (spindle), M70-73 (modal state), M7-9 (coolant), then
         the events of the M codes other than the program stops."""
         m = self.m
         if 6 in mg:
@@ -349,10 +355,11 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
             self.params.set(5400, float(self.tool))
         if 7 in mg:
             m.spindle = mg[7]
+        if 10 in mg:                                  # M70-M73 before M7-M9 (LinuxCNC's order)
+            self._modal_state(mg[10], fr)
+            m = self.m
         if 8 in mg:
             m.coolant = mg[8]
-        if 10 in mg:
-            self._modal_state(mg[10], fr)
         for grp in (5, 9, 11):
             if grp in mg:
                 self.event("m", mg[grp])
@@ -433,9 +440,10 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
             if mm is None or mm == 800:
                 if axes:
                     raise LineError("axis words with no motion mode in force (G0/G1/G2/G3)")
+            elif not axes and mm not in (0, 10, 20, 30):
+                # interp_internal.cc enhance_block: a cycle or probe code needs an axis word
+                raise LineError(f"All axes missing with motion code G{mm / 10:g}")
             elif mm in CYCLES:
-                if not axes:
-                    raise LineError(f"All axes missing with motion code G{mm / 10:g}")
                 if g0 == 530:
                     raise LineError("G53 needs a G0 or G1 move")
                 ran = mm
