@@ -30,8 +30,8 @@ TEXT_LIMIT = 50          # entries of the default text report (--all: every find
 
 @dataclass
 class Finding:
-    kind: str              # compile | unreachable | stroke | singularity | box | joint_velocity | …
-    severity: str          # "error" | "warning"
+    kind: str              # compile | unreachable | stroke | singularity | box | joint_velocity | message | …
+    severity: str          # "error" | "warning" | "info" (a message of the program: (MSG,…), (DEBUG,…))
     lines: list[int]       # G-code line numbers (1-based file lines)
     value: float | None    # worst value (unit below)
     limit: float | None
@@ -81,7 +81,7 @@ class Report:
         # every finding, and fields that cannot be misread: "valid" means no error at all
         d = {"program": self.program, "machine": self.machine, "planner": self.planner,
              "parsed": not self.invalid, "valid": self.exit_code == EXIT_CLEAN,
-             "errors": self.errors, "warnings": len(self.findings) - self.errors,
+             "errors": self.errors, "warnings": sum(f.severity == "warning" for f in self.findings),
              "exit_code": self.exit_code, "stats": self.stats, "summary": self.summary(),
              "findings": [asdict(f) for f in self.findings]}
         return json.dumps(d, indent=2, sort_keys=True)
@@ -93,18 +93,27 @@ class Report:
         if self.invalid:
             return head + "\n" + "\n".join(f"  {self.program}:{f.lines[0] if f.lines else 0}: error: {f.message}"
                                            for f in self.findings if f.kind == "compile")
-        if not self.findings:
-            return head + f"\n  clean: {self.stats.get('moves', 0)} moves, {self.stats.get('samples', 0)} samples checked"
-        n_lines = len({ln for f in self.findings for ln in f.lines})
-        out = [head, f"  {self.errors} error(s), {len(self.findings) - self.errors} warning(s) "
-                     f"on {n_lines} line(s)"]
+        if "nothing_to_check" in self.stats:
+            return head + f"\n  nothing to check: {self.stats['nothing_to_check']}"
+        messages = [f"  {self.program}:{f.lines[0]}: message: {f.message}" for f in self.findings if f.severity == "info"]
+        if limit is not None and len(messages) > limit:
+            messages = messages[:limit] + [f"  … {len(messages) - limit} more message(s): --all prints every one"]
+        problems = [f for f in self.findings if f.severity != "info"]
+        if not problems:
+            return "\n".join([head] + messages + [f"  clean: {self.stats.get('moves', 0)} moves, "
+                                                   f"{self.stats.get('samples', 0)} samples checked"])
+        n_lines = len({ln for f in problems for ln in f.lines})
+        out = [head] + messages + [f"  {self.errors} error(s), {len(problems) - self.errors} warning(s) "
+                                   f"on {n_lines} line(s)"]
         for r in self.summary():
+            if r["severity"] == "info":
+                continue
             worst = ("" if r["worst_value"] is None or r["limit"] is None else
                      f", worst {abs(r['worst_value']):.6g} {r['unit']} against {r['limit']:g} {r['unit']}"
                      + (f" (ratio {r['worst_ratio']:.3f})" if r["worst_ratio"] is not None else ""))
             out.append(f"    {r['kind']:<22} {r['severity']:<7} {r['count']:>7} on {r['lines']} line(s)"
                        + worst + (f" at line {r['worst_line']}" if r["worst_line"] else ""))
-        entries = _runs(self.findings) if limit is not None else [[f] for f in self.findings]
+        entries = _runs(problems) if limit is not None else [[f] for f in problems]
         entries.sort(key=lambda run: (tuple(-x for x in max(_badness(f) for f in run)), _first_line(run[0]), run[0].kind))
         shown = entries if limit is None else entries[:limit]
         out.append("  worst first:" if limit is None or len(entries) <= limit else
@@ -287,7 +296,7 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
 
 def _check(file, machine, planner: str, workspace_step_mm: float, start, reader: str, setup=None) -> Report:
     import planners
-    from planners.paths.gcode import GCodeError, program_path, read_gcode
+    from planners.paths.gcode import EmptyProgram, GCodeError, program_path, read_gcode
 
     file = Path(file)
     rep = Report(str(file), machine.name, planner)
@@ -298,11 +307,19 @@ def _check(file, machine, planner: str, workspace_step_mm: float, start, reader:
     # 1. compile
     try:
         prog = read_gcode(file, start, home=machine.home, reader=reader, setup=setup)   # a one-move program starts at home
+    except EmptyProgram:
+        # a subroutine library or setup file: valid, and nothing in it moves the machine
+        rep.stats["moves"] = 0
+        rep.stats["nothing_to_check"] = "the program makes no move"
+        return rep
     except GCodeError as e:
         rep.invalid = True
         rep.findings.append(Finding("compile", "error", [int(e.line)], None, None, "", e.message))
         return rep
     rep.findings += _n_number_warnings(file.read_text(errors="replace"), str(file))
+    # (MSG,…), (DEBUG,…) and (PRINT,…) of the program, as LinuxCNC would show them
+    rep.findings += [Finding("message", "info", [int(e.line)], None, None, "", str(e.value))
+                     for e in prog.events if e.kind == "message"]
     rep.stats["moves"] = len(prog.moves)
     # 2. plan the program first, then check the geometry of the path that ran: a planner that
     # re-blends the program at its speeds (trapezoid) never builds the standard blends

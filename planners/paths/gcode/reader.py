@@ -2,8 +2,8 @@
 
 The program runs through :mod:`planners.paths.gcode.rs274`, an RS274NGC interpreter with LinuxCNC 2.9's
 semantics (expressions, parameters, O-words, work offsets, G92, tool length offsets, G28/G30,
-G53, polar @ ^, M70–M73, …; what it does not support is refused naming the construct and the
-line). Its canonical moves (machine coordinates, mm) become Line/Arc segments here;
+G53, polar @ ^, M70–M73, canned cycles, probing, …; what it does not support is refused naming
+the construct and the line). Its canonical moves (machine coordinates, mm) become Line/Arc segments here;
 zero-length moves are dropped as LinuxCNC's canon drops them. Errors are
 :class:`GCodeError` (file, line, message). See :func:`parse_gcode` for the start point.
 
@@ -43,6 +43,11 @@ class GCodeError(PathError):
     def __init__(self, file: str, line: int, message: str):
         super().__init__(f"{file}:{line}: {message}")
         self.file, self.line, self.message = file, line, message
+
+
+class EmptyProgram(GCodeError):
+    """A program that makes no move (a subroutine library, a setup file): nothing to plan; the
+    checker reads it as nothing to check."""
 
 
 @dataclass
@@ -112,7 +117,7 @@ READERS = ("pkmbench", "linuxcnc")
 
 def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, tools=None,
                 subroutine_path=(), block_delete: bool = False, max_loops: int | None = None,
-                reader: str = "pkmbench", setup=None) -> GCodeProgram:
+                reader: str = "pkmbench", probe_surface=None, setup=None) -> GCodeProgram:
     """Read G-code text into moves (lines/arcs in mm, machine coordinates, each with its line).
 
     The text runs through the RS274NGC interpreter (:mod:`planners.paths.gcode.rs274`, LinuxCNC's semantics);
@@ -125,12 +130,15 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     - else the program starts from ``home`` (the machine's position), as LinuxCNC would.
 
     Zero-length moves are dropped (a note; an M code on their line still counts: ``events``).
+    A program with no move at all raises :class:`EmptyProgram`. ``probe_surface``: what G38.x
+    probes touch (a height in machine mm, or a function f(x, y) → z; see rs274's Interpreter).
     ``reader="linuxcnc"``: LinuxCNC's own interpreter reads the file ``source`` instead
     (planners.paths.gcode.rs274.linuxcnc_reader; ``text`` is not used, nor tools, subroutine path, block delete).
     ``setup``: the machine's tool table, var file and work offsets at the start
     (planners.paths.gcode.rs274.setup.Setup; kept on the program for the ``linuxcnc`` planner).
     """
-    opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete, setup=setup)
+    opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete, probe_surface=probe_surface,
+                setup=setup)
     if max_loops is not None:
         opts["max_loops"] = max_loops
     if reader == "linuxcnc":
@@ -165,9 +173,10 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     if not prog.moves and positioning and canon:
         _only_move_from_home(prog, canon[0], home)
     if not prog.moves:
-        raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
+        raise EmptyProgram(source, 0, "nothing to plan: the program makes no move (a subroutine library "
+                                      "or a setup file?)")
     for e in prog.events:
-        syncs = e.kind in ("dwell", "tool") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
+        syncs = e.kind in ("dwell", "tool", "probe") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
         if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop is None:
             _stop(prog.moves[e.index - 1], "sync")
     if prog.moves[-1].stop is None:

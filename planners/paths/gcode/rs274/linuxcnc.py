@@ -111,6 +111,9 @@ class Canon:
     def dwell(self, t):
         self.out.append({"kind": "dwell", "line": self.line, "seconds": t})
 
+    def message(self, text):
+        self.out.append({"kind": "message", "line": self.line, "text": text})
+
     def set_feed_rate(self, f):
         self.out.append({"kind": "feed_rate", "line": self.line, "mm_per_min": f * IN})
 

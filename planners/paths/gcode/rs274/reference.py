@@ -30,10 +30,11 @@ def available() -> str | None:
     return None
 
 
-def linuxcnc_moves(file, tool_table=None, timeout=120, setup=None):
-    """(moves, end) of LinuxCNC's interpreter: dicts as linuxcnc.py prints them. ``setup``
-    (planners.paths.gcode.rs274.setup.Setup): its tool table and var file, given to LinuxCNC
-    in its standalone interpreters' machine units (inches) so that both read the same mm."""
+def linuxcnc_rows(file, tool_table=None, timeout=120, setup=None):
+    """Every row linuxcnc.py prints (moves, feed rates, dwells, messages, the end), or None
+    when LinuxCNC's gcode module crashed; and the other lines of its output ((PRINT,…)).
+    ``setup`` (planners.paths.gcode.rs274.setup.Setup): its tool table and var file, given to
+    LinuxCNC in its standalone interpreters' machine units (inches) so that both read the same mm."""
     import tempfile
     cmd = [SYSTEM_PYTHON, str(HERE / "linuxcnc.py"), str(file)]
     with tempfile.TemporaryDirectory() as d:
@@ -46,23 +47,36 @@ def linuxcnc_moves(file, tool_table=None, timeout=120, setup=None):
             cmd += ["--tool-table", str(tool_table)]
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     if r.returncode < 0:
+        return None, []
+    lines = r.stdout.splitlines()
+    rows = [json.loads(x) for x in lines if x.startswith("{")]
+    if not rows or rows[-1].get("kind") != "end":
+        raise RuntimeError(f"LinuxCNC's interpreter failed on {file}: {r.stderr[-500:]}")
+    return rows, [x for x in lines if not x.startswith("{")]
+
+
+def linuxcnc_moves(file, tool_table=None, timeout=120, setup=None):
+    """(moves, end) of LinuxCNC's interpreter: dicts as linuxcnc.py prints them, each feed move
+    with the feed rate (mm/min) in force; ``setup`` as linuxcnc_rows."""
+    rows, _ = linuxcnc_rows(file, tool_table, timeout, setup)
+    if rows is None:
         # the gcode module crashes on tool changes without a running LinuxCNC (its tool
         # data lives in LinuxCNC's shared memory): fall back to rs274's text output
         return rs274_moves(file, tool_table, timeout, setup)
-    rows = [json.loads(x) for x in r.stdout.splitlines() if x.startswith("{")]
-    if not rows or rows[-1].get("kind") != "end":
-        raise RuntimeError(f"LinuxCNC's interpreter failed on {file}: {r.stderr[-500:]}")
     return _with_feeds(rows[:-1]), rows[-1]
 
 
 def _with_feeds(rows):
-    """The motion rows, each feed move with the feed rate (mm/min) set before it."""
+    """The motion rows, each feed move with the feed rate (mm/min) set before it; a probe move
+    is a straight feed (that stops early where a probe trips: never here)."""
     out, feed = [], 0.0
     for m in rows:
         if m["kind"] == "feed_rate":
             feed = m["mm_per_min"]
-        elif m["kind"] in ("rapid", "feed", "arc"):
-            out.append(m if m["kind"] == "rapid" else dict(m, feed=feed))
+        elif m["kind"] == "rapid":
+            out.append(m)
+        elif m["kind"] in ("feed", "arc", "probe"):
+            out.append(dict(m, kind="arc" if m["kind"] == "arc" else "feed", feed=feed))
     return out
 
 
@@ -119,7 +133,7 @@ def rs274_moves(file, tool_table=None, timeout=120, setup=None):
             feed = num(0) * unit
         elif name == "SELECT_PLANE":
             plane = {"CANON_PLANE_XY": 17, "CANON_PLANE_YZ": 19, "CANON_PLANE_XZ": 18}[a[0]]
-        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "STRAIGHT_PROBE"):
             out.append({"kind": "rapid" if name == "STRAIGHT_TRAVERSE" else "feed", "line": None,
                         "end": mach(num(0), num(1), num(2))} | ({} if name == "STRAIGHT_TRAVERSE" else {"feed": feed}))
         elif name == "ARC_FEED":
@@ -143,6 +157,52 @@ def rs274_moves(file, tool_table=None, timeout=120, setup=None):
 def _write(f: Path, text: str) -> Path:
     f.write_text(text)
     return f
+
+
+# canon calls → the interpreter's events (interp_cycles.cc's spindle calls and dwells; the
+# program stop of G88): the order of motion and these is where LinuxCNC's queue waits
+_SEQUENCE_CALLS = {"STRAIGHT_TRAVERSE": "rapid", "STRAIGHT_FEED": "feed", "STRAIGHT_PROBE": "feed", "ARC_FEED": "arc",
+                   "STOP_SPINDLE_TURNING": ("m", 5), "START_SPINDLE_CLOCKWISE": ("m", 3),
+                   "START_SPINDLE_COUNTERCLOCKWISE": ("m", 4), "ORIENT_SPINDLE": ("m", 19),
+                   "PROGRAM_STOP": ("m", 0), "PROGRAM_END": ("m", 2)}
+
+
+def rs274_sequence(file, timeout=120):
+    """The moves, dwells ("dwell", s) and spindle/stop calls ("m", n) of ``rs274 -g FILE`` in
+    their order, up to PROGRAM_END (which it includes)."""
+    r = subprocess.run(["rs274", "-g", str(file)], capture_output=True, text=True, timeout=timeout,
+                       stdin=subprocess.DEVNULL)
+    out = []
+    for row in r.stdout.splitlines():
+        m = _CALL.match(row)
+        if not m:
+            continue
+        name = m.group(1)
+        if name == "DWELL":
+            out.append(("dwell", round(float(m.group(2)), 4)))
+        elif name in _SEQUENCE_CALLS:
+            if name == "PROGRAM_END":
+                if out and out[-1] == ("m", 5):
+                    out.pop()                 # convert_stop's own spindle stop for M2/M30
+                out.append(("m", 2))
+                break
+            out.append(_SEQUENCE_CALLS[name])
+    return out
+
+
+def sequence(program, kinds=("dwell", "m")) -> list:
+    """The same for our canonical program: moves and the events of ``kinds`` in order (M codes
+    0, 2, 3, 4, 5, 19 only: the spindle and stop calls rs274_sequence lists)."""
+    out, ev = [], [e for e in program.events if e.kind in kinds and (e.kind != "m" or e.value in (0, 2, 3, 4, 5, 19))]
+    k = 0
+    for i, mv in enumerate(program.moves + [None]):
+        while k < len(ev) and ev[k].index == i:
+            e = ev[k]
+            out.append(("dwell", round(float(e.value), 4)) if e.kind == "dwell" else ("m", e.value))
+            k += 1
+        if mv is not None:
+            out.append(mv.kind)
+    return out
 
 
 def compare(ours, ref, tol=1e-9, feeds: bool = False):
