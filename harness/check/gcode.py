@@ -393,9 +393,11 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
             mask = worst > L * (1 + M.FEASIBLE_TOL)
             if not mask.any():
                 continue
-            n = len(worst)
-            ln = slines[-n:]
-            feed = (speed[-n:], programmed, order == "velocity")
+            k = M.ORDERS.index(order) + 1
+            last = M.window_sample(np.arange(len(worst)), len(P), k)   # each window at its last sample
+            ln = slines[last]
+            feed = (speed[np.clip(last - 1, 0, None)] if len(speed) else np.zeros(len(last)),
+                    programmed, order == "velocity")
             if space == "joint":
                 rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col, feed=feed)
             else:

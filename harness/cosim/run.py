@@ -250,7 +250,7 @@ def _recordings(pdir: Path, machine, res, P, Q) -> None:
     }
     write_mcap(pdir / "run.mcap", ch)
     T = machine.servo_period_s
-    d = differences(Q, T)
+    d = differences(Q, T, rest=False)   # the sampled motion, plotted sample by sample
     lim = machine.limits.joint
     ratio = np.zeros(len(Q))
     for order, L in (("velocity", lim.v), ("acceleration", lim.a), ("jerk", lim.j)):

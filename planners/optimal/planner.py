@@ -65,13 +65,13 @@ def broken_limits(machine, path, prof, pcs, limits) -> set:
     """{(piece index, limit kind)} read above 1 at T: the joint velocity, acceleration, jerk
     (differences of the IK'd samples, each window blamed on the piece its first sample is in)
     and the feed against F_max."""
-    from planners.verify import differences
+    from planners.verify import differences, window_sample
     T = prof.T
     edges = np.array([a for a, _ in pcs[1:]])
     lim = {"velocity": limits.joint.v, "acceleration": limits.joint.a, "jerk": limits.joint.j}
     out = set()
     for kind, D in differences(machine.ik(path.point(prof.s)), T).items():
-        bad = np.nonzero(np.abs(D).max(axis=1) > lim[kind])[0]
+        bad = window_sample(np.nonzero(np.abs(D).max(axis=1) > lim[kind])[0], len(prof.s))
         out |= {(int(g), kind) for g in np.searchsorted(edges, prof.s[bad], side="right")}
     feed = np.diff(prof.s) / T
     bad = np.nonzero(feed > limits.feed_max * (1 + 1e-6))[0]

@@ -406,12 +406,14 @@ def reads_above(prof, machine, path, limits):
     """[(limit column, first sample of the window, its width in samples, ratio)] of every window
     that reads a limit above 1 at T: joint v, a, j by differences of the IK'd samples (as
     planners.verify reads them), the feed against F_max."""
-    from planners.verify import differences
-    T, lim = prof.T, limits.joint
+    from planners.verify import differences, window_sample
+    T, lim, n = prof.T, limits.joint, len(prof.s)
     D = differences(machine.ik(path.point(prof.s)), T)
     reads = [np.abs(D["velocity"]).max(axis=1) / lim.v, np.abs(D["acceleration"]).max(axis=1) / lim.a,
              np.abs(D["jerk"]).max(axis=1) / lim.j, np.diff(prof.s) / T / limits.feed_max]
-    return [(col, int(i), max(col, 1), float(r[i])) for col, r in enumerate(reads)
+    # the joint windows start in the rest before t = 0 (window_sample); the feed's at its sample
+    first = [lambda i: int(window_sample(i, n))] * 3 + [int]
+    return [(col, first[col](i), max(col, 1), float(r[i])) for col, r in enumerate(reads)
             for i in np.nonzero(r > 1 + FEASIBLE_TOL)[0]]
 
 

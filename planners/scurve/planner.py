@@ -47,7 +47,7 @@ from planners.constraints import (PathTable, PlanningError, check_limits, check_
                           chord_feed_cap, cross_norm, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from planners.feed import feed_ceiling
 from planners.profile import Profile
-from planners.verify import FEASIBLE_TOL, difference_peaks
+from planners.verify import FEASIBLE_TOL, difference_peaks, window_sample
 from planners.scurve.batch import Checker, Joined, drive
 from planners.scurve.pieces import Segment, no_profile, reachable, solver
 
@@ -531,9 +531,10 @@ class _Planner:
         over = np.ones((len(segs), 3))
         for k, ((w, _), L) in enumerate(zip(difference_peaks(X, T), (lim.v, lim.a, lim.j))):
             n = np.nonzero(w > L * (1.0 + FEASIBLE_TOL))[0]
-            # difference n of order k + 1 reads the samples n … n + k + 1: every segment of them
+            # difference n of order k + 1 reads the samples window_sample(n, ·, 0 … k + 1): every segment of them
             for o in range(k + 2):
-                seg = np.clip(np.searchsorted(starts, (n + o) * T, side="right") - 1, 0, len(segs) - 1)
+                at = window_sample(n, len(X), o) * T
+                seg = np.clip(np.searchsorted(starts, at, side="right") - 1, 0, len(segs) - 1)
                 np.maximum.at(over[:, k], seg, w[n] / L)
         return over
 
