@@ -50,6 +50,25 @@ def add_gcode_arguments(p) -> None:
     p.add_argument("--reader", choices=("pkmbench", "linuxcnc"), default="pkmbench", help=READER_HELP)
 
 
+def planner_timeout_s(text: str) -> float:
+    """--planner-timeout S: a finite number of seconds > 0 (argparse's type: a bad one is exit 2)."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a number of seconds > 0")
+    return x
+
+
+def add_timeout_argument(p) -> None:
+    """--planner-timeout (run, plan, sweep, ci)."""
+    p.add_argument("--planner-timeout", type=planner_timeout_s, default=None, metavar="S",
+                   help="stop a planner after S seconds of planning: its row is an error naming the "
+                        "timeout, the other planners run (planned in a child process; a suite's "
+                        "planner_timeout_s does the same; default: no limit)")
+
+
 def parse_start(text: str | None) -> list[float] | None:
     """--start X,Y,Z → [x, y, z] (mm), None when not given; CliError naming the value otherwise."""
     if text is None:
