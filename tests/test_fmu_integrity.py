@@ -97,6 +97,7 @@ def test_run_with_a_truncated_or_missing_fmu_is_one_line(tmp_path, monkeypatch, 
 
 def test_stepped_fmu_on_a_damaged_fmu(tmp_path, monkeypatch):
     monkeypatch.setattr(harness.cosim.master, "EXTRACT_DIR", tmp_path / "extracted")
+    monkeypatch.setattr(harness.cosim.master, "USER_EXTRACT_DIR", tmp_path / "extracted")   # the damaged ones
     good = tmp_path / "Drive.fmu"
     shutil.copy(FMU_DIR / "Drive.fmu", good)
     sim = SteppedFmu(good, {}, 1e-3, "drive")                  # the checks accept a whole FMU

@@ -6,8 +6,10 @@ prints.
 from __future__ import annotations
 
 import argparse
-import math
+import contextlib
 import importlib
+import math
+import os
 import subprocess
 import sys
 
@@ -26,6 +28,7 @@ COMMANDS = {
     "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline"),
     "history": ("harness.cli.history", "plot the CI history trend (the ci runs of the results store)"),
     "query": ("harness.cli.query", "SQL over the results store (sweeps, corpus, ci)"),
+    "store": ("harness.cli.store", "the results store's files: `store check` lists those it skips"),
     "corpus": ("harness.cli.corpus", "every planner on every corpus path: table and performance profile"),
     "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine"),
 }
@@ -82,6 +85,29 @@ def parse_start(text: str | None) -> list[float] | None:
     return xyz
 
 
+def warn_skipped(command: str, store) -> None:
+    """One line on stderr per file a results store skipped (harness.store.ResultStore.skipped)."""
+    for f, why in store.skipped:
+        print(f"pkmbench {command}: warning: skipped {f}: {why} (`pkmbench store check` lists them)",
+              file=sys.stderr)
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """What is printed in the body (a plug-in's print(), a C library's write to fd 1) goes to
+    stderr: stdout stays for a command's machine-readable output (check --json)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def version_string() -> str:
     """'pkmbench VERSION (git COMMIT)': the installed package's version and, in a git checkout,
     the commit of this code (``+dirty`` when tracked files differ from it)."""
@@ -136,4 +162,24 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"pkmbench {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout (head, less) left: stdout to /dev/null, or the interpreter's own
+        # flush at exit fails again with a second message
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        print(f"pkmbench {args.command}: error: output closed before it was all written (broken pipe)",
+              file=sys.stderr)
+        return 2
+    except OSError as e:   # a file the command reads or writes: too long a name, no space, no access, …
+        where = f"{shorten(e.filename)}: " if e.filename else ""
+        print(f"pkmbench {args.command}: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 2
+
+
+def shorten(name, keep: int = 80) -> str:
+    """A file name for a one-line message: a name of thousands of characters shows its ends."""
+    name = str(name)
+    return name if len(name) <= keep else f"{name[:keep // 2]}…{name[-keep // 2:]} ({len(name)} characters)"
 

@@ -20,11 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cosim.system import FMU_DIR, System, SystemError_, check_fmu
+from harness.cosim.system import CHAIN_FMUS, FMU_DIR, System, SystemError_, check_fmu
 
 TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "Enumeration": 1, "Float64": 0, "Int32": 1}   # FMI 2.0 and 3.0 names
 NATIVE_SRC = Path(__file__).with_name("native_master.c")
-EXTRACT_DIR = FMU_DIR / "extracted"
+EXTRACT_DIR = FMU_DIR / "extracted"          # our FMUs, beside their build
+# a user's FMU is unpacked outside the checkout, in a folder of its own per content
+USER_EXTRACT_DIR = Path(tempfile.gettempdir()) / "pkmbench-fmus" / "extracted"
 
 
 class CoSimError(RuntimeError):
@@ -42,15 +44,33 @@ class Result:
         return self.data[:, self.columns.index(name)]
 
 
-def _extract(fmu: Path) -> Path:
-    """Unzip an FMU once per content hash (FMUs are re-used across runs and processes);
-    a missing or corrupt one is a SystemError_ naming it."""
+def is_ours(fmu: Path) -> bool:
+    """Whether ``fmu`` (or a copy of it, as a run folder's resources/) is one of our built FMUs."""
+    built = FMU_DIR / Path(fmu).name
+    try:
+        return built.is_file() and built.read_bytes() == Path(fmu).read_bytes()
+    except OSError:
+        return False
+
+
+def rebuild_hint(fmu: Path) -> str:
+    """What to do about an FMU that does not load: one named as our blocks are is rebuilt with
+    make; a user's FMU (blocks.check_user_fmu loads its binary first) is its maker's to rebuild."""
+    ours = Path(fmu).name in {f"{b}.fmu" for b in CHAIN_FMUS}
+    return "rebuild with 'make fmus'" if ours else "rebuild it for this platform with the tool that made it"
+
+
+def extract(fmu: Path) -> Path:
+    """Unzip an FMU once per content hash (FMUs are re-used across runs and processes): ours
+    under fmus/build/extracted, a user's under the temporary folder; a missing or corrupt one
+    is a SystemError_ naming it."""
     fmu = check_fmu(fmu)
     digest = hashlib.sha256(fmu.read_bytes()).hexdigest()[:16]
-    target = EXTRACT_DIR / f"{fmu.stem}-{digest}"
+    root = EXTRACT_DIR if is_ours(fmu) else USER_EXTRACT_DIR
+    target = root / f"{fmu.stem}-{digest}"
     if not (target / ".complete").exists():
-        EXTRACT_DIR.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=EXTRACT_DIR))
+        root.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=root))
         try:
             with zipfile.ZipFile(fmu) as z:
                 z.extractall(tmp)
@@ -73,11 +93,11 @@ class _Instance:
         from fmpy import read_model_description
 
         self.name = comp.name
-        unzip = Path(comp.fmu) if Path(comp.fmu).is_dir() else _extract(comp.fmu)   # a folder: already unzipped
+        unzip = Path(comp.fmu) if Path(comp.fmu).is_dir() else extract(comp.fmu)   # a folder: already unzipped
         try:
             md = read_model_description(str(unzip), validate=False)
         except Exception as e:
-            raise SystemError_(f"{comp.fmu}: unreadable modelDescription.xml: {e}; rebuild with 'make fmus'") from None
+            raise SystemError_(f"{comp.fmu}: unreadable modelDescription.xml: {e}; {rebuild_hint(comp.fmu)}") from None
         self.vars = {v.name: v for v in md.modelVariables}
         self.logs = logs
         self.fmi3 = str(md.fmiVersion).startswith("3.")
@@ -90,7 +110,7 @@ class _Instance:
                 instanceName=comp.name)
         except Exception as e:
             os.chdir(cwd)   # fmpy left the process in the FMU's binaries folder
-            raise SystemError_(f"{comp.fmu}: cannot load the FMU's binary ({e}); rebuild with 'make fmus'") from None
+            raise SystemError_(f"{comp.fmu}: cannot load the FMU's binary ({e}); {rebuild_hint(comp.fmu)}") from None
         try:
             self._instantiate(logging_on)
         except Exception as e:
