@@ -290,8 +290,9 @@ def _check(file, machine, planner: str, workspace_step_mm: float, start, reader:
 
     file = Path(file)
     rep = Report(str(file), machine.name, planner)
-    if planner not in planners.PLANNERS:
-        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.PLANNERS)}")
+    if not planners.registry.known(planner):      # built-ins, installed plug-ins, module:function
+        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.registry.names())} "
+                         f"or module:function")
     if not file.exists():
         raise CheckError(f"{file}: no such file")
     # 1. compile

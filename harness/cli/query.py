@@ -11,6 +11,7 @@ regressions). Every metric is in ``metrics`` (JSON, dotted names):
 from __future__ import annotations
 
 import csv
+import decimal
 import json
 import math
 import sys
@@ -48,7 +49,10 @@ def _cell(v) -> str:
 
 
 def strict_json(v):
-    """A value as strict JSON has it: NaN and ±Infinity (which JSON parsers refuse) as null."""
+    """A value as strict JSON has it: NaN and ±Infinity (which JSON parsers refuse) as null,
+    decimals as numbers."""
+    if isinstance(v, decimal.Decimal):        # DuckDB's DECIMAL: a JSON number, not a string
+        v = float(v)
     if isinstance(v, float) and not math.isfinite(v):
         return None
     if isinstance(v, dict):
