@@ -259,6 +259,8 @@ class ResultStore:
     def query(self, sql: str, params=None) -> tuple[list[str], list[tuple]]:
         """(column names, rows) of ``sql`` over the views ``results`` and ``runs``."""
         import duckdb
+        if not sql.strip():
+            raise StoreError("query is empty")
         try:
             if self.read_only:
                 kinds = [st.type.name for st in self.db.extract_statements(sql)]
@@ -267,8 +269,9 @@ class ResultStore:
                     raise StoreError(f"query refused: {bad[0]} statement; the results store is read-only "
                                      f"here (only {' and '.join(READ_STATEMENTS)})")
             cur = self.db.execute(sql, params) if params is not None else self.db.execute(sql)
-            cols = [d[0] for d in cur.description] if cur.description else []
-            return cols, cur.fetchall()
+            if cur is None or cur.description is None:      # only comments, or a statement with no result
+                return [], []
+            return [d[0] for d in cur.description], cur.fetchall()
         except duckdb.Error as e:
             first = str(e).strip().splitlines()[0]
             raise StoreError(f"query failed: {first}") from None
