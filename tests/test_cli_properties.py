@@ -158,7 +158,7 @@ def snapshot(root: Path, out: Path) -> set:
     return seen
 
 
-@settings(max_examples=50, deadline=None, derandomize=True, database=None,
+@settings(max_examples=100, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(suite=suites(), argv=commands())
 def test_any_suite_and_arguments_end_in_0_1_or_2_without_traceback_or_stray_files(suite, argv):
