@@ -3,6 +3,7 @@
 A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axes:
 
     name = "nightly"
+    planner_timeout_s = 600      # optional: a planner over it is its row's error (--planner-timeout)
     [[run]]                      # any number; machines × paths × planners of each are crossed
     machine = "keops"            # or machines = [...]; an id of benchmarks/machines/ or a .toml file
     path = "bird"                # or paths = [...]; an id of benchmarks/paths/ or a .json/.ngc file
@@ -18,7 +19,8 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
 
 This module is the one parser of suite files: `pkmbench run SUITE` takes the [[run]] tables
 (:func:`suite_runs`), `pkmbench sweep`/`ci` expand them with the axes (:func:`expand`); both
-refuse the same unknown keys and accept ``planner``/``planners`` alike.
+refuse the same unknown keys (in every table) and accept ``planner``/``planners`` alike; a
+suite expands to at most MAX_TASKS tasks.
 
 One task = (machine, path, planner, seed, preset, variation). A task carries the *contents*
 of its machine and path files, so a worker on another host needs only the code.
