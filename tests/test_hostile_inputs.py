@@ -271,7 +271,8 @@ def test_query_cannot_write_or_read_other_files(tmp_path, capsys):
 
 
 def test_a_user_fmu_is_unpacked_outside_the_checkout(tmp_path):
-    from harness.cosim.master import EXTRACT_DIR, USER_EXTRACT_DIR, extract
+    from harness.cosim.fmu_file import EXTRACT_DIR, USER_EXTRACT_DIR
+    from harness.cosim.master import extract
     user = tmp_path / "mydrive.fmu"                    # our Drive with one more file: not our build
     with zipfile.ZipFile(FMU_DIR / "Drive.fmu") as a, zipfile.ZipFile(user, "w") as b:
         for n in a.namelist():

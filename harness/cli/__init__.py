@@ -10,8 +10,10 @@ import contextlib
 import importlib
 import math
 import os
-import subprocess
 import sys
+
+from harness.outdir import OutDirError
+from harness.provenance import git_commit, package_version
 
 DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics machines through FMI "
                "co-simulation FMUs (interpolator, kinematics, EtherCAT, drives) and compare their "
@@ -111,22 +113,8 @@ def stdout_to_stderr():
 def version_string() -> str:
     """'pkmbench VERSION (git COMMIT)': the installed package's version and, in a git checkout,
     the commit of this code (``+dirty`` when tracked files differ from it)."""
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        ver = version("pkmbench")
-    except PackageNotFoundError:
-        ver = "(not installed)"
-    from kins.resources import REPO as repo
-    try:
-        git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], capture_output=True,  # noqa: E731
-                                        text=True, timeout=10)
-        head = git("rev-parse", "--short=12", "HEAD")
-        commit = head.stdout.strip() if head.returncode == 0 else ""
-        if commit and git("status", "--porcelain", "--untracked-files=no").stdout.strip():
-            commit += "+dirty"
-    except (OSError, subprocess.TimeoutExpired):     # no git on this machine
-        commit = ""
-    return f"pkmbench {ver}" + (f" (git {commit})" if commit else "")
+    commit = git_commit(12, dirty=True)
+    return f"pkmbench {package_version() or '(not installed)'}" + (f" (git {commit})" if commit else "")
 
 
 class _Version(argparse.Action):
@@ -156,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     mod = modules[args.command]
     try:
         return int(mod.main(args) or 0)
-    except CliError as e:
+    except (CliError, OutDirError) as e:
         print(f"pkmbench {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from harness.cosim.system import SystemError_
+from harness.cosim.fmu_file import SystemError_, fmu_problem, unpack
 
 # block → {variable: (causality, type)}: what the chain connects and run.RECORD reads
 INTERFACE = {
@@ -88,7 +88,6 @@ def check_user_fmu(block: str, fmu) -> Path:
                            f"co-simulation FMUs")
     if md.coSimulation is None:
         raise SystemError_(f"{block} FMU {fmu}: no co-simulation interface (model exchange only)")
-    from harness.cosim.system import fmu_problem
     why = fmu_problem(fmu) or _binary_problem(fmu, md)
     if why:
         raise SystemError_(f"{block} FMU {fmu}: not loadable here ({why})")
@@ -110,11 +109,10 @@ def _binary_problem(fmu: Path, md) -> str | None:
     import ctypes
     from fmpy import platform, platform_tuple, sharedLibraryExtension
 
-    from harness.cosim.master import extract     # the master's unpacking: the run loads that same file
     fmi3 = str(md.fmiVersion).startswith("3.")
     rel = f"binaries/{platform_tuple if fmi3 else platform}/{md.coSimulation.modelIdentifier}{sharedLibraryExtension}"
     try:
-        ctypes.CDLL(str(extract(fmu) / rel))
+        ctypes.CDLL(str(unpack(fmu) / rel))     # the master's unpacked folder: the run loads this same file
     except OSError as e:
         return f"its binary {rel} does not load: {e}"
     return None

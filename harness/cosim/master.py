@@ -20,13 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.cosim.fmu_file import unpack
 from harness.cosim.system import CHAIN_FMUS, FMU_DIR, System, SystemError_, check_fmu
 
 TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "Enumeration": 1, "Float64": 0, "Int32": 1}   # FMI 2.0 and 3.0 names
 NATIVE_SRC = Path(__file__).with_name("native_master.c")
-EXTRACT_DIR = FMU_DIR / "extracted"          # our FMUs, beside their build
-# a user's FMU is unpacked outside the checkout, in a folder of its own per content
-USER_EXTRACT_DIR = Path(tempfile.gettempdir()) / "pkmbench-fmus" / "extracted"
 
 
 class CoSimError(RuntimeError):
@@ -44,15 +42,6 @@ class Result:
         return self.data[:, self.columns.index(name)]
 
 
-def is_ours(fmu: Path) -> bool:
-    """Whether ``fmu`` (or a copy of it, as a run folder's resources/) is one of our built FMUs."""
-    built = FMU_DIR / Path(fmu).name
-    try:
-        return built.is_file() and built.read_bytes() == Path(fmu).read_bytes()
-    except OSError:
-        return False
-
-
 def rebuild_hint(fmu: Path) -> str:
     """What to do about an FMU that does not load: one named as our blocks are is rebuilt with
     make; a user's FMU (blocks.check_user_fmu loads its binary first) is its maker's to rebuild."""
@@ -61,27 +50,9 @@ def rebuild_hint(fmu: Path) -> str:
 
 
 def extract(fmu: Path) -> Path:
-    """Unzip an FMU once per content hash (FMUs are re-used across runs and processes): ours
-    under fmus/build/extracted, a user's under the temporary folder; a missing or corrupt one
+    """The unpacked folder of an FMU (harness.cosim.fmu_file.unpack); a missing or corrupt one
     is a SystemError_ naming it."""
-    fmu = check_fmu(fmu)
-    digest = hashlib.sha256(fmu.read_bytes()).hexdigest()[:16]
-    root = EXTRACT_DIR if is_ours(fmu) else USER_EXTRACT_DIR
-    target = root / f"{fmu.stem}-{digest}"
-    if not (target / ".complete").exists():
-        root.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=root))
-        try:
-            with zipfile.ZipFile(fmu) as z:
-                z.extractall(tmp)
-            (tmp / ".complete").write_text("ok")
-            try:
-                tmp.rename(target)
-            except OSError:   # another process got there first
-                pass
-        finally:   # an interrupted or failed extraction leaves no half-filled folder
-            shutil.rmtree(tmp, ignore_errors=True)
-    return target
+    return unpack(check_fmu(fmu))
 
 
 class _Instance:

@@ -29,12 +29,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import platform
 import secrets
-import socket
 from datetime import datetime, timezone
 from pathlib import Path
 
+from harness.provenance import git_commit, host_info, package_version
 from kins.resources import RESULTS
 
 ENV = "PKMBENCH_STORE"
@@ -102,11 +101,6 @@ def file_problem(db, file: Path) -> str | None:
     if odd:
         return f"not a results-store file: column(s) {', '.join(odd)[:200]} not in the store's schema"
     return None
-
-
-def host_info() -> dict:
-    return {"node": socket.gethostname(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "python": platform.python_version(), "system": platform.system()}
 
 
 def _flatten(metrics: dict, prefix: str = "") -> dict:
@@ -215,21 +209,14 @@ class ResultStore:
                run_info: dict | None = None, time: datetime | None = None, run_id: str | None = None) -> str:
         """Append one command run's rows (from :func:`make_row`) as one Parquet file, named
         ``run_id`` (default a new one); returns the run_id."""
-        from harness.ci.history import git_commit
-        from kins.resources import REPO
         if not rows:
             return ""
         if self.read_only:
             raise StoreError(f"results store {self.folder}: opened read-only")
         time = time or datetime.now(timezone.utc)
         run_id = run_id or self.new_run_id(kind, time)
-        try:
-            from importlib.metadata import version
-            pv = version("pkmbench")
-        except Exception:
-            pv = None
         common = {"run_id": run_id, "kind": kind, "suite": suite, "time": time.replace(tzinfo=None),
-                  "code_version": code_version, "git_commit": git_commit(REPO), "pkmbench_version": pv,
+                  "code_version": code_version, "git_commit": git_commit(), "pkmbench_version": package_version(),
                   "host": json.dumps(host_info(), sort_keys=True),
                   "run_info": json.dumps(run_info or {}, sort_keys=True, allow_nan=False)}
         try:
