@@ -13,7 +13,9 @@ import time
 
 from planners import registry
 from planners.errors import PlanningError
-from planners.profile import Profile
+from planners.paths import Path, resolve_path
+from planners.profile import Profile, ProfileError
+from planners.timeout import run_limited
 
 # the built-in planners (registry.names() adds the installed plug-ins)
 PLANNERS = tuple(registry.BUILTIN)
@@ -34,8 +36,6 @@ def plan(name: str, path, machine, limits=None, **options):
     with it, not with the planners after it. A result that is not a valid :class:`Profile`
     sampled at the machine's servo period is a PlanningError naming the planner.
     """
-    from planners.paths import Path, resolve_path
-    from planners.profile import ProfileError
 
     fn = get_planner(name)
     if not isinstance(path, Path):
@@ -59,7 +59,8 @@ def plan(name: str, path, machine, limits=None, **options):
 
 
 def plan_in_time(timeout_s, name: str, path, machine, limits=None, **options):
-    """:func:`plan` stopped after ``timeout_s`` seconds (None: no limit), the planner's error
-    naming the timeout (planners.timeout: in a child process, killed when it is over)."""
-    from planners.timeout import plan_in_time as limited    # a subprocess launcher, only when asked
-    return limited(timeout_s, name, path, machine, limits, **options)
+    """:func:`plan` stopped after ``timeout_s`` seconds (None: no limit, in this process), the
+    planner's error naming the timeout (planners.timeout: in a child process, killed when it is over)."""
+    if timeout_s is None:
+        return plan(name, path, machine, limits, **options)
+    return run_limited(timeout_s, name, path, machine, limits, options)

@@ -1,6 +1,6 @@
-"""A planner with a time limit: :func:`plan_in_time` runs :func:`planners.plan` in a child
-Python process and kills it when the limit passes (a plug-in that loops forever, or a solver
-that never returns, costs its row, not the run).
+"""A planner with a time limit: :func:`run_limited` (behind ``planners.plan_in_time``) runs
+``planners.plan`` in a child Python process and kills it when the limit passes (a plug-in
+that loops forever, or a solver that never returns, costs its row, not the run).
 
 A process rather than a thread: a thread cannot be stopped, so an abandoned one would keep a
 core busy (and hold the GIL) for the rest of a run or a sweep worker's life. A plain
@@ -13,7 +13,6 @@ print() in the child goes to stderr, as the parent's own stdout may be a JSON re
 """
 from __future__ import annotations
 
-import io
 import os
 import pickle
 import selectors
@@ -24,20 +23,21 @@ from planners.errors import PlanningError
 
 READY = b"R"
 START_LIMIT_S = 300.0      # the child's imports (numpy, the planners) on a loaded machine
+# the child's program: the parent's sys.path, then the package's plan() handed to child() (this
+# module does not import the package: the package imports it)
+CHILD = ("import pickle, sys; sys.path[:] = pickle.load(sys.stdin.buffer); "
+         "import planners, planners.timeout as t; t.child(planners.plan)")
 
 
-def plan_in_time(timeout_s: float | None, name: str, path, machine, limits=None, **options):
-    """:func:`planners.plan` of ``name``, stopped after ``timeout_s`` seconds of planning with a
-    PlanningError naming the timeout (None: no limit, in this process)."""
-    import planners     # the package's plan(): this module is imported by it
-    if timeout_s is None:
-        return planners.plan(name, path, machine, limits, **options)
+def run_limited(timeout_s: float, name: str, path, machine, limits, options: dict):
+    """planners.plan of ``name`` in a child process, stopped after ``timeout_s`` seconds of planning
+    with a PlanningError naming the timeout."""
     if not timeout_s > 0:
         raise PlanningError(f"planner timeout {timeout_s!r} s: must be > 0")
     # sys.path first, in a pickle of its own: the inputs' classes are imported through it
     payload = pickle.dumps(list(sys.path)) + pickle.dumps((name, path, machine, limits, options))
-    proc = subprocess.Popen([sys.executable, "-c", "from planners.timeout import child; child()"],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=None)
+    proc = subprocess.Popen([sys.executable, "-c", CHILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=None)
     try:
         proc.stdin.write(payload)
         proc.stdin.close()
@@ -69,19 +69,16 @@ def _wait_readable(stream, seconds: float) -> bool:
         return bool(sel.select(seconds))
 
 
-def child() -> None:
-    """The worker process: inputs from stdin, READY then the pickled (ok, result) on stdout."""
+def child(plan) -> None:
+    """The worker process: inputs from stdin, READY then the pickled (ok, ``plan``'s result) on stdout."""
     out = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)                         # the planner's prints go to stderr
     sys.stdout = sys.stderr
-    inputs = io.BytesIO(sys.stdin.buffer.read())
-    sys.path[:] = pickle.load(inputs)
-    name, path, machine, limits, options = pickle.load(inputs)
-    import planners
+    name, path, machine, limits, options = pickle.load(sys.stdin.buffer)   # after CHILD's sys.path
     out.write(READY)
     out.flush()
     try:
-        result = (True, planners.plan(name, path, machine, limits, **options))
+        result = (True, plan(name, path, machine, limits, **options))
     except Exception as e:
         result = (False, e)
     try:

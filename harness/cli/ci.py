@@ -10,6 +10,9 @@ regression (each named with its run, metric, values and tolerance), 2 on a user 
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import os
 import shutil
 import sys

@@ -9,6 +9,9 @@ Exit 0 when every task succeeded, 1 when some failed (they are listed), 2 on a u
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import os
 
 import sys

@@ -34,6 +34,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from harness.provenance import git_commit, host_info, package_version
+from harness.sweep import SweepStore, task_label
 from kins.resources import RESULTS
 
 ENV = "PKMBENCH_STORE"
@@ -271,7 +272,6 @@ class ResultStore:
 def rows_from_sweep(sweep_db: Path, keys=None, regressions: dict | None = None) -> list[dict]:
     """Store rows of a sweep's SQLite table (only ``keys`` when given); ``regressions`` maps a
     task label to its metrics out of tolerance (ci)."""
-    from harness.sweep import SweepStore, task_label
     with SweepStore(sweep_db) as s:
         rows = s.to_rows()
     want = set(keys) if keys is not None else None
