@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from harness.cli import CliError
+from harness.cli import CliError, add_timeout_argument
 from harness.outdir import output_dir, output_file
 from kins.resources import BASELINE, CI_DIR, SUITE_DIR, repo_relative
 
@@ -43,6 +43,7 @@ def add_arguments(p) -> None:
     p.add_argument("--task", default=None, metavar="MODULE:FUNCTION", help="task function (see sweep)")
     p.add_argument("--fmu", action="append", metavar="BLOCK=FILE.fmu",
                    help="a user FMU in place of ours, as for run (repeatable; wins over the suite's [fmus])")
+    add_timeout_argument(p)
 
 
 def main(args) -> int:
@@ -115,6 +116,8 @@ def _load_tasks(args, suite_file: Path, task_fn: str):
     try:
         suite = load_suite(suite_file)
         tasks = with_user_fmus(expand(suite, src=args.suite, base=Path.cwd()), suite, suite_file, args.fmu)
+        if args.planner_timeout is not None:     # wins over the suite's planner_timeout_s
+            tasks = [t | {"planner_timeout_s": args.planner_timeout} for t in tasks]
         tolerances = ci.tolerances_from_suite(suite)
         if args.no_timing:
             tolerances = ci.without_timing(tolerances)
