@@ -133,7 +133,7 @@ def commands(draw) -> list[str]:
 def template() -> Path:
     """out/ as an earlier sweep left it (sweep/ with results.sqlite, store/ with its rows): what
     query, report and store read. Made once, copied into each example's out/."""
-    from harness.store import append_unstored
+    from harness.sweep.to_store import append_unstored
     from harness.sweep import expand, run_sweep
     t = Path(tempfile.mkdtemp(prefix="pkmbench-prop-template-"))
     (t / "line.json").write_text(json.dumps(LINE))

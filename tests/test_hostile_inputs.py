@@ -19,7 +19,7 @@ import planners
 from harness.cli import main as cli
 from harness.outdir import run_lock
 from harness.store import ResultStore, make_row
-from harness.sweep import SuiteError, SweepStore, expand, load_suite, run_sweep
+from harness.sweep import SuiteError, TaskTable, expand, load_suite, run_sweep
 from kins import load_machine
 from kins.resources import FMU_DIR, REPO
 
@@ -206,16 +206,16 @@ def test_an_interrupted_sweep_brings_every_finished_task_to_the_store_once(tmp_p
 def test_an_append_interrupted_around_its_rename_is_not_repeated(tmp_path, line):
     """The sweep table says which file holds which row before the file is written: a file found
     in the store is complete (renamed in whole), one not found is written again."""
-    from harness.store import append_unstored
+    from harness.sweep.to_store import append_unstored
     suite = line_suite(tmp_path, line, "[sweep]\nseeds = [0, 1]\n")
     out, store = tmp_path / "o", tmp_path / "store"
     run_sweep(expand(load_suite(suite)), out, task_fn=LINE_TASK, workers=0, progress=False)
     db = out / "results.sqlite"
-    with SweepStore(db) as sw:                         # killed after marking, before writing
+    with TaskTable(db) as sw:                         # killed after marking, before writing
         sw.begin_append(sw.unappended(store), "sweep-lost", store)
     run_id, n = append_unstored(db, kind="sweep", suite="s", store=store)
     assert n == 2 and (store / f"{run_id}.parquet").exists()
-    with SweepStore(db) as sw:                         # killed after the rename, before the mark
+    with TaskTable(db) as sw:                         # killed after the rename, before the mark
         sw.db.execute("UPDATE appended SET done = 0")
         sw.db.commit()
     assert append_unstored(db, kind="sweep", suite="s", store=store) == ("", 0)
@@ -390,7 +390,7 @@ def test_a_planner_over_its_timeout_is_its_rows_error(plugins, line, tmp_path, c
                      f'planners = ["sleepy_plug:plan", "quintic_plug:plan"]\n')
     assert cli(["sweep", str(suite), "--workers", "0", "--no-progress", "--task", "harness.sweep.tasks:plan_task",
                 "--out", str(tmp_path / "o"), "--store", "none"]) == 1
-    rows = {r["planner"]: r for r in SweepStore(tmp_path / "o/results.sqlite").to_rows()}
+    rows = {r["planner"]: r for r in TaskTable(tmp_path / "o/results.sqlite").to_rows()}
     assert rows["quintic_plug:plan"]["status"] == "ok"
     assert "exceeded the planner timeout of 3 s" in rows["sleepy_plug:plan"]["error"]
     with pytest.raises(SystemExit) as e:               # argparse's one line

@@ -32,8 +32,8 @@ def command_argv(command: str, tmp: Path, out: Path) -> list[str]:
     suite.write_text(f'[[run]]\nmachine = "keops"\npath = "{SHORT_LINE}"\nplanners = ["scurve"]\n')
     sweep = tmp / "sweep"
     sweep.mkdir(exist_ok=True)
-    from harness.sweep import SweepStore, expand
-    with SweepStore(sweep / "results.sqlite") as sw:   # one finished task: report checks its table first
+    from harness.sweep import TaskTable, expand
+    with TaskTable(sweep / "results.sqlite") as sw:   # one finished task: report checks its table first
         task = expand({"run": [{"machine": "keops", "path": SHORT_LINE, "planners": ["scurve"]}]})[0]
         sw.put("k", task, "v", {"status": "ok", "metrics": {"execution_time_s": 1.0}}, None)
     from harness.store import ResultStore, make_row

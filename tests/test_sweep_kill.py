@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 
 from harness.store import ResultStore
-from harness.sweep import SweepStore
+from harness.sweep import TaskTable
 from kins.resources import REPO
 
 LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
@@ -102,7 +102,7 @@ def test_a_sweep_killed_20_times_and_resumed_stores_each_task_once(tmp_path):
     rows = store_rows(store)
     labels = [f"keops/line/quintic/seed{s}/none/base" for s in range(ROUNDS * ROUND)]
     assert sorted(r["entry"] for r in rows) == sorted(labels)            # each task exactly once
-    with SweepStore(out / "results.sqlite") as sw:
+    with TaskTable(out / "results.sqlite") as sw:
         table = {f"keops/line/quintic/seed{r['seed']}/none/base": r for r in sw.to_rows()}
     assert sorted(table) == sorted(labels)
     for r in rows:                                   # the store and results.sqlite agree

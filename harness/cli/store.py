@@ -10,6 +10,9 @@ interrupted. Exit 0 when every file is readable, 1 when some are not, 2 on a use
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 from harness.cli import CliError
 
 

@@ -63,7 +63,8 @@ def main(args) -> int:
         except SweepError as e:
             raise CliError(str(e)) from None
         if args.store != "none":
-            from harness.store import StoreError, append_unstored
+            from harness.store import StoreError
+            from harness.sweep.to_store import append_unstored
             try:
                 append_unstored(out / "results.sqlite", kind="sweep", suite=str(args.suite), store=args.store,
                                 code_version=res.code_version, run_info=user_fmus_info(tasks))

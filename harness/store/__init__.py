@@ -13,7 +13,7 @@ fail on its lock), and a file in DuckDB's own format is tied to its storage vers
 file is written once, whole, under a temporary name and renamed in (atomic: a reader never sees
 half a file, a killed run leaves nothing); any number of writers append side by side, and the
 files can be copied, merged (``cp``) and read by DuckDB, pandas, polars or Spark: results to
-share. The per-task SQLite table of a sweep (harness/sweep/store.py) stays: it is the resume
+share. The per-task SQLite table of a sweep (harness/sweep/table.py) stays: it is the resume
 log of one sweep folder, written row by row while the sweep runs; the store gets the finished
 rows.
 
@@ -34,7 +34,6 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from harness.provenance import git_commit, host_info, package_version
-from harness.sweep import SweepStore, task_label
 from kins.resources import RESULTS
 
 ENV = "PKMBENCH_STORE"
@@ -269,25 +268,6 @@ class ResultStore:
         return [dict(zip(cols, r)) for r in rows]
 
 
-def rows_from_sweep(sweep_db: Path, keys=None, regressions: dict | None = None) -> list[dict]:
-    """Store rows of a sweep's SQLite table (only ``keys`` when given); ``regressions`` maps a
-    task label to its metrics out of tolerance (ci)."""
-    with SweepStore(sweep_db) as s:
-        rows = s.to_rows()
-    want = set(keys) if keys is not None else None
-    out = []
-    for r in rows:
-        if want is not None and r["key"] not in want:
-            continue
-        label = task_label(r["task"])
-        out.append(make_row(entry=label, machine=r["machine"], path=r["path"], planner=r["planner"],
-                            seed=r["seed"], preset=r["preset"], variation=r["variation"],
-                            status=r["status"], error=r["error"], metrics=r["metrics"],
-                            regressions=(regressions or {}).get(label, ()),
-                            run_dir=str(Path(sweep_db).parent / r["run_dir"]) if r["run_dir"] else None))
-    return out
-
-
 def rows_from_corpus(rows) -> list[dict]:
     """Store rows of `pkmbench corpus` (harness.corpus.Row: planned and checked at T, no
     co-simulation); metrics named as a run's summary.json names them."""
@@ -304,33 +284,3 @@ def rows_from_corpus(rows) -> list[dict]:
         out.append(make_row(entry=f"{r.machine}/{r.path}/{r.planner}", machine=r.machine, path=r.path,
                             planner=r.planner, seed=0, status=r.status, error=r.error or None, metrics=metrics))
     return out
-
-
-def append_sweep(sweep_db: Path, keys, *, kind: str, suite: str, store: str | Path | None = None,
-                 run_info: dict | None = None, regressions: dict | None = None,
-                 code_version: str = "") -> str:
-    """Append the rows ``keys`` of a sweep folder's table to the store (corpus appends
-    :func:`rows_from_corpus`; a sweep :func:`append_unstored`)."""
-    rows = rows_from_sweep(sweep_db, keys, regressions)
-    with ResultStore(store) as st:
-        return st.append(rows, kind=kind, suite=suite, code_version=code_version, run_info=run_info)
-
-
-def append_unstored(sweep_db: Path, *, kind: str, suite: str, store: str | Path | None = None,
-                    run_info: dict | None = None, code_version: str = "") -> tuple[str, int]:
-    """Append every finished task of a sweep folder that has not reached this store yet, as one
-    file: (its run_id, the rows; "" and 0 when there were none). Exactly once, whatever was
-    interrupted when: the sweep's table records the file's name before the file is written
-    (``appended``, pending) and that it is in the store after; a pending file found in the store
-    is complete (written under a temporary name, renamed in), one not found is written again."""
-    from harness.sweep import SweepStore
-    with ResultStore(store) as st, SweepStore(sweep_db) as sw:
-        keys = sw.unappended(st.folder)
-        if not keys:
-            return "", 0
-        rows = rows_from_sweep(sweep_db, keys)
-        run_id = st.new_run_id(kind)
-        sw.begin_append(keys, run_id, st.folder)
-        st.append(rows, kind=kind, suite=suite, code_version=code_version, run_info=run_info, run_id=run_id)
-        sw.end_append(run_id, st.folder)
-        return run_id, len(rows)

@@ -37,7 +37,7 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.sweep.store import SweepStore, SweepStoreError
+from harness.sweep.table import TaskTable, TaskTableError
 from harness.sweep.suite import code_version, expand, load_suite, task_key, task_label, with_user_fmus
 from kins.resources import FMU_DIR, REPO
 
@@ -254,8 +254,8 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
     version = code_version(extra=_task_fn_files(task_fn))
     res = SweepResult(out_dir, total=len(tasks), code_version=version)
     try:
-        store = SweepStore(out_dir / "results.sqlite")
-    except SweepStoreError as e:
+        store = TaskTable(out_dir / "results.sqlite")
+    except TaskTableError as e:
         raise SweepError(str(e)) from None
     with store:
         done = set() if force else store.done_keys()

@@ -6,7 +6,7 @@ finished so far, which is exactly what the resume logic needs: "is this key done
 primary-key lookup), it is in the standard library (readers need no pyarrow), and it is
 queryable from the `sqlite3` shell (`json_extract(metrics, '$.execution_time_s')`).
 Parquet files are immutable: appending per task would mean one file per task or a rewrite
-of the whole table every time. `SweepStore.to_rows()` gives the flat table for export.
+of the whole table every time. `TaskTable.to_rows()` gives the flat table for export.
 """
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ CREATE TABLE IF NOT EXISTS appended (   -- which rows reached which results stor
 """
 
 
-class SweepStoreError(ValueError):
+class TaskTableError(ValueError):
     """A sweep folder's results.sqlite cannot be read (not a database, corrupt); names the file."""
 
 
@@ -68,7 +68,7 @@ def _sql_int64(n: int) -> int:
     return n - 2**64 if n >= 2**63 else n
 
 
-class SweepStore:
+class TaskTable:
     def __init__(self, file: str | Path):
         self.file = Path(file)
         self.file.parent.mkdir(parents=True, exist_ok=True)
@@ -83,7 +83,7 @@ class SweepStore:
                     self.db.execute("INSERT INTO appended SELECT key, '*', '', 1 FROM results")
         except sqlite3.DatabaseError as e:
             self.db.close()
-            raise SweepStoreError(f"{self.file}: not a sweep's results table ({e}); move it away "
+            raise TaskTableError(f"{self.file}: not a sweep's results table ({e}); move it away "
                                   f"or choose another folder") from None
 
     def close(self) -> None:
