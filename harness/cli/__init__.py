@@ -6,10 +6,14 @@ prints.
 from __future__ import annotations
 
 import argparse
-import math
+import contextlib
 import importlib
-import subprocess
+import math
+import os
 import sys
+
+from harness.outdir import OutDirError
+from harness.provenance import git_commit, package_version
 
 DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics machines through FMI "
                "co-simulation FMUs (interpolator, kinematics, EtherCAT, drives) and compare their "
@@ -26,6 +30,7 @@ COMMANDS = {
     "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline"),
     "history": ("harness.cli.history", "plot the CI history trend (the ci runs of the results store)"),
     "query": ("harness.cli.query", "SQL over the results store (sweeps, corpus, ci)"),
+    "store": ("harness.cli.store", "the results store's files: `store check` lists those it skips"),
     "corpus": ("harness.cli.corpus", "every planner on every corpus path: table and performance profile"),
     "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine"),
 }
@@ -68,12 +73,32 @@ def gcode_setup(args):
     tbl, var, offsets = (getattr(args, k, None) for k in ("tool_table", "var_file", "offset"))
     if not (tbl or var or offsets):
         return None
+    # loaded only when a setup is given: every command's parser imports this package
     from planners.paths.gcode.rs274 import RS274Error
-    from planners.paths.gcode.rs274.setup import make_setup
+    from planners.paths.gcode.rs274.setup import make_setup  # (the same reason)
     try:
         return make_setup(tbl, var, offsets or ())
     except (RS274Error, ValueError) as e:
         raise CliError(str(e)) from None
+
+
+def planner_timeout_s(text: str) -> float:
+    """--planner-timeout S: a finite number of seconds > 0 (argparse's type: a bad one is exit 2)."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a number of seconds > 0")
+    return x
+
+
+def add_timeout_argument(p) -> None:
+    """--planner-timeout (run, plan, sweep, ci)."""
+    p.add_argument("--planner-timeout", type=planner_timeout_s, default=None, metavar="S",
+                   help="stop a planner after S seconds of planning: its row is an error naming the "
+                        "timeout, the other planners run (planned in a child process; a suite's "
+                        "planner_timeout_s does the same; default: no limit)")
 
 
 def parse_start(text: str | None) -> list[float] | None:
@@ -89,25 +114,34 @@ def parse_start(text: str | None) -> list[float] | None:
     return xyz
 
 
+def warn_skipped(command: str, store) -> None:
+    """One line on stderr per file a results store skipped (harness.store.ResultStore.skipped)."""
+    for f, why in store.skipped:
+        print(f"pkmbench {command}: warning: skipped {f}: {why} (`pkmbench store check` lists them)",
+              file=sys.stderr)
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """What is printed in the body (a plug-in's print(), a C library's write to fd 1) goes to
+    stderr: stdout stays for a command's machine-readable output (check --json)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def version_string() -> str:
     """'pkmbench VERSION (git COMMIT)': the installed package's version and, in a git checkout,
     the commit of this code (``+dirty`` when tracked files differ from it)."""
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        ver = version("pkmbench")
-    except PackageNotFoundError:
-        ver = "(not installed)"
-    from kins.resources import REPO as repo
-    try:
-        git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], capture_output=True,  # noqa: E731
-                                        text=True, timeout=10)
-        head = git("rev-parse", "--short=12", "HEAD")
-        commit = head.stdout.strip() if head.returncode == 0 else ""
-        if commit and git("status", "--porcelain", "--untracked-files=no").stdout.strip():
-            commit += "+dirty"
-    except (OSError, subprocess.TimeoutExpired):     # no git on this machine
-        commit = ""
-    return f"pkmbench {ver}" + (f" (git {commit})" if commit else "")
+    commit = git_commit(12, dirty=True)
+    return f"pkmbench {package_version() or '(not installed)'}" + (f" (git {commit})" if commit else "")
 
 
 class _Version(argparse.Action):
@@ -137,10 +171,30 @@ def main(argv: list[str] | None = None) -> int:
     mod = modules[args.command]
     try:
         return int(mod.main(args) or 0)
-    except CliError as e:
+    except (CliError, OutDirError) as e:
         print(f"pkmbench {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"pkmbench {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout (head, less) left: stdout to /dev/null, or the interpreter's own
+        # flush at exit fails again with a second message
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        print(f"pkmbench {args.command}: error: output closed before it was all written (broken pipe)",
+              file=sys.stderr)
+        return 2
+    except OSError as e:   # a file the command reads or writes: too long a name, no space, no access, …
+        where = f"{shorten(e.filename)}: " if e.filename else ""
+        print(f"pkmbench {args.command}: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 2
+
+
+def shorten(name, keep: int = 80) -> str:
+    """A file name for a one-line message: a name of thousands of characters shows its ends."""
+    name = str(name)
+    return name if len(name) <= keep else f"{name[:keep // 2]}…{name[-keep // 2:]} ({len(name)} characters)"
 

@@ -10,15 +10,16 @@ regression (each named with its run, metric, values and tolerance), 2 on a user 
 """
 from __future__ import annotations
 
-import json
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import os
 import shutil
 import sys
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 
-from harness.cli import CliError
+from harness.cli import CliError, add_timeout_argument
 from harness.outdir import output_dir, output_file
 from kins.resources import BASELINE, CI_DIR, SUITE_DIR, repo_relative
 
@@ -42,19 +43,7 @@ def add_arguments(p) -> None:
     p.add_argument("--task", default=None, metavar="MODULE:FUNCTION", help="task function (see sweep)")
     p.add_argument("--fmu", action="append", metavar="BLOCK=FILE.fmu",
                    help="a user FMU in place of ours, as for run (repeatable; wins over the suite's [fmus])")
-
-
-def _load_baseline(file: Path) -> dict:
-    from harness.ci.baseline import FORMAT
-    if not file.exists():
-        raise CliError(f"{file}: no baseline; create it with --update-baseline")
-    try:
-        b = json.loads(file.read_text())
-    except json.JSONDecodeError as e:
-        raise CliError(f"{file}: not valid JSON (line {e.lineno}): {e.msg}") from None
-    if b.get("format") != FORMAT or not isinstance(b.get("entries"), dict):
-        raise CliError(f"{file}: not a pkmbench baseline (format must be '{FORMAT}' with 'entries')")
-    return b
+    add_timeout_argument(p)
 
 
 def main(args) -> int:
@@ -62,7 +51,10 @@ def main(args) -> int:
     from harness.store import ResultStore, StoreError
 
     suite_file, task_fn, baseline_file = _inputs(args)
-    baseline = None if args.update_baseline else _load_baseline(baseline_file)
+    try:
+        baseline = None if args.update_baseline else ci.load_baseline(baseline_file)
+    except ci.BaselineError as e:
+        raise CliError(str(e)) from None
     tasks, tolerances = _load_tasks(args, suite_file, task_fn)
     junit, mdfile, out = _check_outputs(args, baseline_file)
     run_dir, reference_s, entries, errors, wall_s = _run_suite(args, tasks, task_fn, out)
@@ -85,7 +77,7 @@ def main(args) -> int:
     info = {"mode": "update-baseline" if args.update_baseline else "check", "passed": passed,
             "reference_s": reference_s, "wall_s": wall_s, "baseline": str(baseline_file),
             "checks": len(checks), "task_fn": task_fn}
-    from harness.cli.sweep import user_fmus_info
+    from harness.sweep import user_fmus_info
     info |= user_fmus_info(tasks) or {}         # only with user FMUs: the other runs' info as it was
     try:
         with ResultStore(args.store) as st:
@@ -124,6 +116,8 @@ def _load_tasks(args, suite_file: Path, task_fn: str):
     try:
         suite = load_suite(suite_file)
         tasks = with_user_fmus(expand(suite, src=args.suite, base=Path.cwd()), suite, suite_file, args.fmu)
+        if args.planner_timeout is not None:     # wins over the suite's planner_timeout_s
+            tasks = [t | {"planner_timeout_s": args.planner_timeout} for t in tasks]
         tolerances = ci.tolerances_from_suite(suite)
         if args.no_timing:
             tolerances = ci.without_timing(tolerances)
@@ -153,7 +147,7 @@ def _run_suite(args, tasks, task_fn: str, out: Path):
     after) in OUT/run; the run folder, the reference time, the metrics, the errors, the wall
     time."""
     from harness.ci import baseline as ci
-    from harness.sweep import SweepError, SweepStore, run_sweep
+    from harness.sweep import SweepError, TaskTable, run_sweep
     t0 = time.perf_counter()
     reference_s = ci.reference_workload_s()
     run_dir = out / "run"
@@ -165,7 +159,7 @@ def _run_suite(args, tasks, task_fn: str, out: Path):
     except SweepError as e:
         raise CliError(str(e)) from None
     reference_s = min(reference_s, ci.reference_workload_s())   # best of before and after
-    with SweepStore(run_dir / "results.sqlite") as store:
+    with TaskTable(run_dir / "results.sqlite") as store:
         entries, errors = ci.entries_from_rows(store.to_rows(), reference_s)
     wall_s = time.perf_counter() - t0
     return run_dir, reference_s, entries, errors, wall_s
@@ -181,11 +175,8 @@ def _update_baseline(args, baseline_file: Path, task_fn: str, version: str, refe
             print(f"FAILED {label}: {err}")
         print(f"ci: {len(errors)} task(s) failed; baseline NOT updated")
         return ci.compare({"entries": entries}, entries, errors, tolerances), False
-    doc = {"format": ci.FORMAT, "suite": args.suite, "task_fn": task_fn,
-           "code_version": version, "reference_s": reference_s, "host": ci.host_info(),
-           "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-           "entries": entries}
-    baseline_file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    doc = ci.write_baseline(baseline_file, suite=args.suite, task_fn=task_fn, code_version=version,
+                            reference_s=reference_s, entries=entries)
     checks = ci.compare(doc, entries, errors, tolerances)
     print(f"ci: baseline {baseline_file} written: {len(entries)} runs, "
           f"{sum(len(v) for v in entries.values())} metrics, {wall_s:.1f} s")
@@ -195,13 +186,13 @@ def _update_baseline(args, baseline_file: Path, task_fn: str, version: str, refe
 def _store_rows(run_dir: Path, entries, checks) -> list:
     """The results-store rows of the run, each with its metrics out of tolerance."""
     from harness.store import make_row
-    from harness.sweep import SweepStore, task_label
+    from harness.sweep import TaskTable, task_label
     regressions: dict[str, list[str]] = {}
     for c in checks:
         if not c.ok:
             regressions.setdefault(c.entry, []).append(c.metric)
     rows = []
-    with SweepStore(run_dir / "results.sqlite") as store:
+    with TaskTable(run_dir / "results.sqlite") as store:
         for r in store.to_rows():
             label = task_label(r["task"])
             rows.append(make_row(entry=label, machine=r["machine"], path=r["path"], planner=r["planner"],

@@ -39,7 +39,7 @@ import numpy as np
 
 from planners.constraints import check_limits, check_path_in_workspace
 from planners.errors import PlanningError
-from planners.paths import PathError, SegmentPath
+from planners.paths import Path, PathError, SegmentPath
 from planners.paths.post import prepare_geometry
 from planners.profile import Profile
 from planners.trapezoid import program as tp_plan
