@@ -190,10 +190,10 @@ def planner_timeout(value, where: str) -> float:
     return float(value)
 
 
-def task_count(suite: dict) -> int:
+def task_count(suite: dict, src: str = "<suite>") -> int:
     """How many tasks the suite's [[run]] tables and [sweep] axes cross to (before listing them)."""
     sweep = suite.get("sweep", {})
-    per_run = sum(len(m) * len(p) * len(pl) for m, p, pl, _ in suite_runs(suite))
+    per_run = sum(len(m) * len(p) * len(pl) for m, p, pl, *_ in suite_runs(suite, src))
     axes = [sweep.get("seeds", [0]), sweep.get("presets", ["none"]), sweep.get("variation", [{}])]
     n = per_run
     for a in axes:
@@ -244,7 +244,7 @@ def load_suite(file: str | Path) -> dict:
 def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     """The tasks of a suite, in a stable order (runs × seeds × presets × variations)."""
     runs = suite_runs(suite, src)
-    n = task_count(suite)
+    n = task_count(suite, src)
     if n > MAX_TASKS:
         raise SuiteError(f"{src}: the suite expands to {n} tasks (runs × seeds × presets × variations), "
                          f"more than the {MAX_TASKS} a sweep takes; split it into several suites")
