@@ -384,3 +384,10 @@ def test_trapezoid_plans_the_drilling_program_to_its_end(tmp_path):
     cam.make_cam_program(4000, seed=2, cycles=True, file=tmp_path / "camc.ngc")
     prof = planners.plan("trapezoid", resolve_path(str(tmp_path / "camc.ngc")), load_machine("kossel"))
     assert prof.s[-1] == prof.path.length and "G81" in (tmp_path / "camc.ngc").read_text()
+
+
+@pytest.mark.parametrize("text", ["G81 X1 Z-1 R1 L100000", "G83 X1 Z-1 R1 Q0.00001"])
+def test_endless_cycles_stop_with_a_clear_error(text):
+    with pytest.raises(RS274Error, match="limit of 1000 loop iterations") as e:
+        interpret(f"G21 G0 X0 Y0 Z5\nF100\n{text}\nM2\n", "c.ngc", max_loops=1000)
+    assert e.value.line == 3
