@@ -15,13 +15,17 @@ one computer holds on another.
 from __future__ import annotations
 
 import fnmatch
+import json
 import math
-import platform
 import time
 from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
+
+from harness.provenance import host_info
 
 FORMAT = "pkmbench-ci-baseline/1"
 
@@ -63,6 +67,36 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
 # quantity (harness.report.compare.csv_difference); 38× the largest spread measured (2.6e-7, a
 # joint jerk at T = 250 µs, docs/REPRODUCIBILITY.md).
 CSV_REL = 1e-5
+
+
+class BaselineError(ValueError):
+    """A baseline file that is missing or not a pkmbench baseline."""
+
+
+def load_baseline(file: Path) -> dict:
+    """The baseline document of ``file``; BaselineError naming the file and what is wrong."""
+    if not file.exists():
+        raise BaselineError(f"{file}: no baseline; create it with --update-baseline")
+    try:
+        b = json.loads(file.read_text())
+    except json.JSONDecodeError as e:
+        raise BaselineError(f"{file}: not valid JSON (line {e.lineno}): {e.msg}") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise BaselineError(f"{file}: cannot read it: {e}") from None
+    if not isinstance(b, dict) or b.get("format") != FORMAT or not isinstance(b.get("entries"), dict):
+        raise BaselineError(f"{file}: not a pkmbench baseline (format must be '{FORMAT}' with 'entries')")
+    return b
+
+
+def write_baseline(file: Path, *, suite: str, task_fn: str, code_version: str, reference_s: float,
+                   entries: dict) -> dict:
+    """Write the baseline document of a run to ``file``; the document."""
+    doc = {"format": FORMAT, "suite": suite, "task_fn": task_fn,
+           "code_version": code_version, "reference_s": reference_s, "host": host_info(),
+           "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+           "entries": entries}
+    file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    return doc
 
 
 def rule_for(metric: str, tolerances=DEFAULT_TOLERANCES, entry: str = "") -> dict:
@@ -132,12 +166,6 @@ def reference_workload_s(repeat: int = 5, stat: str = "min") -> float:
         np.linalg.solve(A, b)
         times.append(time.perf_counter() - t0)
     return min(times) if stat == "min" else sum(times) / len(times)
-
-
-def host_info() -> dict:
-    import os
-    return {"node": platform.node(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "python": platform.python_version(), "numpy": np.__version__}
 
 
 # -- the CI task wrapper (runs on the workers) ---------------------------------------------

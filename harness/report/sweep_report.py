@@ -10,9 +10,10 @@ worst joint ratio per planner.
 """
 from __future__ import annotations
 
-import html
 from collections import defaultdict
 from pathlib import Path
+
+from planners.verify import within
 
 COLUMNS = ["planner", "seed", "execution time s", "÷ optimal", "feasible", "joint v", "joint a",
            "joint j", "following µm", "contour µm", "planning s", "status"]
@@ -64,7 +65,7 @@ def _plot(group: dict, file: Path) -> None:
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 2.8))
     a1.bar(p["planner"], p["time"], color="tab:blue")
     a1.set_ylabel("execution time, s")
-    a2.bar(p["planner"], p["worst"], color=["tab:red" if w > 1 + 1e-6 else "tab:green" for w in p["worst"]])
+    a2.bar(p["planner"], p["worst"], color=["tab:green" if within(w) else "tab:red" for w in p["worst"]])
     a2.axhline(1.0, color="k", lw=0.8, ls="--")
     if p["worst"] and min(p["worst"]) > 0 and max(p["worst"]) / min(p["worst"]) > 20:
         a2.set_yscale("log")                 # a jerk ratio of 600 would flatten the feasible ones

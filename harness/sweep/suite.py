@@ -182,6 +182,13 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     return tasks
 
 
+def user_fmus_info(tasks) -> dict | None:
+    """{"fmus": the user FMUs (file, sha256, source) by block} for the results store's run_info,
+    None on our own chain (its rows stay as they were)."""
+    named = tasks[0].get("fmus") if tasks else None
+    return {"fmus": named} if named else None
+
+
 def with_user_fmus(tasks: list[dict], suite: dict | None, suite_file=None, specs=()) -> list[dict]:
     """The tasks with the command's user FMUs (the suite's [fmus], ``--fmu BLOCK=FILE`` specs),
     each checked against its block's interface before any task runs: a wrong one is a SuiteError

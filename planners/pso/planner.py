@@ -42,6 +42,7 @@ import numpy as np
 
 from planners.constraints import PlanningError, check_limits, check_path
 from planners.profile import Profile
+from planners.verify import command_metrics, keeps_joints_and_feed, stretch_need
 from planners.optimal import topp3
 from planners.pso.feed import FeedSpline
 from planners.pso.span import FeedSpan
@@ -63,7 +64,6 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
     every swarm, limits held at the stations to 1 − ``margin`` during the search; the polish
     (``polish``) at most ``polish_linearisations`` SOCP solves a piece before its repairs."""
     from planners.scurve import plan_joint
-    from planners.verify import command_metrics
 
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
@@ -123,7 +123,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
     ok = []
     for name, prof in candidates:
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0.0) <= 1 + 1e-6:
+        if keeps_joints_and_feed(r):
             ok.append((prof.execution_time_s, name, prof))
     if not ok:
         raise PlanningError("pso: neither the swarm's, the polished nor the seed's profile is within the limits at T"
@@ -212,13 +212,12 @@ def _stretched_at_T(spans, T, path, machine, limits, too_slow):
     """The spans sampled at T, each rest-to-rest piece stretched by the worst need of its samples
     (planners.verify.stretch_need), up to 8 times; None if still above a limit or slower than
     ``too_slow``."""
-    from planners.verify import command_metrics, stretch_need
     for _ in range(8):
         if sum(sp.duration for sp in spans) > too_slow:
             return None
         prof = Profile.from_pieces("pso", T, spans, path)
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
+        if keeps_joints_and_feed(r):
             return prof
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         starts = np.concatenate([[0.0], np.cumsum([sp.duration for sp in spans])])
