@@ -179,9 +179,13 @@ def cycles(root: Path = REPO) -> list[list[str]]:
     return sorted(out)
 
 
+LOCAL_IMPORTS_REASON = "# Local imports: "
+
+
 def local_imports_without_reason(root: Path = REPO) -> list[str]:
     """Imports of project modules inside a function with no comment on their line or the line
-    above (a local import says why it is local)."""
+    above (a local import says why it is local), in a module without a line starting with
+    LOCAL_IMPORTS_REASON (the reason of all its local imports)."""
     found, _ = imports(root)
     out = []
     texts: dict[str, list[str]] = {}
@@ -189,6 +193,8 @@ def local_imports_without_reason(root: Path = REPO) -> list[str]:
         if not i.local:
             continue
         lines = texts.setdefault(i.file, (root / i.file).read_text().splitlines())
+        if any(line.startswith(LOCAL_IMPORTS_REASON) for line in lines):
+            continue
         here, above = lines[i.line - 1], lines[i.line - 2] if i.line > 1 else ""
         if "#" not in here and not above.strip().startswith("#"):
             out.append(f"{i.file}:{i.line}: {here.strip()}")

@@ -27,7 +27,7 @@ def nlp(path, machine, warm, **options):
 
 def test_vertical_line_is_the_jerk_limited_closed_form_and_its_relaxation_near_it():
     """q = z + const on every joint: the minimum time is the 1-D rest-to-rest optimum, here
-    L/V + 2√(V/J) (V·J ≤ A²: A is never reached; tests/test_copp.py checks it against ruckig).
+    L/V + 2√(V/J) (V·J ≤ A²: A is never reached; tests/test_optimal_topp3.py checks it against ruckig).
     The SOCP is above it by the 0.1 mm grid's loss (measured 0.16 %); its station relaxation is
     a bound of the transcription, not of the continuous problem: within 0.1 % of the optimum,
     on either side (measured 0.06 % above)."""

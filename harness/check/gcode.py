@@ -22,7 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
 from planners import verify as M
+from planners.paths.base import gc_paused
+from planners.paths.gcode import EmptyProgram, GCodeError, program_path, read_gcode, strip_comments
 
 EXIT_CLEAN, EXIT_FINDINGS, EXIT_INVALID = 0, 1, 2
 TEXT_LIMIT = 50          # entries of the default text report (--all: every finding)
@@ -184,7 +187,6 @@ _N_WORD = re.compile(r"^\s*[Nn]\s*(\d+)")
 
 def _n_number_warnings(text: str, source: str) -> list[Finding]:
     """N numbers must increase (a warning: LinuxCNC ignores them, but a reordered program is suspect)."""
-    from planners.paths.gcode import GCodeError, strip_comments
 
     out, last = [], None
     for ln, raw in enumerate(text.splitlines(), start=1):
@@ -285,7 +287,6 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
     """Check a program as ``planner`` runs it on ``machine`` (``start``: the machine position
     before it, see planners.paths.gcode.parse_gcode; default: its first positioning move or
     the machine's home; ``reader``: the G-code interpreter, pkmbench or linuxcnc)."""
-    from planners.paths.base import gc_paused
 
     # the cyclic GC's full passes over the 10⁵–10⁶ objects a long program makes (segments,
     # findings, planner pieces) cost ~15 % of a check; none of them needs it to be freed
@@ -294,13 +295,12 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
 
 
 def _check(file, machine, planner: str, workspace_step_mm: float, start, reader: str) -> Report:
-    import planners
-    from planners.paths.gcode import EmptyProgram, GCodeError, program_path, read_gcode
 
     file = Path(file)
     rep = Report(str(file), machine.name, planner)
-    if planner not in planners.PLANNERS:
-        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.PLANNERS)}")
+    if not planners.registry.known(planner):      # built-ins, installed plug-ins, module:function
+        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.registry.names())} "
+                         f"or module:function")
     if not file.exists():
         raise CheckError(f"{file}: no such file")
     # 1. compile
@@ -410,9 +410,11 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
             mask = worst > L * (1 + M.FEASIBLE_TOL)
             if not mask.any():
                 continue
-            n = len(worst)
-            ln = slines[-n:]
-            feed = (speed[-n:], programmed, order == "velocity")
+            k = M.ORDERS.index(order) + 1
+            last = M.window_sample(np.arange(len(worst)), len(P), k)   # each window at its last sample
+            ln = slines[last]
+            feed = (speed[np.clip(last - 1, 0, None)] if len(speed) else np.zeros(len(last)),
+                    programmed, order == "velocity")
             if space == "joint":
                 rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col, feed=feed)
             else:

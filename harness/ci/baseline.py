@@ -25,7 +25,11 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
+from harness.cosim.drive_params import encoder_increment_mm
 from harness.provenance import host_info
+from harness.sweep import flatten, resolve_task_fn, task_label
+from kins import load_machine
+from kins.machine import MachineFileError
 
 FORMAT = "pkmbench-ci-baseline/1"
 
@@ -85,6 +89,9 @@ def load_baseline(file: Path) -> dict:
         raise BaselineError(f"{file}: cannot read it: {e}") from None
     if not isinstance(b, dict) or b.get("format") != FORMAT or not isinstance(b.get("entries"), dict):
         raise BaselineError(f"{file}: not a pkmbench baseline (format must be '{FORMAT}' with 'entries')")
+    bad = next((k for k, v in b["entries"].items() if not isinstance(v, dict)), None)
+    if bad is not None:
+        raise BaselineError(f"{file}: entries.{bad} must be an object of metrics")
     return b
 
 
@@ -114,8 +121,6 @@ def resolve_rule(rule: dict, entry: str) -> dict:
     increment when its input crosses a step, however small the input's change."""
     if "increments" not in rule:
         return rule
-    from harness.cosim.drive_params import encoder_increment_mm
-    from kins.machine import MachineFileError
     try:
         inc_mm = encoder_increment_mm(entry.split("/", 1)[0])
     except (MachineFileError, OSError, KeyError, ValueError):
@@ -152,7 +157,6 @@ def reference_workload_s(repeat: int = 5, stat: str = "min") -> float:
     holds across machines. The work resembles planning: vectorised kinematics and
     differences over a long trajectory, plus a dense solve.
     """
-    from kins import load_machine
     m = load_machine("keops")
     rng = np.random.default_rng(12345)
     P = m.home + rng.uniform(-50, 50, (400_000, 3))
@@ -193,7 +197,6 @@ def reference_timed_task(task: dict, out_dir) -> dict:
     import statistics
     from pathlib import Path
 
-    from harness.sweep import flatten, resolve_task_fn
     inner = resolve_task_fn(task["ci_inner_task"])
     refs, runs = [reference_workload_s(3, "mean")], []
     for i in range(CI_REPEAT):
@@ -233,7 +236,6 @@ class Check:
 
 def entries_from_rows(rows: list[dict], reference_s: float) -> tuple[dict, dict]:
     """(entries {label: flat metrics}, errors {label: error}) from a sweep's store rows."""
-    from harness.sweep import flatten, task_label
     entries, errors = {}, {}
     for row in rows:
         label = task_label(row["task"])

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.cosim.blocks import check_blocks, check_user_fmu, user_start
+from harness.cosim.drive_params import drive_start_values, ethercat_start_values
 from harness.cosim.fmu_file import SystemError_, fmu_problem
 from kins.resources import FMU_DIR, REPO
 
@@ -122,7 +123,6 @@ def chain(machine, path_file: Path, profile_file: Path, duration_s: float, *, se
     ``ideal``: zero-jitter bus, no transport delay and ideal drives (position = target), so the
     chain must reproduce the commanded joint trajectory exactly (a test).
     """
-    from harness.cosim.drive_params import drive_start_values, ethercat_start_values
 
     T = machine.servo_period_s
     comps = [

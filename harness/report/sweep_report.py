@@ -13,6 +13,11 @@ from __future__ import annotations
 from collections import defaultdict
 from pathlib import Path
 
+from harness.ci.history import History
+from harness.report.html_report import write_html
+from harness.sweep import TaskTable
+from kins import load_machine
+from kins.resources import REPO
 from planners.verify import within
 
 COLUMNS = ["planner", "seed", "execution time s", "÷ optimal", "feasible", "joint v", "joint a",
@@ -88,13 +93,12 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal", results_sto
     file: harness/report/html_report.py, the nightly trend from the results store ``results_store``,
     default the default store) of the sweep in ``sweep`` into ``out``; returns (tables, runs).
     ReportError if ``sweep`` holds no results."""
-    from harness.sweep import SweepStore
     sweep, out = Path(sweep), Path(out)
     db = sweep / "results.sqlite"
     if not db.exists():
         raise ReportError(f"{sweep}: not a sweep folder (no results.sqlite); run `pkmbench sweep` first")
     out.mkdir(parents=True, exist_ok=True)
-    with SweepStore(db) as store:
+    with TaskTable(db) as store:
         rows = store.to_rows()
     if not rows:
         raise ReportError(f"{db}: the sweep has no results")
@@ -115,10 +119,6 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal", results_sto
         md += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in g["rows"]]
         md += ["", f"![{g['title']}]({png})", ""]
     (out / "report.md").write_text("\n".join(md) + "\n")
-    from harness.ci.history import History
-    from harness.report.html_report import write_html
-    from kins import load_machine
-    from kins.resources import REPO
 
     def machine_of(r):
         """The run's own (varied) machine file, which the task wrote to inputs/, else the suite's."""

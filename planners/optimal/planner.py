@@ -36,11 +36,13 @@ import time
 import numpy as np
 
 from planners.constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
-                          table_feed_cap)
-from planners.optimal.nlp import LIMIT_KINDS, IpoptFailure, _Piece
+                                  table_feed_cap)
 from planners.optimal import topp3
+from planners.optimal.nlp import LIMIT_KINDS, IpoptFailure, _Piece
 from planners.profile import Profile
+from planners.scurve import plan_joint
 from planners.verify import command_metrics, keeps_joints_and_feed, windows_above, worst_sample
+
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
 # read at T peaked 2 % above the limit between them.
@@ -166,7 +168,6 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | Non
     limits = machine.limits if limits is None else limits
     check_limits(limits, "optimal")
     check_path(path, "optimal")
-    from planners.scurve import plan_joint
     candidates, notes = [], {}
     try:
         socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm))

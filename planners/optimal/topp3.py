@@ -48,10 +48,10 @@ import copp_py as copp
 import numpy as np
 
 from planners.constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
-                          check_path, curvature_splits, feed_cap, join_jumps, joint_derivs, rest_pieces,
-                          station_grid)
+                                  check_path, curvature_splits, feed_cap, join_jumps, joint_derivs,
+                                  rest_pieces, station_grid)
 from planners.profile import Profile
-from planners.verify import FEASIBLE_TOL, windows_above
+from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
 # stations ≤ STATION_RADII curvature radii apart (the jerk between stations at lobe tips and
 # blend arcs read above the limit where they were sparser), no closer than STATION_MIN_MM
@@ -430,7 +430,6 @@ def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
     """The last resort when tightening left windows above a limit: each piece with a sample
     above stretched uniformly in time by the worst need there (planners.verify.stretch_need:
     velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to MAX_STRETCHES times."""
-    from planners.verify import stretch_need
     T = prof.T
     for _ in range(MAX_STRETCHES):
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)

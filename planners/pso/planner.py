@@ -41,12 +41,13 @@ import time
 import numpy as np
 
 from planners.constraints import PlanningError, check_limits, check_path
-from planners.profile import Profile
-from planners.verify import command_metrics, keeps_joints_and_feed, stretch_need
 from planners.optimal import topp3
+from planners.profile import Profile
 from planners.pso.feed import FeedSpline
 from planners.pso.span import FeedSpan
 from planners.pso.swarm import BlockSwarm
+from planners.scurve import plan_joint
+from planners.verify import command_metrics, keeps_joints_and_feed, stretch_need
 
 __all__ = ["plan"]
 
@@ -63,7 +64,6 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
     """PSO-optimised feed (module docstring): ``particles`` per block swarm, ``iterations`` of
     every swarm, limits held at the stations to 1 − ``margin`` during the search; the polish
     (``polish``) at most ``polish_linearisations`` SOCP solves a piece before its repairs."""
-    from planners.scurve import plan_joint
 
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits

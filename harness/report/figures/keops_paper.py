@@ -8,7 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
 from harness.report.figures import pyplot, save
+from kins import load_machine
+from planners.constraints import PathTable, corner_list, join_jumps
+from planners.paths import resolve_path
 from planners.verify import command_metrics, differences
 
 ORDERS = (("velocity", "mm/s", "v"), ("acceleration", "mm/s²", "a"), ("jerk", "mm/s³", "j"))
@@ -33,9 +37,6 @@ def _panels(plt, title, t, D, lim, labels):
 
 
 def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
-    import planners
-    from kins import load_machine
-    from planners.paths import resolve_path
 
     plt = pyplot()
     m = load_machine("keops")
@@ -58,12 +59,12 @@ def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
             ax.legend(fontsize=8)
             fig.tight_layout()
             save(fig, out, f"keops_fig5a_{name}_feed", {"t_s": t, "feed_mm_s": prof.sd})
-            D = differences(P, T)
+            D = differences(P, T, rest=False)
             fig = _panels(plt, f"Fig. 5 — {name}: Cartesian axes (limits dashed), keops / {path_name}", t, D,
                           m.limits.cartesian, ["x", "y", "z"])
             save(fig, out, f"keops_fig5_{name}_cartesian",
                  {"t_s": t, **{f"{o}_{a}": D[o][:, k] for o, _, _ in ORDERS for k, a in enumerate("xyz")}})
-        D = differences(Q, T)
+        D = differences(Q, T, rest=False)
         fig = _panels(plt, f"Fig. 6 — {name}: linear axes after the IK (joint limits dashed), keops / {path_name}",
                       t, D, m.limits.joint, ["q1", "q2", "q3"])
         save(fig, out, f"keops_fig6_{name}_joints",
@@ -76,9 +77,6 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     seed), pso's swarm alone (polish=False), pso and optimal over arc length, all within the
     joint limits. Returns the execution times and, per stretch between corners and G1 joins,
     how the swarm alone compares with the optimum (the numbers REPORT.md quotes)."""
-    import planners
-    from kins import load_machine
-    from planners.paths import resolve_path
 
     plt = pyplot()
     m = load_machine("keops")
@@ -104,7 +102,6 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
 def _stretches(path, m, profs, s, cols) -> dict:
     """pso's swarm alone against the optimum on each stretch between the path's ends, corners and
     G1 joins: its time in excess and its peak-feed shortfall, in %, and the seed's highest feed."""
-    from planners.constraints import PathTable, corner_list, join_jumps
 
     joins = [sj for sj, _ in join_jumps(path, PathTable(path, m), m)]
     bounds = sorted([0.0, path.length] + corner_list(path) + joins)
