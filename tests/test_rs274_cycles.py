@@ -2,15 +2,19 @@
 `gcode` module (the moves, full precision: ≤ 1e-9 mm), `rs274 -g` (the order of moves, dwells
 and spindle calls) and the errors both give. Skips when LinuxCNC is not installed
 (`make linuxcnc`)."""
+import importlib.util
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from planners.paths.gcode import EmptyProgram, GCodeError, parse_gcode
+import planners
+from kins import load_machine
+from planners.linuxcnc import runner
+from planners.paths import resolve_path
+from planners.paths.gcode import EmptyProgram, GCodeError, parse_gcode, program_path
 from planners.paths.gcode.rs274 import RS274Error, interpret
 from planners.paths.gcode.rs274.interp import Interpreter
 from planners.paths.gcode.rs274.reference import (available, compare, linuxcnc_moves, linuxcnc_rows, rs274_sequence,
@@ -358,8 +362,8 @@ def test_probe_and_cycle_codes_without_axes_as_linuxcnc(text, tmp_path):
 @needs_linuxcnc
 def test_benchmark_cam_program_with_drilling_reads_as_linuxcnc(tmp_path):
     # benchmarks/perf/cam_program.py's cycles variant (the 10⁵-line check benchmark's program):
-    # drilling patterns of one cycle block and X Y lines between raster rows
-    import importlib.util        # a benchmark script, not a package: loaded from its file
+    # drilling patterns of one cycle block and X Y lines between raster rows (a benchmark
+    # script, not a package: loaded from its file)
     spec = importlib.util.spec_from_file_location("cam_program", ROOT / "benchmarks" / "perf" / "cam_program.py")
     cam = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(cam)
@@ -374,13 +378,48 @@ def test_benchmark_cam_program_with_drilling_reads_as_linuxcnc(tmp_path):
 def test_trapezoid_plans_the_drilling_program_to_its_end(tmp_path):
     # the profile ends exactly at the planned path's length (they summed the same lengths in
     # another order and parted by rounding: 1.6e-12 mm here, over 1e-9 on the 10⁵-line program)
-    import importlib.util        # a benchmark script, not a package: loaded from its file
-    import planners
-    from kins import load_machine
-    from planners.paths import resolve_path
     spec = importlib.util.spec_from_file_location("cam_program", ROOT / "benchmarks" / "perf" / "cam_program.py")
     cam = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(cam)
     cam.make_cam_program(4000, seed=2, cycles=True, file=tmp_path / "camc.ngc")
     prof = planners.plan("trapezoid", resolve_path(str(tmp_path / "camc.ngc")), load_machine("kossel"))
     assert prof.s[-1] == prof.path.length and "G81" in (tmp_path / "camc.ngc").read_text()
+
+
+@pytest.mark.parametrize("text", ["G81 X1 Z-1 R1 L100000", "G83 X1 Z-1 R1 Q0.00001"])
+def test_endless_cycles_stop_with_a_clear_error(text):
+    with pytest.raises(RS274Error, match="limit of 1000 loop iterations") as e:
+        interpret(f"G21 G0 X0 Y0 Z5\nF100\n{text}\nM2\n", "c.ngc", max_loops=1000)
+    assert e.value.line == 3
+
+
+@needs_linuxcnc
+def test_debug_formats_as_linuxcnc(tmp_path):
+    # convert_param_comment: '%.' not followed by a format keeps the '.', an unknown '%x' both,
+    # #5420 is the current X, a parameter out of range reads ######
+    f = write(tmp_path, "G21 G0 X1 Y0 Z0\n(DEBUG,a%.x b%.5 c%q #5420 #99999 %.3f#5421)\nM2\n")
+    rows, _ = linuxcnc_rows(f)
+    theirs = [(r["line"], r["text"]) for r in rows if r["kind"] == "message"]
+    assert [(e.line, e.value) for e in ours(f).events if e.kind == "message"] == theirs
+    assert theirs == [(2, "a.x b.5 c%q 1.000000 ###### 0.000")]
+
+
+# ---------------------------------------------------------------- the real LinuxCNC (slow)
+@pytest.mark.slow
+@pytest.mark.parametrize("name, text, closed_form_s", [
+    # after G21, "G20 F6" is 6 mm/min: 0.254 mm at 0.1 mm/s (the ramps at 250 mm/s² add 0.4 ms)
+    ("f6", "G21 G90 G64\nG0 X0 Y0 Z-200\nG20 F6\nG1 X0.01\nM2\n", 2.54),
+    # G81 twice (G99) and a G83 (G98, Q4), with the spindle on: the cycles' moves and stops
+    ("drill", "G21 G90 G64\nG0 X0 Y0 Z-200\nF600 S1000 M3\nG99 G81 X5 Y0 Z-210 R-198\nX10\n"
+              "G98 G83 X15 Z-212 R-198 Q4\nG80\nG0 X0 Y0\nM2\n", None)])
+def test_trapezoid_runs_units_and_cycles_as_the_real_linuxcnc(name, text, closed_form_s, tmp_path):
+    if runner.missing():
+        pytest.skip(f"LinuxCNC absent: {runner.missing()}")
+    f = write(tmp_path, text, f"{name}.ngc")
+    path = program_path(parse_gcode(text, str(f)))
+    m = load_machine("kossel")
+    real = planners.plan("linuxcnc", path, m).execution_time_s
+    ours_s = planners.plan("trapezoid", path, m).execution_time_s
+    assert abs(ours_s / real - 1) <= 0.002
+    if closed_form_s is not None:
+        assert abs(real - closed_form_s) <= 0.002

@@ -66,6 +66,8 @@ class Cycles:
             if round(reps) == 0:
                 raise LineError("Cannot do zero repeats of cycle (L0)")
         reps = 1 if reps == -1.0 else int(round(reps))
+        if reps > self.max_loops:
+            raise LineError(f"L{reps}: more repeats than the limit of {self.max_loops} loop iterations")
         i1, i2, i3 = PLANES[m.plane]
         ca = AXES[i3]                                 # the cycle's axis letter (z in G17)
         if prev_motion != motion and ca not in w:
@@ -183,6 +185,8 @@ class Cycles:
                 self.event("m", 5)
                 self.event("m", 0)
                 self.event("m", spin)
+                self.out.notes.append((self.cur_line, "G88: the program stops at the bottom of the hole for the "
+                                                      "operator to retract by hand; the next move starts there"))
         if p is not None:
             self.cycle_p = p
         if q is not None:
@@ -210,6 +214,9 @@ class Cycles:
         after each, G83 rapids out to R and back down to that far above the last depth."""
         if q <= 0.0:
             raise LineError("Negative or zero q value used")
+        if (r - cc) / q > self.max_loops:
+            raise LineError(f"Q{q:g} from R{r:g} to {cc:g}: more pecks than the limit of {self.max_loops} "
+                            "loop iterations")
         delta = G83_RAPID_DELTA_INCH * (MM_PER_INCH if u == 1.0 else 1.0)
         depth = r - q
         while depth > cc:
@@ -234,6 +241,9 @@ class Cycles:
         first, back = (3, 4) if motion == 840 else (4, 3)
         plane = self.m.plane
         u = self.unit()
+        if plane != 17:
+            self.out.notes.append((self.cur_line, f"{g} in G{plane}: the tapping feeds go where LinuxCNC 2.9 sends "
+                                                  "them (interp_cycles.cc convert_cycle_g74_g84 swaps the axes)"))
 
         def tap_feed(c):
             if plane == 17:

@@ -266,14 +266,20 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
                 fmt, i = "%.0f", i + 2
             elif c == "%" and text[i + 1:i + 2] == "f":
                 fmt, i = "%.4f", i + 2
-            elif c == "%" and text[i + 1:i + 2] == "." and text[i + 2:i + 3].isdigit() and text[i + 3:i + 4] == "f":
-                fmt, i = f"%.{text[i + 2]}f", i + 4
+            elif c == "%" and text[i + 1:i + 2] == ".":
+                if text[i + 2:i + 3].isdigit() and text[i + 3:i + 4] == "f":
+                    fmt, i = f"%.{text[i + 2]}f", i + 4
+                else:                     # not a format: LinuxCNC keeps the '.', not the '%'
+                    out.append(".")
+                    i += 2
             elif c == "#" and text[i + 1:i + 2].isdigit():
                 j = i + 1
                 while j < len(text) and text[j].isdigit():
                     j += 1
-                n = int(text[i + 1:j])
-                out.append(fmt % _plain(self.params.num[n]) if 0 <= n <= len(self.params.num) - 1 else "######")
+                try:
+                    out.append(fmt % _plain(self.read_param(float(text[i + 1:j]))))
+                except LineError:         # out of range
+                    out.append("######")
                 i = j
             elif c == "#" and text[i + 1:i + 2] == "<":
                 j = text.find(">", i + 2)
@@ -423,9 +429,10 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
         if 10 in groups:
             m.retract = groups[10] // 10
 
-    def _g_motion(self, m, g0, groups, w) -> None:
+    def _g_motion(self, m, g0, groups, w) -> int | None:
         """The non-modal G10/G28/G30/G92 (they take the axis words), else the motion of the
-        line in the motion mode of ``m`` (G53: in machine coordinates)."""
+        line in the motion mode of ``m`` (G53: in machine coordinates). Returns the canned
+        cycle the line ran, if any (check_other_codes allows its words)."""
         motion = groups.get(1)
         self._arc_done = False
         axes = [a for a in AXES if a in w]

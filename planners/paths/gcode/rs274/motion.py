@@ -114,6 +114,8 @@ class Motion:
             stop = [a + t * (b - a) for a, b in zip(start, end)]
         self.emit("feed", stop)
         self.event("probe", int(t is not None))
+        self.out.notes.append((self.cur_line, f"{g}: " + ("no contact, ran to its end" if t is None else
+                               "stopped at contact at ({:.6g}, {:.6g}, {:.6g}) mm".format(*stop))))
         u = self.unit()
         at = self.to_program(stop)
         for i in range(3):
@@ -174,12 +176,14 @@ def _contact(surface, p) -> bool:
 
 
 PROBE_SAMPLE_MM = 0.01        # a function surface is sampled this finely along the probe move
+PROBE_SAMPLES_MAX = 1_000_000  # … in at most this many steps (coarser on a move over 10 m)
 
 
 def _change(surface, a, b, seek_clear: bool):
     """The fraction t ∈ (0, 1] of the move a → b where the contact with ``surface`` changes
     (to contact, or to clear with ``seek_clear``), or None: a plane in closed form, a function
-    sampled every PROBE_SAMPLE_MM then bisected to 1e-12 of the move."""
+    sampled every PROBE_SAMPLE_MM (PROBE_SAMPLES_MAX steps at most) then bisected to 1e-12 of
+    the move."""
     if surface is None:
         return None
     if not callable(surface):
@@ -188,7 +192,7 @@ def _change(surface, a, b, seek_clear: bool):
             return None
         t = (surface - a[2]) / dz
         return t if 0.0 < t <= 1.0 else None
-    n = max(1, int(math.ceil(math.dist(a, b) / PROBE_SAMPLE_MM)))
+    n = min(PROBE_SAMPLES_MAX, max(1, int(math.ceil(math.dist(a, b) / PROBE_SAMPLE_MM))))
     changed = lambda t: _contact(surface, [x + t * (y - x) for x, y in zip(a, b)]) != seek_clear
     lo = 0.0
     for k in range(1, n + 1):
