@@ -36,12 +36,12 @@ PLANNERS = ("trapezoid", "scurve")
 # the child: check one program, print its wall time and counts as one JSON line
 _CHILD = """
 import json, sys, time
-from harness.check.gcode import check_program
+from harness.check import check_program
 from kins import load_machine
 m = load_machine("kossel")
 t0 = time.perf_counter()
 rep = check_program(sys.argv[1], m, sys.argv[2])
-text = rep.text()
+text = as_text(rep)
 dt = time.perf_counter() - t0
 print(json.dumps({"seconds": dt, "samples": rep.stats.get("samples", 0), "findings": len(rep.findings),
                   "errors": sum(f.severity == "error" for f in rep.findings), "text_bytes": len(text.encode())}))

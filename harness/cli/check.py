@@ -21,7 +21,7 @@ def add_arguments(p):
 
 
 def main(args) -> int:
-    from harness.check.gcode import TEXT_LIMIT, CheckError, check_program
+    from harness.check import TEXT_LIMIT, CheckError, as_text, check_program
     from kins import load_machine
     from kins.machine import MachineFileError
 
@@ -33,5 +33,5 @@ def main(args) -> int:
                                 setup=gcode_setup(args))
     except (MachineFileError, CheckError) as e:
         raise CliError(str(e)) from None
-    print(rep.to_json() if args.json else rep.text(limit=None if args.all else TEXT_LIMIT))
+    print(rep.to_json() if args.json else as_text(rep, None if args.all else TEXT_LIMIT))
     return rep.exit_code
