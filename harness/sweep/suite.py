@@ -3,10 +3,14 @@
 A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axes:
 
     name = "nightly"
+    planner_timeout_s = 600      # optional: a planner over it is its row's error (--planner-timeout)
     [[run]]                      # any number; machines × paths × planners of each are crossed
     machine = "keops"            # or machines = [...]; an id of benchmarks/machines/ or a .toml file
     path = "bird"                # or paths = [...]; an id of benchmarks/paths/ or a .json/.ngc file
     planners = ["trapezoid", "scurve"]
+    tool_table = "my.tbl"        # optional, G-code: LinuxCNC tool table, var file (paths relative
+    var_file = "my.var"          # to the suite file) and work offsets (as --offset), see
+    offset = ["G54=0,0,-300"]    # planners/paths/gcode/rs274/setup.py
     [planner_options.pso]        # optional, passed to the planner
     iterations = 40
     [sweep]                      # optional axes, crossed with every run
@@ -18,7 +22,8 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
 
 This module is the one parser of suite files: `pkmbench run SUITE` takes the [[run]] tables
 (:func:`suite_runs`), `pkmbench sweep`/`ci` expand them with the axes (:func:`expand`); both
-refuse the same unknown keys and accept ``planner``/``planners`` alike.
+refuse the same unknown keys (in every table) and accept ``planner``/``planners`` alike; a
+suite expands to at most MAX_TASKS tasks.
 
 One task = (machine, path, planner, seed, preset, variation). A task carries the *contents*
 of its machine and path files, so a worker on another host needs only the code.
@@ -27,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -35,6 +41,8 @@ from harness.cosim.blocks import check_user_fmu, command_fmus
 from harness.cosim.system import SystemError_
 from harness.seed import SeedError, check_seed
 from kins.resources import FMU_DIR, MACHINE_DIR, PATH_DIR, REPO, repo_relative
+from planners.paths.gcode.rs274 import RS274Error
+from planners.paths.gcode.rs274.setup import make_setup
 from planners.registry import plugin_version
 
 PATH_SUFFIXES = (".json", ".ngc")
@@ -42,8 +50,14 @@ PATH_SUFFIXES = (".json", ".ngc")
 CODE_DIRS = ("kins", "planners", "harness")
 
 
-TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus")
-RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed")
+TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus", "planner_timeout_s")
+RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed",
+            "tool_table", "var_file", "offset")
+SWEEP_KEYS = ("seeds", "presets", "variation")
+VARIATION_KEYS = ("name", "set")
+# tasks a suite may expand to: each is a co-simulation of seconds (10⁵ is days on one host);
+# a suite asking for 10⁶ seeds filled 9.7 GB of task dicts before this limit
+MAX_TASKS = 100_000
 
 
 class SuiteError(ValueError):
@@ -61,13 +75,16 @@ def _line_of(text: str | None, key: str) -> str:
     return ":line ?"
 
 
-def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list, bool]]:
-    """The (machines, paths, planners, max_feed) of each [[run]] table, keys checked: what
+def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list, bool, dict]]:
+    """The (machines, paths, planners, max_feed, gcode) of each [[run]] table, keys checked: what
     `pkmbench run` runs and :func:`expand` crosses with the sweep axes. ``max_feed = true`` runs
-    G-code at F_max instead of its programmed F (planner-only comparisons)."""
+    G-code at F_max instead of its programmed F (planner-only comparisons); ``gcode``: the
+    run's tool_table / var_file (Paths, relative to the suite file's folder) and offset specs,
+    {} when it has none (:func:`gcode_setup` makes them a Setup)."""
     for key in suite:
         if key not in TOP_KEYS:
             raise SuiteError(f"{src}{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(TOP_KEYS))})")
+    _check_tables(suite, src, text)
     runs = suite.get("run")
     if not isinstance(runs, list) or not runs:
         raise SuiteError(f"{src}: no [[run]] tables (need machine(s), path(s), planners)")
@@ -77,12 +94,48 @@ def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> li
         for key in run:
             if key not in RUN_KEYS:
                 raise SuiteError(f"{src}{_line_of(text, key)}: {where}: unknown key '{key}' "
-                                 f"(valid: machine(s), path(s), planner(s), max_feed)")
+                                 f"(valid: machine(s), path(s), planner(s), max_feed, tool_table, var_file, offset)")
         if not isinstance(run.get("max_feed", False), bool):
             raise SuiteError(f"{src}{_line_of(text, 'max_feed')}: {where}: max_feed must be true or false")
         out.append((_list(run, "machine", "machines", src, where), _list(run, "path", "paths", src, where),
-                    _list(run, "planner", "planners", src, where), run.get("max_feed", False)))
+                    _list(run, "planner", "planners", src, where), run.get("max_feed", False),
+                    _gcode_keys(run, src, text, where)))
     return out
+
+
+def _gcode_keys(run: dict, src: str, text: str | None, where: str) -> dict:
+    """A [[run]]'s tool_table, var_file (resolved next to the suite file) and offset, each
+    checked by reading it (a bad file or spec: SuiteError naming it)."""
+    base = Path(src).parent if src != "<suite>" else Path(".")
+    g = {}
+    for key in ("tool_table", "var_file"):
+        if key in run:
+            if not isinstance(run[key], str):
+                raise SuiteError(f"{src}{_line_of(text, key)}: {where}: {key} must be a file name")
+            f = Path(run[key])
+            g[key] = f if f.is_absolute() else base / f
+    if "offset" in run:
+        specs = [run["offset"]] if isinstance(run["offset"], str) else run["offset"]
+        if not (isinstance(specs, list) and all(isinstance(x, str) for x in specs)):
+            raise SuiteError(f"{src}{_line_of(text, 'offset')}: {where}: offset must be a list of "
+                             f"'CODE=X,Y,Z' strings")
+        g["offset"] = list(specs)
+    if g:
+        try:
+            gcode_setup(g)
+        except SuiteError as e:
+            raise SuiteError(f"{src}: {where}: {e}") from None
+    return g
+
+
+def gcode_setup(g: dict):
+    """The planners.paths.gcode.rs274 Setup of a run's gcode keys (None without them)."""
+    if not g:
+        return None
+    try:
+        return make_setup(g.get("tool_table"), g.get("var_file"), g.get("offset", ()))
+    except (RS274Error, ValueError) as e:
+        raise SuiteError(str(e)) from None
 
 
 def _list(d: dict, one: str, many: str, src: str, where: str) -> list:
@@ -91,7 +144,61 @@ def _list(d: dict, one: str, many: str, src: str, where: str) -> list:
     v = [d[one]] if one in d else d.get(many)
     if not isinstance(v, list) or not v:
         raise SuiteError(f"{src}: {where} needs '{one}' or a non-empty list '{many}'")
+    bad = next((x for x in v if not isinstance(x, str) or not x.strip()), None)
+    if bad is not None:
+        raise SuiteError(f"{src}: {where}: {one if one in d else many} = {bad!r}: expected a name "
+                         f"(a string){' or a list of names' if many in d else ''}")
     return v
+
+
+def _check_tables(suite: dict, src: str, text: str | None) -> None:
+    """The types of the top-level keys, and the keys of [sweep] and [[sweep.variation]]: an
+    unknown one is refused (``seedz = [1, 2]`` ran seed 0 only)."""
+    for key, typ, what in (("name", str, "a string"), ("description", str, "a string"),
+                           ("run", list, "[[run]] tables"), ("sweep", dict, "a [sweep] table"),
+                           ("planner_options", dict, "a table of [planner_options.NAME] tables"),
+                           ("ci", dict, "a [ci] table"), ("fmus", dict, "an [fmus] table")):
+        if key in suite and not isinstance(suite[key], typ):
+            raise SuiteError(f"{src}{_line_of(text, key)}: '{key}' must be {what}, got {suite[key]!r}"[:300])
+    if not all(isinstance(r, dict) for r in suite.get("run", [])):
+        raise SuiteError(f"{src}: 'run' must be [[run]] tables")
+    for name, opts in suite.get("planner_options", {}).items():
+        if not isinstance(opts, dict):
+            raise SuiteError(f"{src}{_line_of(text, name)}: planner_options.{name} must be a table of options")
+    if "planner_timeout_s" in suite:
+        planner_timeout(suite["planner_timeout_s"], f"{src}{_line_of(text, 'planner_timeout_s')}: planner_timeout_s")
+    sweep = suite.get("sweep", {})
+    for key in sweep:
+        if key not in SWEEP_KEYS:
+            raise SuiteError(f"{src}{_line_of(text, key)}: [sweep]: unknown key '{key}' "
+                             f"(valid: {', '.join(SWEEP_KEYS)})")
+    variations = sweep.get("variation", [])
+    if not isinstance(variations, list):
+        raise SuiteError(f"{src}: [[sweep.variation]] must be tables")
+    for i, v in enumerate(variations):
+        for key in (v if isinstance(v, dict) else {}):
+            if key not in VARIATION_KEYS:
+                raise SuiteError(f"{src}{_line_of(text, key)}: [[sweep.variation]] #{i + 1}: unknown key '{key}' "
+                                 f"(valid: {', '.join(VARIATION_KEYS)})")
+
+
+def planner_timeout(value, where: str) -> float:
+    """A planner time limit in seconds (a suite's planner_timeout_s, --planner-timeout): a finite
+    number > 0, else SuiteError naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise SuiteError(f"{where} = {value!r}: must be a number of seconds > 0")
+    return float(value)
+
+
+def task_count(suite: dict, src: str = "<suite>") -> int:
+    """How many tasks the suite's [[run]] tables and [sweep] axes cross to (before listing them)."""
+    sweep = suite.get("sweep", {})
+    per_run = sum(len(m) * len(p) * len(pl) for m, p, pl, *_ in suite_runs(suite, src))
+    axes = [sweep.get("seeds", [0]), sweep.get("presets", ["none"]), sweep.get("variation", [{}])]
+    n = per_run
+    for a in axes:
+        n *= len(a) if isinstance(a, list) else 1
+    return n
 
 
 def resolve_machine(name: str, base: Path = REPO) -> Path:
@@ -137,6 +244,10 @@ def load_suite(file: str | Path) -> dict:
 def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     """The tasks of a suite, in a stable order (runs × seeds × presets × variations)."""
     runs = suite_runs(suite, src)
+    n = task_count(suite, src)
+    if n > MAX_TASKS:
+        raise SuiteError(f"{src}: the suite expands to {n} tasks (runs × seeds × presets × variations), "
+                         f"more than the {MAX_TASKS} a sweep takes; split it into several suites")
     sweep = suite.get("sweep", {})
     seeds = sweep.get("seeds", [0])
     presets = sweep.get("presets", ["none"])
@@ -164,7 +275,7 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
             raise SuiteError(f"{src}: [[sweep.variation]] '{v['name']}': set must be a table")
     options = suite.get("planner_options", {})
     tasks, seen = [], set()
-    for machines, paths, planners, max_feed in runs:
+    for machines, paths, planners, max_feed, gcode in runs:
         for m in machines:
             mfile = resolve_machine(m, base)
             for p in paths:
@@ -177,12 +288,23 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
                                               options.get(pl, {}))
                                 if max_feed:       # only then: the other tasks' keys stay as they were
                                     t["max_feed"] = True
+                                if gcode:          # likewise; the files' contents travel with the task
+                                    t["gcode_setup"] = _gcode_contents(gcode)
+                                if "planner_timeout_s" in suite:    # the same
+                                    t["planner_timeout_s"] = float(suite["planner_timeout_s"])
                                 ident = (t["machine"], t["path"], pl, seed, preset, v["name"])
                                 if ident in seen:
                                     continue           # the same task listed twice runs once
                                 seen.add(ident)
                                 tasks.append(t)
     return tasks
+
+
+def _gcode_contents(g: dict) -> dict:
+    out = {k: Path(g[k]).read_text() for k in ("tool_table", "var_file") if k in g}
+    if "offset" in g:
+        out["offset"] = list(g["offset"])
+    return out
 
 
 def user_fmus_info(tasks) -> dict | None:
@@ -250,6 +372,9 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     """sha256 of everything that determines a task's result."""
     ident = {k: task[k] for k in ("planner", "planner_options", "seed", "preset", "variation", "files")}
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
+    if task.get("gcode_setup"):   # only then, likewise
+        ident["gcode_setup"] = task["gcode_setup"]
+    # not planner_timeout_s: only finished (ok) tasks are skipped, and their result is the same
     if task.get("fmus"):    # only then: the keys of tasks on our own chain stay as they were
         ident["fmus"] = {b: [d["file"], d["sha256"]] for b, d in task["fmus"].items()}
     plugin = plugin_version(task["planner"])
