@@ -114,8 +114,12 @@ class Map:
             M = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(x))])
             M = M + G(x) - G(a)
             n = max(3, int(math.ceil(M[-1] - 1e-9)))
-            # s(σ) C¹ (monotone cubic): a linear in σ on a cell assumes a smooth map
-            self.pieces.append((sig, n, x, PchipInterpolator(M / M[-1] * n, x)))
+            # s(σ) C¹ (monotone cubic): a linear in σ on a cell assumes a smooth map; table rows
+            # closer than the rounding of M (a µm blend arc) are dropped
+            keep = np.concatenate([[True], np.diff(M) > 1e-12 * M[-1]])
+            keep[-1] = True
+            keep[:-1] &= M[:-1] < M[-1]
+            self.pieces.append((sig, n, x[keep], PchipInterpolator(M[keep] / M[-1] * n, x[keep])))
             sig += n
         self.cells = sig
 
