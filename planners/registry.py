@@ -7,6 +7,7 @@ pip appears everywhere at once, with no edit of pkmbench:
     known(name)    a name of names(), or a ``module:function`` spec (importable or not: get() says)
     get(name)      the plan function; a PlanningError naming the planner and the cause otherwise
     describe(name) where it comes from (built-in / distribution and version / spec), its guarantees
+    is_stochastic(name)  whether its profile depends on a ``seed`` option (run over seeds)
 
 A plug-in is any callable that follows :class:`Planner`::
 
@@ -32,7 +33,8 @@ BUILTIN = {
     "trapezoid": ("planners.trapezoid", "plan"),
     "scurve": ("planners.scurve", "plan"),
     "scurve_joint": ("planners.scurve", "plan_joint"),
-    "pso": ("planners.pso", "plan"),
+    "pso": ("planners.pso", "plan"),                 # the particle swarm alone (Erwinski et al.)
+    "pso_socp": ("planners.pso", "plan_socp"),       # the swarm polished by the TOPP3-SOCP (memetic)
     "toppra": ("planners.optimal.toppra", "plan"),
     "optimal": ("planners.optimal", "plan"),
     "copp": ("planners.optimal.copp", "plan"),       # COPP's TOPP3-SOCP (copp-py): a second jerk-limited reference
@@ -50,6 +52,7 @@ BUILTIN_GUARANTEES = {
     "scurve": {"cartesian": ["velocity", "acceleration", "jerk", "feed"]},
     "scurve_joint": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
     "pso": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
+    "pso_socp": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
     "toppra": {"joint": ["velocity"], "cartesian": ["feed"]},
     "optimal": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
     "copp": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
@@ -72,6 +75,10 @@ class Planner(Protocol):
     - returns a :class:`planners.Profile` sampled at T: s from 0 to ``path.length``, at rest at
       both ends, monotone, finite (:meth:`Profile.validate` checks it; anything else is
       reported as that planner's error, and the other planners go on).
+
+    Optional attribute ``stochastic = True``: the profile depends on a ``seed`` keyword option
+    (same seed, same profile); the corpus and the suites then run it over several seeds and
+    report the distribution.
 
     Optional attribute ``guarantees``: ``{"joint": [...], "cartesian": [...]}`` naming the
     orders (velocity, acceleration, jerk; Cartesian also feed) whose limits the planner keeps
@@ -138,9 +145,20 @@ def get(name: str):
     raise PlanningError(unknown_message([name]))
 
 
+def is_stochastic(name: str) -> bool:
+    """Whether planner ``name`` declares ``stochastic = True`` (it takes a ``seed`` option and
+    its result is a distribution over seeds); False where it cannot be loaded (get() says why)."""
+    try:
+        fn = get(name)
+    except PlanningError:
+        return False
+    return getattr(fn, "stochastic", False) is True
+
+
 def describe(name: str) -> dict:
-    """{"name", "source", "version", "guarantees" (or None), "error" (if it cannot be loaded)}."""
-    out: dict = {"name": name, "version": None, "guarantees": None}
+    """{"name", "source", "version", "guarantees" (or None), "stochastic", "error" (if it cannot
+    be loaded)}."""
+    out: dict = {"name": name, "version": None, "guarantees": None, "stochastic": False}
     if name in BUILTIN:
         out["source"] = "built-in " + ":".join(BUILTIN[name])
     else:
@@ -156,6 +174,7 @@ def describe(name: str) -> dict:
     except PlanningError as e:
         out["error"] = str(e)
         return out
+    out["stochastic"] = getattr(fn, "stochastic", False) is True
     g = BUILTIN_GUARANTEES.get(name) if name in BUILTIN else getattr(fn, "guarantees", None)
     if isinstance(g, dict):
         out["guarantees"] = {k: list(g[k]) for k in GUARANTEE_KEYS if k in g}

@@ -94,6 +94,7 @@ class Settings:
     lin_tol: float = 1e-3
     max_linearisations: int = 4
     kkt_refinement: bool = True
+    refine_radii: float = REFINE_RADII
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -104,7 +105,7 @@ class Settings:
         return opts
 
 
-def _grid(path, table, joins, s0, s1, grid_mm):
+def grid_of(path, table, joins, s0, s1, grid_mm, refine_radii=REFINE_RADII):
     """Stations ≤ grid_mm apart (≥ 19 intervals a piece, ≥ 4 a segment: a 0.04 mm G64 blend arc
     is resolved) with every segment end and G1 join of the piece on it, then cells split to
     ≤ REFINE_RADII curvature radii (at their ends), none below REFINE_MIN_MM."""
@@ -119,7 +120,7 @@ def _grid(path, table, joins, s0, s1, grid_mm):
         _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
         kap = np.linalg.norm(np.cross(P1, P2), axis=1)
         h = np.diff(grid)
-        k = np.minimum(np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII), 16)
+        k = np.minimum(np.ceil(h * np.maximum(kap[:-1], kap[1:]) / refine_radii), 16)
         need = np.nonzero((k > 1) & (h > REFINE_MIN_MM))[0]
         if len(need) == 0:
             break
@@ -149,7 +150,7 @@ class Piece:
         self.options = settings.clarabel()
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
-        self.grid = _grid(path, table, joins, s0, s1, settings.grid_mm)
+        self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.refine_radii)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)

@@ -29,8 +29,8 @@ class BlockSwarm:
     """The swarm of one piece, around the feasible coefficients ``c`` (feed.FeedSpline);
     ``rng`` draws every random number, in a fixed order."""
 
-    def __init__(self, feed, c, rng, particles: int, spread: float):
-        self.feed, self.rng, self.P = feed, rng, particles
+    def __init__(self, feed, c, rng, particles: int, spread: float, push: int = 1):
+        self.feed, self.rng, self.P, self.push = feed, rng, particles, push
         self.c = np.array(c, float)
         self.free = np.arange(1, feed.K - 1)
         base = np.log(self.c[self.free])
@@ -91,4 +91,6 @@ class BlockSwarm:
         r1, r2 = self.rng.random(self.X.shape), self.rng.random(self.X.shape)
         self.V = np.clip(W * self.V + C1 * r1 * (self.Pb - self.X) + C2 * r2 * (g - self.X), -VMAX, VMAX)
         self.X = self.X + self.V
+        if self.push:
+            self.c = self.feed.push(self.c, self.push)
         self.iteration += 1
