@@ -97,9 +97,8 @@ def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15, turn=None)
     """Phase sizes, interval durations and nodes from a profile (the warm start) on one piece,
     slowed down by `stretch`.  ``bounds`` = [s0, joins…, s1].  Nodes come one per
     ``node_period_s`` and, where the path turns (``turn`` = turn_nodes(…)), one more per
-    NODE_RADII curvature radii of travel: the limits hold at the nodes only, and a lobe tip of
-    radius 0.03 mm passed in a few ms fell between nodes ~28 ms apart (kossel's butterfly: the
-    joint jerk read 6.8 × its limit at T).  Over the budget the time share is thinned first."""
+    NODE_RADII curvature radii of travel: the limits hold at the nodes only, and a lobe tip
+    passed in a few ms fell between nodes spread by time alone.  Over the budget the time share is thinned first."""
     t = prof.t
     sgrid, idx = np.unique(prof.s, return_index=True)
     tb = np.interp(bounds, sgrid, t[idx])
@@ -317,7 +316,7 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
         # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine comes before a
         # larger margin, which costs time everywhere.  Warm-started from the feasible seed again:
         # from this solution (on the limits at the old nodes, off them between) IPOPT took
-        # > 4 min on test_part's first piece at 1200 nodes, from the seed 29 s
+        # many times longer
         thin = [float(np.mean(st[1])) >= THIN_GRID_FACTOR * node_period_s
                 and budgets[i] < MAX_NODES_REFINED for i, st in enumerate(starts)]
         if any(thin):
@@ -334,7 +333,7 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
 
 def _check_duration(sols, too_slow, what) -> None:
     """A solution slower than ``too_slow`` is not sampled at T (a wild NLP solution slowed down
-    by its worst read took 2.4·10⁵ s on contour_keops: 7 GB of samples); the start is kept."""
+    by its worst read asked for gigabytes of samples); the start is kept."""
     d = sum(float(np.sum(x[0])) for x in sols)
     if not d <= too_slow:
         raise PlanningError(f"optimal: the NLP's {what} takes {d:.6g} s, more than {TOO_SLOW:g} × its start's "
@@ -367,9 +366,8 @@ def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slo
 
 def _check_node_budget(path, joins, pcs) -> None:
     """Node budget (issue 17): every phase between G1 joins needs MIN_PHASE_NODES, so a piece
-    of many short blended chords outgrew any budget (a 44 s piece of a CAM-like kossel
-    program: 830 phases, 20 000 nodes) and IPOPT ran for hours: refused before the warm start
-    (the seed) is planned."""
+    of many short blended chords outgrew any budget and IPOPT ran for hours: refused before
+    the warm start is planned."""
     for g, (s0, s1) in enumerate(pcs):
         phases = 1 + sum(1 for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6)
         if phases * MIN_PHASE_NODES > MAX_NODES_REFINED:
@@ -411,8 +409,7 @@ def _limit_error(machine, path, prof, limits, r, statuses) -> PlanningError:
 def _widen_margins(machine, path, prof, pcs, limits, problems, budgets, max_nodes_per_piece) -> None:
     """Only the limits read above 1, only in the pieces where they were: a doubled margin,
     and an a or j bounded between the nodes too where the grid was not refined (a refined
-    grid is dense; test_part's refined pieces read above 1 at a blend join, where the
-    midpoints do not help, and with them IPOPT took > 5 min)."""
+    grid is dense, and at a blend join the midpoints do not help and slowed IPOPT down)."""
     broken = broken_limits(machine, path, prof, pcs, limits) or {
         (g, kind) for g in range(len(pcs)) for kind in LIMIT_KINDS}
     for g, kind in broken:

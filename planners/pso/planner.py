@@ -1,7 +1,9 @@
-"""`pso` — feed profile optimised by particle swarm (Erwinski, Szczepanski, Tarczewski,
-IOP Conf. Ser. MSE 1140, 2021: a B-spline feed searched by PSO; extended to a delta's joints as
-planned in Erwinski et al., NU·ROBOTI·FTS 2022, shared/SOURCES.md §A), memetic: a local
-convex polish after the swarm.
+"""`pso` — the feed optimised by particle swarm, as the KEOPS papers plan it: the s-curve FLF
+profile as the initial guess, turned into a B-spline feed, adjusted by PSO within the joint
+limits (Erwinski, Szczepanski, Tarczewski, IOP Conf. Ser. MSE 1140, 2021, for planar machines;
+extended to a delta's joints as planned in Erwinski et al., NU·ROBOTI·FTS 2022, shared/SOURCES.md
+§A).  No convex solver touches its profile.  `pso_socp` is the memetic hybrid: the same swarm,
+then the TOPP3-SOCP polish.
 
 Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations): joint v, a, j
 limits, F_max and the chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at
@@ -10,28 +12,38 @@ T added to the continuous jerk.
 Parametrisation (feed.py): per rest-to-rest piece w = ṡ^{3/2} as a cubic B-spline over arc
 length, its knots placed by the limits (equal steps of the jerk-free optimum's time), so the
 swarm's dimension follows the path and its limits, never a seed profile's segments or switch
-times, and nothing is chosen per path.
+times, and nothing is chosen per path.  The search runs on these knots, then on knots twice as
+dense (REFINEMENTS times): knot insertion keeps the feed, so each level starts where the last
+ended, and the coarse levels move the feed broadly where the fine ones would need many steps.
+
+Start: the `scurve_joint` seed's feed fitted by the spline, made feasible by scaling each
+coefficient by the stretch its support needs (feed.start_locally).
 
 Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
-the stations the block moves; the context (every block's best) stays within the limits at the
-stations.  It starts from the better of two fits made feasible by local scaling: the jerk-free
-optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.  Where its samples at T read above a
-limit, the limit is held lower at the stations there and the swarm goes on (_search).
+the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
+block's best) stays within the limits at the stations (Deb's feasibility rule); after each
+iteration the context is pushed to the limits (feed.push: each coefficient, or a few
+neighbours, raised by the largest step that keeps their stations within the limits: a repair
+operator in the sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed
+lies).  Where its samples at T read above a limit, the limit is held lower at the stations
+there and the swarm goes on (_search).
 
-Polish: the TOPP3-SOCP (topp3.py), linearised on each piece around the larger of the swarm's
-and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2 solves; a first
-solve within lin_tol of that reference's time ends them), then checked and repaired at T like
-`optimal`'s.  ``polish=False`` leaves it out.  The swarm's, the polished and the seed's times
-are in info (``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
+Polish (`pso_socp` only): the TOPP3-SOCP (topp3.py), linearised on each piece around the larger
+of the swarm's and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2
+solves; a first solve within lin_tol of that reference's time ends them), then checked and
+repaired at T like `optimal`'s.  The swarm's, the polished and the seed's times are in info
+(``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
 
-Returned: the fastest of the polished profile, the swarm's and the seed, each checked at T
-(joint limits and F_max), so `pso` is never slower than its seed (info["returned"]).  The
-swarm's own profile is sampled from the exact time map of its spline (span.py) and stretched
-per piece by what its samples at T read above a limit.
+Returned: the fastest of the swarm's profile, the seed (the swarm's initial guess) and, for
+`pso_socp`, the polished profile, each checked at T (joint limits and F_max), so neither is
+slower than its seed (info["returned"]).  The swarm's own profile is sampled from the exact
+time map of its spline (span.py) and stretched per piece by what its samples at T read above a
+limit.
 
-Deterministic: ``seed`` drives every random number, the iteration count ends the search (an
-optional wall-clock ``time_budget_s`` would make the result depend on the machine: off by
-default, reported in info["stopped_by"] when it ends the search).
+Deterministic: ``seed`` drives every random number (`plan.stochastic`: the corpus runs both
+over seeds), the iteration count ends the search (an optional wall-clock ``time_budget_s``
+would make the result depend on the machine: off by default, reported in info["stopped_by"]
+when it ends the search).
 """
 from __future__ import annotations
 
@@ -49,7 +61,8 @@ from planners.pso.swarm import BlockSwarm
 
 __all__ = ["plan", "plan_socp"]
 
-# stations ≤ this many curvature radii apart for the swarm (its spline bulges between coarser ones at lobe tips)
+# stations ≤ this many curvature radii apart for the swarm: its spline, held to the limits at
+# the stations, read above them between coarser ones at lobe tips
 SWARM_REFINE_RADII = 0.1
 # the swarm's knots are made twice as dense this many times, ``iterations`` on each
 REFINEMENTS = 2

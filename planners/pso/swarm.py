@@ -13,8 +13,9 @@ neighbouring coefficients are also improved together.
 
 A particle is the logarithm of the coefficients (the feed is positive, and steps are
 relative).  A block's objective on its stations: the time there if every station is within the
-limits, else a constant above any time plus the worst need (feasibility first, Deb's rule), so
-the context stays feasible."""
+limits, else a constant above any time plus the worst need (feasibility first: Deb, Comput.
+Methods Appl. Mech. Eng. 186, 2000), so the context stays feasible.  After each iteration the
+context is pushed to the limits (feed.FeedSpline.push), which the particles then search around."""
 from __future__ import annotations
 
 import numpy as np
