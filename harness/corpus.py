@@ -24,7 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
+from harness.sweep.suite import SuiteError, suite_runs
+from kins import load_machine
 from kins.resources import REPO
+from planners.paths import resolve_path
+from planners.verify import command_metrics
 
 CORPUS_DIR = REPO / "benchmarks" / "paths" / "corpus"
 MANIFEST = CORPUS_DIR / "manifest.json"
@@ -122,7 +127,6 @@ def entries_from_suite(file) -> list[tuple[dict, list[str]]]:
     described by the manifest; any other path file gets kind '-')."""
     import tomllib
 
-    from harness.sweep.suite import SuiteError, suite_runs
     try:
         text = Path(file).read_text()
         suite = tomllib.loads(text)
@@ -153,8 +157,6 @@ def _finite(x) -> float:
 def run_one(entry: dict, planner: str, machine, path) -> Row:
     """Plan ``planner`` on a loaded path and check its profile; never raises for a planner's
     failure (the row carries the error)."""
-    import planners
-    from planners.verify import command_metrics
 
     row = Row(entry["name"], entry["machine"], entry.get("kind", "-"), planner)
     t0 = time.perf_counter()
@@ -190,8 +192,6 @@ def run_one(entry: dict, planner: str, machine, path) -> Row:
 def run_corpus(selection: list[tuple[dict, list[str]]], progress=None) -> list[Row]:
     """Every (entry, planners) of the selection, serially (planning-time measurements stay
     comparable). A path that cannot be loaded gives one failed row per planner."""
-    from kins import load_machine
-    from planners.paths import resolve_path
 
     rows, machines = [], {}
     for entry, names in selection:

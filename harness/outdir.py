@@ -4,8 +4,8 @@
     f = output_file(args.junit)         # its folder checked the same way
     with run_lock(out): ...             # a second run into `out` is refused, not interleaved
 
-The errors are :class:`OutDirError`, a :class:`harness.cli.CliError`: the CLI prints them
-as one line, before any work is done.
+The errors are :class:`OutDirError`: the CLI prints them as one line (as its own CliError),
+before any work is done.
 """
 from __future__ import annotations
 
@@ -14,12 +14,10 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
-from harness.cli import CliError
-
 LOCK_NAME = ".pkmbench.lock"
 
 
-class OutDirError(CliError):
+class OutDirError(ValueError):
     """An output folder or file that cannot be written."""
 
 

@@ -27,7 +27,7 @@ class Pn101(Kinematics):
         self.g = g
         self.tool = np.array([g["x_TP"], g["y_TP"], g["z_TP"]])
         if g["c1"] == g["c2"]:
-            from .machine import MachineFileError
+            from .machine import MachineFileError   # local: kins.machine imports this module
             raise MachineFileError(f"{self.source}: [kinematics] c1 = c2 makes pn101 singular everywhere")
 
     def _local(self, P):

@@ -11,6 +11,8 @@ import time
 
 from planners import registry
 from planners.errors import PlanningError
+from planners.paths import Path, resolve_path
+from planners.profile import Profile, ProfileError
 
 # the built-in planners (registry.names() adds the installed plug-ins)
 PLANNERS = tuple(registry.BUILTIN)
@@ -29,8 +31,6 @@ def plan(name: str, path, machine, limits=None, **options):
     ``path`` may be a Path or a file / standard path name (resolved first, not timed).
     A result that is not a valid :class:`Profile` is a PlanningError naming the planner.
     """
-    from planners.paths import Path, resolve_path
-    from planners.profile import Profile, ProfileError
 
     fn = get_planner(name)
     if not isinstance(path, Path):

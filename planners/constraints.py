@@ -44,6 +44,26 @@ REFINE_RADII = 0.1
 REFINE_MIN_MM = 1e-5
 
 
+def station_grid(edges, grid_mm: float, s0: float, s1: float) -> np.ndarray:
+    """Stations of a rest-to-rest piece [s0, s1]: ≤ grid_mm apart (≥ 19 intervals a piece),
+    uniform between consecutive ``edges`` (its ends, segment joins, G1 joins: each on the grid)
+    with ≥ 4 intervals between two (a 0.04 mm G64 blend arc is resolved, not stepped over)."""
+    step = min(grid_mm, (s1 - s0) / 19)
+    parts = [np.linspace(a, b, max(5, int(math.ceil((b - a) / step - 1e-9)) + 1))[:-1]
+             for a, b in zip(edges[:-1], edges[1:])]
+    return np.concatenate(parts + [[s1]])
+
+
+def curvature_splits(h, kappa, radii: float, min_mm: float, most: int, mask=None):
+    """(the cells of widths h wider than ``radii`` curvature radii at either end (curvatures
+    ``kappa`` at the cell ends) and than ``min_mm``, the parts to split each into, ≤ ``most``);
+    ``mask`` selects the cells that may be split."""
+    k = np.ceil(h * np.maximum(kappa[:-1], kappa[1:]) / radii)
+    ok = (k > 1) & (h > min_mm)
+    need = np.nonzero(ok if mask is None else mask & ok)[0]
+    return need, np.minimum(k[need], most).astype(np.int64)
+
+
 def check_limits(limits, planner: str = "planner") -> None:
     """Raise PlanningError unless every limit is a finite number > 0."""
     vals = {f"{group} limit {k}": getattr(getattr(limits, group), k)
@@ -297,11 +317,10 @@ class PathTable:
     def _cells_to_split(S, piece, cart):
         """(cells wider than REFINE_RADII curvature radii at their ends, the parts to split
         each into (≤ 64), all cell widths)."""
-        kap = cross_norm(cart[1], cart[2])
         h = np.diff(S)
-        k = np.ceil(h * np.maximum(kap[:-1], kap[1:]) / REFINE_RADII)
-        need = np.nonzero((piece[1:] == piece[:-1]) & (k > 1) & (h > REFINE_MIN_MM))[0]
-        return need, np.minimum(k[need], 64).astype(np.int64), h
+        need, parts = curvature_splits(h, cross_norm(cart[1], cart[2]), REFINE_RADII, REFINE_MIN_MM, 64,
+                                       piece[1:] == piece[:-1])
+        return need, parts, h
 
     @staticmethod
     def _add_rows(path, S, piece, cart, s_new, p_new, inner):

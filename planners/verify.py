@@ -38,6 +38,31 @@ def limit_ratios(X: np.ndarray, T: float, limits: Limits) -> tuple[dict, dict]:
     return peak, viol
 
 
+def within(ratio) -> bool:
+    """A peak ratio within its limit at T (DESIGN.md: ≤ 1 + FEASIBLE_TOL)."""
+    return ratio <= 1.0 + FEASIBLE_TOL
+
+
+def keeps_joints_and_feed(metrics: dict) -> bool:
+    """``command_metrics(…, s)`` of a profile that keeps every joint limit and F_max at T."""
+    return metrics["feasible"] and within(metrics["cartesian_peak_ratio"].get("feed", 0.0))
+
+
+def windows_above(X: np.ndarray, T: float, limits: Limits, s=None, feed_max: float | None = None) -> list:
+    """[(order, first sample of the window, ratio)] of every difference window of X at T that
+    reads above its limit (ratio > 1 + FEASIBLE_TOL), by order (velocity, acceleration, jerk,
+    then "feed": the arc lengths ``s`` against ``feed_max``) and sample: where a profile breaks
+    a limit, for the planners that repair it there."""
+    out = []
+    for order, (w, _), L in zip(ORDERS, difference_peaks(X, T), (limits.v, limits.a, limits.j)):
+        r = w / L
+        out += [(order, int(i), float(r[i])) for i in np.nonzero(r > 1.0 + FEASIBLE_TOL)[0]]
+    if s is not None:
+        r = np.diff(np.asarray(s, float)) / T / feed_max
+        out += [("feed", int(i), float(r[i])) for i in np.nonzero(r > 1.0 + FEASIBLE_TOL)[0]]
+    return out
+
+
 def worst_sample(X: np.ndarray, T: float, limits: Limits) -> tuple[str, int, float]:
     """(order, first sample index of its difference window, ratio) of the largest limit ratio
     of X at T: where a trajectory breaks its limits worst, for an error message."""

@@ -89,10 +89,15 @@ def test_run_is_deterministic_and_recordings_read_back(tmp_path):
     for k, col in enumerate("xyz", start=1):
         np.testing.assert_array_equal(mc["/command"][col][:n], cmd[:, k])
     np.testing.assert_array_equal(mc["/joints/command"]["q1"][:n], cmd[:, 4])
-    # the rrd loads with the rerun SDK
+    # the rrd read back with the rerun SDK: the joint velocity, acceleration and jerk at every
+    # difference of the command, the toolpath once
     from rerun.chunk import RrdReader
-    reader = RrdReader(str(a / "scurve" / "run.rrd"))
-    assert reader is not None
+    rows: dict[str, int] = {}
+    for chunk in RrdReader(str(a / "scurve" / "run.rrd")).stream():
+        rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
+    for k, order in enumerate(("velocity", "acceleration", "jerk"), start=1):
+        assert rows[f"/joints/{order}/q1"] == n - k
+    assert rows["/machine/toolpath"] == 1
 
 
 def test_fmu_error_names_fmu_time_and_log(keops, tmp_path):

@@ -28,7 +28,7 @@ def nlp(path, machine, warm, **options):
 
 def test_vertical_line_is_the_jerk_limited_closed_form_and_its_bound_the_jerk_free_one():
     """q = z + const on every joint: the minimum time is the 1-D rest-to-rest optimum, here
-    L/V + 2√(V/J) (V·J ≤ A²: A is never reached; tests/test_copp.py checks it against ruckig).
+    L/V + 2√(V/J) (V·J ≤ A²: A is never reached; tests/test_optimal_topp3.py checks it against ruckig).
     The SOCP is above it by the 0.1 mm grid's loss.  The lower bound drops the jerk: q′ = 1,
     q″ = 0, so it is the trapezoid's L/V + V/A (its ramps integrated in closed form)."""
     L = 30.0

@@ -176,7 +176,8 @@ def test_line_spiral_blends_are_tangent_circles_within_the_tolerance():
 def test_trapezoid_caps_a_spiral_by_its_radius_of_curvature_at_the_start():
     # LinuxCNC's pmCircleEffectiveMinRadius: the spiral's own radius of curvature at the start
     # radius, i.e. 1/κ(0) of the path; the arc's speed cap is √(a_n·ρ) below the machine's
-    from planners.trapezoid.planner import ACC_RATIO_NORMAL, segment_limits
+    from planners.trapezoid.planner import segment_limits
+    from planners.trapezoid.rules import ACC_RATIO_NORMAL
     arc = Arc([0.5, 0, 0], [0, 0, 0], [0, 0, 1], 2.0, spiral=0.4)
     path = SegmentPath([arc])
     vmax, _ = segment_limits(path, 1000.0, 100.0, 1000.0)

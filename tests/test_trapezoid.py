@@ -43,14 +43,34 @@ def test_profile_integrals_consistent(keops):
     assert (np.diff(pr.s) >= 0).all()
 
 
-def test_helix_speed_capped_by_normal_acceleration(keops):
-    pr = plan("trapezoid", resolve_path("helix"), keops)
-    arc = pr.path.segments[0]
-    rho = arc.radius + (arc.rise / arc.angle) ** 2 / arc.radius
-    # a in the helix plane+axis: the axis bound is a / max_k √(u_k²+v_k²+n_k²) = a/1 here
-    cap = math.sqrt(0.866025403784 * keops.limits.cartesian.a * rho)
-    assert pr.sd.max() == pytest.approx(cap, rel=1e-6)
-    assert np.abs(pr.sdd).max() <= 0.5 * keops.limits.cartesian.a * (1 + 1e-9)
+def test_helix_speed_capped_alike_on_a_segment_path_and_in_linuxcncs_queue(keops, tmp_path):
+    # LinuxCNC caps a G2/G3 twice: ARC_FEED's planar speed √(a_n·r) stretched over the helix
+    # (= √(a_n·(r + (h/θ)²/r))) and, once finalized, pmCircleEffectiveMinRadius r + h²/r (whole
+    # rise h): on 3 turns the first binds; the segment-path planner and the queue replica (a
+    # program with a line after the helix, so it is finalized) agree
+    from planners.paths.gcode import load_gcode_path
+    r, theta, rise = 5.0, 6 * math.pi, 10.0
+    cap = math.sqrt(0.866025403784 * keops.limits.cartesian.a * (r + (rise / theta) ** 2 / r))
+    assert cap < 0.5 * keops.limits.cartesian.v           # the cap, not the machine speed, binds
+    arc = Arc([r, 0.0, -405.0], [0.0, 0.0, -405.0], [0.0, 0.0, 1.0], theta, rise=rise)
+    pr = plan("trapezoid", SegmentPath([arc, Line([r, 0, -395.0], [r, 0, -365.0])]), keops)
+    assert pr.sd[pr.s < arc.length - 1e-6].max() == pytest.approx(cap, rel=1e-6)
+    ngc = tmp_path / "helix.ngc"
+    ngc.write_text(f"G21 G90 G64\nG0 X{r} Y0 Z-405\nG3 X{r} Y0 Z-395 I{-r} J0 P3 F60000\nG1 Z-365\nM2\n")
+    prog = plan("trapezoid", load_gcode_path(ngc), keops, programmed_feed=False)
+    assert prog.sd[prog.s < arc.length - 1e-6].max() == pytest.approx(cap, rel=1e-6)
+
+
+def test_arc_speed_radius_is_the_smaller_of_linuxcncs_two_rules():
+    from planners.trapezoid.rules import arc_speed_radius, effective_min_radius
+    r, h = 20.0, 10.0
+    for theta in (0.5, 1.0, 3.0, 20.0):
+        stretched, whole = r + (h / theta) ** 2 / r, r + h ** 2 / r
+        assert effective_min_radius(r, theta, h, 0.0) == pytest.approx(whole, rel=1e-15)
+        assert arc_speed_radius(r, theta, h, 0.0) == pytest.approx(min(stretched, whole), rel=1e-15)
+    # a spiral: (r² + k²)^1.5 / (r² + 2k²), k = dr/dφ, the radius of curvature of r(φ) = r + kφ
+    k = 2.0
+    assert effective_min_radius(r, 1.0, 0.0, k) == pytest.approx((r * r + k * k) ** 1.5 / (r * r + 2 * k * k))
 
 
 def test_bird_cartesian_limits_and_geometry(keops):
@@ -166,7 +186,7 @@ def test_programmed_feed_option(keops, tmp_path):
 def _simulate_reference(path, vmax, amax, vf, T):
     """The per-cycle loop as first written (min/max builtins, values read per pass): the
     reference the faster trapezoid.simulate must reproduce bit for bit."""
-    from planners.trapezoid.planner import MAX_CYCLES
+    from planners.trapezoid.cycle import MAX_CYCLES
     L = [g.length for g in path.segments]
     vmax, amax, vf = np.asarray(vmax).tolist(), np.asarray(amax).tolist(), np.asarray(vf).tolist()
     n = len(L)

@@ -22,7 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
 from planners import verify as M
+from planners.paths.base import gc_paused
+from planners.paths.gcode import GCodeError, program_path, read_gcode, strip_comments
 
 EXIT_CLEAN, EXIT_FINDINGS, EXIT_INVALID = 0, 1, 2
 TEXT_LIMIT = 50          # entries of the default text report (--all: every finding)
@@ -175,7 +178,6 @@ _N_WORD = re.compile(r"^\s*[Nn]\s*(\d+)")
 
 def _n_number_warnings(text: str, source: str) -> list[Finding]:
     """N numbers must increase (a warning: LinuxCNC ignores them, but a reordered program is suspect)."""
-    from planners.paths.gcode import GCodeError, strip_comments
 
     out, last = [], None
     for ln, raw in enumerate(text.splitlines(), start=1):
@@ -276,7 +278,6 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
     """Check a program as ``planner`` runs it on ``machine`` (``start``: the machine position
     before it, see planners.paths.gcode.parse_gcode; default: its first positioning move or
     the machine's home; ``reader``: the G-code interpreter, pkmbench or linuxcnc)."""
-    from planners.paths.base import gc_paused
 
     # the cyclic GC's full passes over the 10⁵–10⁶ objects a long program makes (segments,
     # findings, planner pieces) cost ~15 % of a check; none of them needs it to be freed
@@ -285,8 +286,6 @@ def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: 
 
 
 def _check(file, machine, planner: str, workspace_step_mm: float, start, reader: str) -> Report:
-    import planners
-    from planners.paths.gcode import GCodeError, program_path, read_gcode
 
     file = Path(file)
     rep = Report(str(file), machine.name, planner)

@@ -15,13 +15,21 @@ one computer holds on another.
 from __future__ import annotations
 
 import fnmatch
+import json
 import math
-import platform
 import time
 from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
+
+from harness.cosim.drive_params import encoder_increment_mm
+from harness.provenance import host_info
+from harness.sweep import flatten, resolve_task_fn, task_label
+from kins import load_machine
+from kins.machine import MachineFileError
 
 FORMAT = "pkmbench-ci-baseline/1"
 
@@ -65,6 +73,36 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
 CSV_REL = 1e-5
 
 
+class BaselineError(ValueError):
+    """A baseline file that is missing or not a pkmbench baseline."""
+
+
+def load_baseline(file: Path) -> dict:
+    """The baseline document of ``file``; BaselineError naming the file and what is wrong."""
+    if not file.exists():
+        raise BaselineError(f"{file}: no baseline; create it with --update-baseline")
+    try:
+        b = json.loads(file.read_text())
+    except json.JSONDecodeError as e:
+        raise BaselineError(f"{file}: not valid JSON (line {e.lineno}): {e.msg}") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise BaselineError(f"{file}: cannot read it: {e}") from None
+    if not isinstance(b, dict) or b.get("format") != FORMAT or not isinstance(b.get("entries"), dict):
+        raise BaselineError(f"{file}: not a pkmbench baseline (format must be '{FORMAT}' with 'entries')")
+    return b
+
+
+def write_baseline(file: Path, *, suite: str, task_fn: str, code_version: str, reference_s: float,
+                   entries: dict) -> dict:
+    """Write the baseline document of a run to ``file``; the document."""
+    doc = {"format": FORMAT, "suite": suite, "task_fn": task_fn,
+           "code_version": code_version, "reference_s": reference_s, "host": host_info(),
+           "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+           "entries": entries}
+    file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    return doc
+
+
 def rule_for(metric: str, tolerances=DEFAULT_TOLERANCES, entry: str = "") -> dict:
     """The first rule whose pattern matches: ``metric-glob`` or ``entry-glob:metric-glob``."""
     for pattern, rule in tolerances:
@@ -80,8 +118,6 @@ def resolve_rule(rule: dict, entry: str) -> dict:
     increment when its input crosses a step, however small the input's change."""
     if "increments" not in rule:
         return rule
-    from harness.cosim.drive_params import encoder_increment_mm
-    from kins.machine import MachineFileError
     try:
         inc_mm = encoder_increment_mm(entry.split("/", 1)[0])
     except (MachineFileError, OSError, KeyError, ValueError):
@@ -118,7 +154,6 @@ def reference_workload_s(repeat: int = 5, stat: str = "min") -> float:
     holds across machines. The work resembles planning: vectorised kinematics and
     differences over a long trajectory, plus a dense solve.
     """
-    from kins import load_machine
     m = load_machine("keops")
     rng = np.random.default_rng(12345)
     P = m.home + rng.uniform(-50, 50, (400_000, 3))
@@ -132,12 +167,6 @@ def reference_workload_s(repeat: int = 5, stat: str = "min") -> float:
         np.linalg.solve(A, b)
         times.append(time.perf_counter() - t0)
     return min(times) if stat == "min" else sum(times) / len(times)
-
-
-def host_info() -> dict:
-    import os
-    return {"node": platform.node(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "python": platform.python_version(), "numpy": np.__version__}
 
 
 # -- the CI task wrapper (runs on the workers) ---------------------------------------------
@@ -165,7 +194,6 @@ def reference_timed_task(task: dict, out_dir) -> dict:
     import statistics
     from pathlib import Path
 
-    from harness.sweep import flatten, resolve_task_fn
     inner = resolve_task_fn(task["ci_inner_task"])
     refs, runs = [reference_workload_s(3, "mean")], []
     for i in range(CI_REPEAT):
@@ -205,7 +233,6 @@ class Check:
 
 def entries_from_rows(rows: list[dict], reference_s: float) -> tuple[dict, dict]:
     """(entries {label: flat metrics}, errors {label: error}) from a sweep's store rows."""
-    from harness.sweep import flatten, task_label
     entries, errors = {}, {}
     for row in rows:
         label = task_label(row["task"])

@@ -7,24 +7,14 @@ tolerance in each row's ``regressions``. `pkmbench history` and the HTML report 
 from __future__ import annotations
 
 import json
-import subprocess
-from pathlib import Path
 
-
-def git_commit(repo: Path) -> str | None:
-    try:
-        r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True,
-                           text=True, timeout=10)
-        return r.stdout.strip() or None
-    except (OSError, subprocess.SubprocessError):
-        return None
+from harness.store import ResultStore
 
 
 class History:
     """The ci runs of a results store, numbered 1, 2, … in time order."""
 
     def __init__(self, store=None):
-        from harness.store import ResultStore
         self.store = ResultStore(store)
         self._runs = None
 

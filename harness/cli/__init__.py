@@ -6,10 +6,12 @@ prints.
 from __future__ import annotations
 
 import argparse
-import math
 import importlib
-import subprocess
+import math
 import sys
+
+from harness.outdir import OutDirError
+from harness.provenance import git_commit, package_version
 
 DESCRIPTION = ("pkmbench: co-simulate feedrate planners on parallel-kinematics machines through FMI "
                "co-simulation FMUs (interpolator, kinematics, EtherCAT, drives) and compare their "
@@ -66,22 +68,8 @@ def parse_start(text: str | None) -> list[float] | None:
 def version_string() -> str:
     """'pkmbench VERSION (git COMMIT)': the installed package's version and, in a git checkout,
     the commit of this code (``+dirty`` when tracked files differ from it)."""
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        ver = version("pkmbench")
-    except PackageNotFoundError:
-        ver = "(not installed)"
-    from kins.resources import REPO as repo
-    try:
-        git = lambda *a: subprocess.run(["git", "-C", str(repo), *a], capture_output=True,  # noqa: E731
-                                        text=True, timeout=10)
-        head = git("rev-parse", "--short=12", "HEAD")
-        commit = head.stdout.strip() if head.returncode == 0 else ""
-        if commit and git("status", "--porcelain", "--untracked-files=no").stdout.strip():
-            commit += "+dirty"
-    except (OSError, subprocess.TimeoutExpired):     # no git on this machine
-        commit = ""
-    return f"pkmbench {ver}" + (f" (git {commit})" if commit else "")
+    commit = git_commit(12, dirty=True)
+    return f"pkmbench {package_version() or '(not installed)'}" + (f" (git {commit})" if commit else "")
 
 
 class _Version(argparse.Action):
@@ -111,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     mod = modules[args.command]
     try:
         return int(mod.main(args) or 0)
-    except CliError as e:
+    except (CliError, OutDirError) as e:
         print(f"pkmbench {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

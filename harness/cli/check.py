@@ -2,6 +2,9 @@
 1 findings, 2 invalid program)."""
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 from harness.cli import CliError, add_gcode_arguments, parse_start
 
 

@@ -10,12 +10,13 @@ regression (each named with its run, metric, values and tolerance), 2 on a user 
 """
 from __future__ import annotations
 
-import json
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import os
 import shutil
 import sys
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 
 from harness.cli import CliError
@@ -44,25 +45,15 @@ def add_arguments(p) -> None:
                    help="a user FMU in place of ours, as for run (repeatable; wins over the suite's [fmus])")
 
 
-def _load_baseline(file: Path) -> dict:
-    from harness.ci.baseline import FORMAT
-    if not file.exists():
-        raise CliError(f"{file}: no baseline; create it with --update-baseline")
-    try:
-        b = json.loads(file.read_text())
-    except json.JSONDecodeError as e:
-        raise CliError(f"{file}: not valid JSON (line {e.lineno}): {e.msg}") from None
-    if b.get("format") != FORMAT or not isinstance(b.get("entries"), dict):
-        raise CliError(f"{file}: not a pkmbench baseline (format must be '{FORMAT}' with 'entries')")
-    return b
-
-
 def main(args) -> int:
     from harness.ci import baseline as ci
     from harness.store import ResultStore, StoreError
 
     suite_file, task_fn, baseline_file = _inputs(args)
-    baseline = None if args.update_baseline else _load_baseline(baseline_file)
+    try:
+        baseline = None if args.update_baseline else ci.load_baseline(baseline_file)
+    except ci.BaselineError as e:
+        raise CliError(str(e)) from None
     tasks, tolerances = _load_tasks(args, suite_file, task_fn)
     junit, mdfile, out = _check_outputs(args, baseline_file)
     run_dir, reference_s, entries, errors, wall_s = _run_suite(args, tasks, task_fn, out)
@@ -85,7 +76,7 @@ def main(args) -> int:
     info = {"mode": "update-baseline" if args.update_baseline else "check", "passed": passed,
             "reference_s": reference_s, "wall_s": wall_s, "baseline": str(baseline_file),
             "checks": len(checks), "task_fn": task_fn}
-    from harness.cli.sweep import user_fmus_info
+    from harness.sweep import user_fmus_info
     info |= user_fmus_info(tasks) or {}         # only with user FMUs: the other runs' info as it was
     try:
         with ResultStore(args.store) as st:
@@ -181,11 +172,8 @@ def _update_baseline(args, baseline_file: Path, task_fn: str, version: str, refe
             print(f"FAILED {label}: {err}")
         print(f"ci: {len(errors)} task(s) failed; baseline NOT updated")
         return ci.compare({"entries": entries}, entries, errors, tolerances), False
-    doc = {"format": ci.FORMAT, "suite": args.suite, "task_fn": task_fn,
-           "code_version": version, "reference_s": reference_s, "host": ci.host_info(),
-           "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-           "entries": entries}
-    baseline_file.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    doc = ci.write_baseline(baseline_file, suite=args.suite, task_fn=task_fn, code_version=version,
+                            reference_s=reference_s, entries=entries)
     checks = ci.compare(doc, entries, errors, tolerances)
     print(f"ci: baseline {baseline_file} written: {len(entries)} runs, "
           f"{sum(len(v) for v in entries.values())} metrics, {wall_s:.1f} s")

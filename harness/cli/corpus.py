@@ -13,6 +13,9 @@ something else (an internal error, listed), 2 on a user error.
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 from harness.cli import CliError
 from harness.outdir import OutDirError, output_dir
 

@@ -1,6 +1,9 @@
 """`pkmbench figures`: regenerate the published figures and REPORT.md under results/figures."""
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 from pathlib import Path
 
 from harness.cli import CliError

@@ -5,6 +5,9 @@
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import fnmatch
 from harness.cli import CliError
 from harness.outdir import output_file

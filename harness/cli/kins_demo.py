@@ -2,6 +2,9 @@
 ranges over the workspace box — a first look at each machine's kinematics."""
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import numpy as np
 
 from harness.outdir import output_dir

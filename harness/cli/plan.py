@@ -1,6 +1,9 @@
 """`pkmbench plan`: plan feed profiles only (no co-simulation), write them, print their metrics."""
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 from harness.cli import CliError, add_gcode_arguments, parse_start
 from harness.outdir import output_dir
 

@@ -10,6 +10,9 @@ regressions). Every metric is in ``metrics`` (JSON, dotted names):
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import csv
 import json
 import sys

@@ -7,6 +7,9 @@ with PNGs (harness/report/sweep_report.py).
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 from pathlib import Path
 
 from harness.cli import CliError

@@ -1,6 +1,9 @@
 """`pkmbench run`: co-simulate planners on a machine × toolpath (or a suite) and compare."""
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import sys
 from pathlib import Path
 

@@ -9,6 +9,9 @@ Exit 0 when every task succeeded, 1 when some failed (they are listed), 2 on a u
 """
 from __future__ import annotations
 
+# Local imports: every command module is imported to build the parser; a command loads what it
+# needs when it runs (`pkmbench --help` and the other commands stay fast)
+
 import os
 
 from harness.cli import CliError
@@ -35,16 +38,9 @@ def add_arguments(p) -> None:
                         "or results/store; 'none' = do not append)")
 
 
-def user_fmus_info(tasks) -> dict | None:
-    """{"fmus": the user FMUs (file, sha256, source) by block} for the results store's run_info,
-    None on our own chain (its rows stay as they were)."""
-    named = tasks[0].get("fmus") if tasks else None
-    return {"fmus": named} if named else None
-
-
 def main(args) -> int:
     from harness.sweep import (DEFAULT_TASK, SuiteError, SweepError, run_sweep,
-                               tasks_from_suite_file)
+                               tasks_from_suite_file, user_fmus_info)
     if args.workers < 0:
         raise CliError(f"--workers {args.workers}: must be ≥ 0")
     try:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from harness.cosim.system import SystemError_
+from harness.cosim.fmu_file import SystemError_, fmu_problem
 
 # block → {variable: (causality, type)}: what the chain connects and run.RECORD reads
 INTERFACE = {
@@ -88,7 +88,6 @@ def check_user_fmu(block: str, fmu) -> Path:
                            f"co-simulation FMUs")
     if md.coSimulation is None:
         raise SystemError_(f"{block} FMU {fmu}: no co-simulation interface (model exchange only)")
-    from harness.cosim.system import fmu_problem
     why = fmu_problem(fmu)
     if why:
         raise SystemError_(f"{block} FMU {fmu}: not loadable here ({why})")

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cosim.master import CoSimError, Result
+from harness.cosim.master import CoSimError, Result, simulate
+from harness.cosim.run import RECORD
 from harness.cosim.system import SystemError_, read_ssp
 
 NS_PER_S = 1_000_000_000
@@ -60,9 +61,9 @@ def _recorders(ex, record):
 def simulate_libcosim(ssd: Path, record: list[str]) -> Result:
     """Run ``ssd`` (a SystemStructure.ssd written by harness.cosim.system.write_ssp) in libcosim
     for its stop time at its step; record ``record`` after every step."""
+    from libcosimpy._internal import get_last_error_message
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    from libcosimpy._internal import get_last_error_message
 
     ssd = Path(ssd).resolve()
     system = read_ssp(ssd)
@@ -88,9 +89,9 @@ def simulate_libcosim(ssd: Path, record: list[str]) -> Result:
 
 def _steps(ex, record, n: int, h: float) -> np.ndarray:
     """n steps of ``ex``; row k = the recorded values after step k + 1."""
+    from libcosimpy._internal import get_last_error_message
     from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimObserver import CosimObserver
-    from libcosimpy._internal import get_last_error_message
 
     rec = _recorders(ex, record)
     obs = CosimObserver.create_last_value()
@@ -110,14 +111,12 @@ def _steps(ex, record, n: int, h: float) -> np.ndarray:
 
 def compare(ssd: Path, record: list[str]) -> dict[str, float]:
     """Max |libcosim − harness Jacobi| per recorded signal, on the same SSP."""
-    from harness.cosim.master import simulate
     theirs = simulate_libcosim(ssd, record)
     ours = simulate(read_ssp(Path(ssd)), record, jacobi=True)
     return {name: float(np.max(np.abs(theirs[name] - ours[name][1:]))) for name in record}
 
 
 def main(argv=None) -> int:
-    from harness.cosim.run import RECORD
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
         print("usage: python -m harness.cosim.libcosim RUN_FOLDER/PLANNER (or its SystemStructure.ssd)", file=sys.stderr)

@@ -20,12 +20,18 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
+from harness.cosim.blocks import check_blocks, check_user_fmu
 from harness.cosim.master import CoSimError, simulate
 from harness.cosim.measure import measure
 from harness.cosim.record import replacing, write_command_csv, write_json, write_mcap, write_rrd
 from harness.cosim.system import SystemError_, chain, check_chain_fmus, read_ssp, write_ssp
 from harness.outdir import OutDirError, output_dir, run_lock
 from harness.seed import SeedError, check_seed
+from kins import load_machine
+from kins.machine import MachineFileError
+from planners.feed import feed_mode, use_max_feed
+from planners.paths import PathError, resolve_path
 from planners.verify import differences
 
 # Interpolator output → command; Kinematics → joints; EtherCAT → delivered targets; drives
@@ -49,7 +55,6 @@ class RunError(Exception):
 
 def feed_summary(path) -> str:
     """How the feed was capped, for summary.json."""
-    from planners.feed import feed_mode
     if path.program is None:
         return "F_max (not a G-code program)"
     return "F_max (--max-feed)" if feed_mode(path) == "max" else "programmed F, capped at F_max"
@@ -80,10 +85,6 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     ``start``: G-code only, the machine position before the program (default: its first positioning
     move, else the machine's home; planners.paths.gcode.parse_gcode); ``reader``: G-code read by
     pkmbench's interpreter or LinuxCNC's (summary.json names it when it is not pkmbench's)."""
-    from kins import load_machine
-    from kins.machine import MachineFileError
-    import planners
-    from planners.paths import PathError, resolve_path
 
     try:
         machine = load_machine(machine_name)
@@ -93,7 +94,6 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         path = resolve_path(path_name, home=machine.home, start=start, reader=reader)
     except PathError as e:
         raise RunError(str(e)) from None
-    from planners.feed import use_max_feed
     use_max_feed(path, bool(max_feed))
     unknown = [p for p in planner_names if not planners.registry.known(p)]
     if unknown:
@@ -108,7 +108,6 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     try:
         check_chain_fmus()
         if fmus:
-            from harness.cosim.blocks import check_blocks, check_user_fmu
             check_blocks(fmus)
             fmus = {b: check_user_fmu(b, f) for b, f in fmus.items()}
     except SystemError_ as e:   # before anything is planned or removed: every planner would fail alike
@@ -126,7 +125,6 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
 def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter, ideal, engine, jacobi,
          planner_options, recordings, progress, fmus=None, start=None, reader="pkmbench") -> dict:
     """run_case's work, with the folder locked: nothing of an earlier run may look like this one's."""
-    import planners
 
     for stale in ("summary.json", "timing.json", "comparison.png"):
         (out_dir / stale).unlink(missing_ok=True)

@@ -17,10 +17,12 @@ the folder stays absolute.)
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from harness.cosim.blocks import check_blocks, check_user_fmu, user_start
+from harness.cosim.drive_params import drive_start_values, ethercat_start_values
+from harness.cosim.fmu_file import SystemError_, fmu_problem
 from kins.resources import FMU_DIR, REPO
 
 NS = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -33,10 +35,6 @@ SSP_TYPE = {"Float64": "Real", "Int32": "Integer"}
 
 # String parameters that name files: relative to the .ssd's folder when they lie in it
 FILE_PARAMS = ("path_file", "profile_file", "histogram_file", "histogram_out")
-
-
-class SystemError_(ValueError):
-    """A system cannot be built or read (missing FMU, malformed SSD, unknown variable)."""
 
 
 @dataclass
@@ -74,40 +72,6 @@ CHAIN_FMUS = ("Interpolator", "Kinematics", "EtherCAT", "Drive")
 
 def _shown(f: Path) -> Path:
     return f.relative_to(REPO) if f.is_relative_to(REPO) else f
-
-
-def fmu_problem(fmu: Path, model: str | None = None) -> str | None:
-    """Why ``fmu`` is not a loadable FMU, or None: a zip whose members pass their CRC, whose
-    modelDescription.xml parses and names a co-simulation model (``model``, when given) whose
-    binary for this platform is inside."""
-    from fmpy import platform, platform_tuple, sharedLibraryExtension
-
-    with open(fmu, "rb") as f:   # an unreadable file: OSError, for the caller to word
-        try:
-            with zipfile.ZipFile(f) as z:
-                if z.testzip() is not None:
-                    return "corrupt zip"
-                names = set(z.namelist())
-                if "modelDescription.xml" not in names:
-                    return "no modelDescription.xml"
-                xml = z.read("modelDescription.xml")
-        except Exception:   # whatever the zip reader raises on damaged bytes (BadZipFile, zlib, lzma…)
-            return "corrupt zip"
-    try:
-        root = ET.fromstring(xml)
-    except ET.ParseError as e:
-        return f"modelDescription.xml does not parse: {e}"
-    cs = root.find("CoSimulation")
-    ident = cs.get("modelIdentifier") if cs is not None else None
-    if not ident:
-        return "modelDescription.xml has no co-simulation modelIdentifier"
-    if model and ident != model:
-        return f"modelDescription.xml names model '{ident}', not '{model}'"
-    fmi3 = (root.get("fmiVersion") or "").startswith("3.")   # FMI 3.0 names platforms as x86_64-linux
-    binary = f"binaries/{platform_tuple if fmi3 else platform}/{ident}{sharedLibraryExtension}"
-    if binary not in names:
-        return f"no {binary}"
-    return None
 
 
 def check_fmu(fmu: Path, model: str | None = None) -> Path:
@@ -159,7 +123,6 @@ def chain(machine, path_file: Path, profile_file: Path, duration_s: float, *, se
     ``ideal``: zero-jitter bus, no transport delay and ideal drives (position = target), so the
     chain must reproduce the commanded joint trajectory exactly (a test).
     """
-    from harness.cosim.drive_params import drive_start_values, ethercat_start_values
 
     T = machine.servo_period_s
     comps = [
@@ -187,7 +150,6 @@ def chain(machine, path_file: Path, profile_file: Path, duration_s: float, *, se
                   Connection("ethercat", f"sync_ok{k}", f"drive{k}", "sync_ok"),
                   Connection(f"drive{k}", "position", "kinematics", f"q{k}_act")]
     if fmus:
-        from harness.cosim.blocks import check_blocks, check_user_fmu, user_start
         check_blocks(fmus)
         for comp in comps:
             block = comp.fmu.stem

@@ -5,6 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from string import Template
 
+from harness.cosim.drive_params import encoder_increment_mm
+from kins import load_machine
+
 TEMPLATE = Path(__file__).with_name("REPORT.template.md")
 
 
@@ -16,7 +19,6 @@ def _jacobian_row_horizontal() -> float:
     """Length of the horizontal part of a KEOPS joint's unit Jacobian row at the workspace centre."""
     import numpy as np
 
-    from kins import load_machine
     m = load_machine("keops")
     J = np.asarray(m.jacobian(m.home), float)
     return float((np.linalg.norm(J[:, :2], axis=1) / np.linalg.norm(J, axis=1)).max())
@@ -24,7 +26,6 @@ def _jacobian_row_horizontal() -> float:
 
 def report(r: dict) -> str:
     """REPORT.md from the figure steps' results, keyed as `pkmbench figures` names the steps."""
-    from harness.cosim.drive_params import encoder_increment_mm
 
     kp, kc = r["KEOPS paper Figs. 5–6"], r["KEOPS flat bird at the workspace centre"]
     fo = r["KEOPS feed over arc length"]

@@ -10,9 +10,15 @@ worst joint ratio per planner.
 """
 from __future__ import annotations
 
-import html
 from collections import defaultdict
 from pathlib import Path
+
+from harness.ci.history import History
+from harness.report.html_report import write_html
+from harness.sweep import SweepStore
+from kins import load_machine
+from kins.resources import REPO
+from planners.verify import within
 
 COLUMNS = ["planner", "seed", "execution time s", "÷ optimal", "feasible", "joint v", "joint a",
            "joint j", "following µm", "contour µm", "planning s", "status"]
@@ -64,7 +70,7 @@ def _plot(group: dict, file: Path) -> None:
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 2.8))
     a1.bar(p["planner"], p["time"], color="tab:blue")
     a1.set_ylabel("execution time, s")
-    a2.bar(p["planner"], p["worst"], color=["tab:red" if w > 1 + 1e-6 else "tab:green" for w in p["worst"]])
+    a2.bar(p["planner"], p["worst"], color=["tab:green" if within(w) else "tab:red" for w in p["worst"]])
     a2.axhline(1.0, color="k", lw=0.8, ls="--")
     if p["worst"] and min(p["worst"]) > 0 and max(p["worst"]) / min(p["worst"]) > 20:
         a2.set_yscale("log")                 # a jerk ratio of 600 would flatten the feasible ones
@@ -87,7 +93,6 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal", results_sto
     file: harness/report/html_report.py, the nightly trend from the results store ``results_store``,
     default the default store) of the sweep in ``sweep`` into ``out``; returns (tables, runs).
     ReportError if ``sweep`` holds no results."""
-    from harness.sweep import SweepStore
     sweep, out = Path(sweep), Path(out)
     db = sweep / "results.sqlite"
     if not db.exists():
@@ -114,10 +119,6 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal", results_sto
         md += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in g["rows"]]
         md += ["", f"![{g['title']}]({png})", ""]
     (out / "report.md").write_text("\n".join(md) + "\n")
-    from harness.ci.history import History
-    from harness.report.html_report import write_html
-    from kins import load_machine
-    from kins.resources import REPO
 
     def machine_of(r):
         """The run's own (varied) machine file, which the task wrote to inputs/, else the suite's."""

@@ -29,12 +29,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import platform
 import secrets
-import socket
 from datetime import datetime, timezone
 from pathlib import Path
 
+from harness.provenance import git_commit, host_info, package_version
+from harness.sweep import SweepStore, task_label
 from kins.resources import RESULTS
 
 ENV = "PKMBENCH_STORE"
@@ -68,11 +68,6 @@ class StoreError(ValueError):
 
 def default_store() -> Path:
     return Path(os.environ.get(ENV) or RESULTS / "store")
-
-
-def host_info() -> dict:
-    return {"node": socket.gethostname(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "python": platform.python_version(), "system": platform.system()}
 
 
 def _flatten(metrics: dict, prefix: str = "") -> dict:
@@ -149,19 +144,12 @@ class ResultStore:
     def append(self, rows: list[dict], *, kind: str, suite: str = "", code_version: str = "",
                run_info: dict | None = None, time: datetime | None = None) -> str:
         """Append one command run's rows (from :func:`make_row`) as one Parquet file; returns its run_id."""
-        from harness.ci.history import git_commit
-        from kins.resources import REPO
         if not rows:
             return ""
         time = time or datetime.now(timezone.utc)
         run_id = f"{kind}-{time.strftime('%Y%m%dT%H%M%S%f')}-{secrets.token_hex(3)}"
-        try:
-            from importlib.metadata import version
-            pv = version("pkmbench")
-        except Exception:
-            pv = None
         common = {"run_id": run_id, "kind": kind, "suite": suite, "time": time.replace(tzinfo=None),
-                  "code_version": code_version, "git_commit": git_commit(REPO), "pkmbench_version": pv,
+                  "code_version": code_version, "git_commit": git_commit(), "pkmbench_version": package_version(),
                   "host": json.dumps(host_info(), sort_keys=True),
                   "run_info": json.dumps(run_info or {}, sort_keys=True, allow_nan=False)}
         try:
@@ -207,7 +195,6 @@ class ResultStore:
 def rows_from_sweep(sweep_db: Path, keys=None, regressions: dict | None = None) -> list[dict]:
     """Store rows of a sweep's SQLite table (only ``keys`` when given); ``regressions`` maps a
     task label to its metrics out of tolerance (ci)."""
-    from harness.sweep import SweepStore, task_label
     with SweepStore(sweep_db) as s:
         rows = s.to_rows()
     want = set(keys) if keys is not None else None

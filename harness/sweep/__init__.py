@@ -9,8 +9,9 @@ The task-function interface is described in :mod:`.engine`.
 from harness.sweep.engine import (DEFAULT_TASK, SweepError, SweepResult, execute_task, resolve_task_fn,
                                   run_sweep, tasks_from_suite_file)
 from harness.sweep.store import SweepStore, flatten
-from harness.sweep.suite import SuiteError, code_version, expand, load_suite, make_task, task_key, task_label
+from harness.sweep.suite import (SuiteError, code_version, expand, load_suite, make_task, task_key, task_label,
+                                 user_fmus_info)
 
 __all__ = ["run_sweep", "SweepResult", "SweepError", "SweepStore", "flatten", "expand",
            "load_suite", "make_task", "task_key", "task_label", "code_version", "SuiteError",
-           "execute_task", "resolve_task_fn", "DEFAULT_TASK", "tasks_from_suite_file"]
+           "execute_task", "resolve_task_fn", "DEFAULT_TASK", "tasks_from_suite_file", "user_fmus_info"]

@@ -31,8 +31,11 @@ import re
 import tomllib
 from pathlib import Path
 
+from harness.cosim.blocks import check_user_fmu, command_fmus
+from harness.cosim.system import SystemError_
 from harness.seed import SeedError, check_seed
 from kins.resources import FMU_DIR, MACHINE_DIR, PATH_DIR, REPO, repo_relative
+from planners.registry import plugin_version
 
 PATH_SUFFIXES = (".json", ".ngc")
 # Sources whose change can change a result: every task key depends on their hash.
@@ -182,14 +185,19 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     return tasks
 
 
+def user_fmus_info(tasks) -> dict | None:
+    """{"fmus": the user FMUs (file, sha256, source) by block} for the results store's run_info,
+    None on our own chain (its rows stay as they were)."""
+    named = tasks[0].get("fmus") if tasks else None
+    return {"fmus": named} if named else None
+
+
 def with_user_fmus(tasks: list[dict], suite: dict | None, suite_file=None, specs=()) -> list[dict]:
     """The tasks with the command's user FMUs (the suite's [fmus], ``--fmu BLOCK=FILE`` specs),
     each checked against its block's interface before any task runs: a wrong one is a SuiteError
     with harness.cosim.blocks.check_user_fmu's message. A task names each FMU by its file name,
     the sha256 of its content (part of the task key) and its source file (which the client ships
     to the workers: harness.sweep.engine); tasks of our own chain are returned unchanged."""
-    from harness.cosim.blocks import check_user_fmu, command_fmus
-    from harness.cosim.system import SystemError_
     try:
         fmus = {b: check_user_fmu(b, f) for b, f in command_fmus(specs, suite, suite_file).items()}
     except SystemError_ as e:
@@ -244,7 +252,6 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
     if task.get("fmus"):    # only then: the keys of tasks on our own chain stay as they were
         ident["fmus"] = {b: [d["file"], d["sha256"]] for b, d in task["fmus"].items()}
-    from planners.registry import plugin_version
     plugin = plugin_version(task["planner"])
     if plugin:   # a plug-in's code is not in code_version: its installed version stands for it
         ident["plugin"] = plugin

@@ -19,7 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
 from harness.cosim.record import write_command_csv, write_json
+from harness.cosim.run import run_case
+from planners.paths import load_path
+from planners.verify import chord_error_mm, command_metrics
 
 
 class TaskError(ValueError):
@@ -45,7 +49,7 @@ def machine_raw(task: dict) -> dict:
 
 
 def task_machine(task: dict):
-    from kins import machine_from_dict     # the loader's validation, on the varied dict
+    from kins import machine_from_dict  # the loader's validation, on the varied dict
     src = task["machine_file"]
     if task["variation"].get("set"):
         src += f" (variation {task['variation']['name']})"
@@ -114,7 +118,6 @@ def line_task(task: dict, out_dir: Path) -> dict:
     (compute the profile this many times inside the timed planning: a slower planner).
     Planner name ``quintic``; any other name is an error (so a sweep can contain a failing task).
     """
-    from planners.verify import command_metrics
     if task["planner"] != "quintic":
         raise TaskError(f"line_task knows only planner 'quintic', not '{task['planner']}'")
     machine = task_machine(task)
@@ -150,9 +153,6 @@ def line_task(task: dict, out_dir: Path) -> dict:
 # -- plan_task ---------------------------------------------------------------------------------
 def plan_task(task: dict, out_dir: Path) -> dict:
     """Planning only: the planner's profile, interpolated at T, and its metrics (no FMUs)."""
-    import planners
-    from planners.paths import load_path
-    from planners.verify import chord_error_mm, command_metrics
     machine = task_machine(task)
     _, pfile = task_input_files(task, out_dir / "inputs")
     path = load_path(pfile)
@@ -174,7 +174,6 @@ def cosim_task(task: dict, out_dir: Path) -> dict:
     out_dir; recordings (mcap, rrd) are skipped in sweeps to keep them light. The task's user
     FMUs (``fmu_paths``, the engine's local copies) take the place of our blocks.
     """
-    from harness.cosim.run import run_case
 
     planner = task["planner"]
     mfile, pfile = task_input_files(task, out_dir / "inputs")

@@ -32,10 +32,11 @@ import numpy as np
 from planners.constraints import check_limits
 from planners.errors import PlanningError
 from planners.feed import feed_mode
-from planners.paths import Line, SegmentPath
-from planners.profile import Profile
-
 from planners.linuxcnc.runner import LinuxCNCError, Samples, missing, run_program  # noqa: F401
+from planners.paths import Line, SegmentPath
+from planners.paths.gcode import write_gcode
+from planners.paths.post import prepare_geometry
+from planners.profile import Profile
 
 _F_WORD = re.compile(r"(?<![A-Za-z])([Ff])\s*[+-]?\s*(?:\d+\.?\d*|\.\d+)")
 MIN_STEP_MM = 1e-9        # a sample closer than this to the last vertex is "at rest"
@@ -56,8 +57,6 @@ def program_for(path, machine, limits, programmed_feed: bool):
     # not a G-code file: write it as a CAM post would (planners.paths.post)
     import tempfile
 
-    from planners.paths.gcode import write_gcode
-    from planners.paths.post import prepare_geometry
     chord = limits.chord_error_mm
     planned, _ = prepare_geometry(path, chord, None) if not isinstance(path, SegmentPath) else (path, {})
     with tempfile.TemporaryDirectory() as d:

@@ -38,11 +38,12 @@ import time
 import numpy as np
 
 from planners.constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
-                          table_feed_cap)
+                                  table_feed_cap)
+from planners.optimal import topp3
 from planners.optimal.bound import lower_bound
 from planners.optimal.nlp import LIMIT_KINDS, IpoptFailure, _Piece
-from planners.optimal import topp3
 from planners.profile import Profile
+from planners.verify import command_metrics, keeps_joints_and_feed, windows_above, worst_sample
 
 # where the SOCP's profile still breaks a limit at T: solved again on stations this many times
 # closer, up to REFINE_LEVELS times
@@ -68,21 +69,12 @@ TOO_SLOW = 10.0
 
 
 def broken_limits(machine, path, prof, pcs, limits) -> set:
-    """{(piece index, limit kind)} read above 1 at T: the joint velocity, acceleration, jerk
-    (differences of the IK'd samples, each window blamed on the piece its first sample is in)
-    and the feed against F_max."""
-    from planners.verify import differences
-    T = prof.T
+    """{(piece index, limit kind)} read above its limit at T (planners.verify.windows_above): the
+    joint velocity, acceleration, jerk of the IK'd samples (each window blamed on the piece its
+    first sample is in) and the feed against F_max."""
     edges = np.array([a for a, _ in pcs[1:]])
-    lim = {"velocity": limits.joint.v, "acceleration": limits.joint.a, "jerk": limits.joint.j}
-    out = set()
-    for kind, D in differences(machine.ik(path.point(prof.s)), T).items():
-        bad = np.nonzero(np.abs(D).max(axis=1) > lim[kind])[0]
-        out |= {(int(g), kind) for g in np.searchsorted(edges, prof.s[bad], side="right")}
-    feed = np.diff(prof.s) / T
-    bad = np.nonzero(feed > limits.feed_max * (1 + 1e-6))[0]
-    out |= {(int(g), "feed") for g in np.searchsorted(edges, prof.s[bad], side="right")}
-    return out
+    above = windows_above(machine.ik(path.point(prof.s)), prof.T, limits.joint, prof.s, limits.feed_max)
+    return {(int(np.searchsorted(edges, prof.s[i], side="right")), kind) for kind, i, _ in above}
 
 
 def turn_nodes(path, table):
@@ -202,11 +194,10 @@ def _nlp_resolves(prof, path, node_period_s, max_nodes) -> bool:
 
 def _within(machine, path, prof, limits) -> tuple[bool, str]:
     """(within the joint limits and F_max at T, what reads worst where it is not)."""
-    from planners.verify import command_metrics, worst_sample
     r = command_metrics(machine, path.point(prof.s), prof.T, prof.s)
-    feed = r["cartesian_peak_ratio"].get("feed", 0.0)
-    if r["feasible"] and feed <= 1 + 1e-6:
+    if keeps_joints_and_feed(r):
         return True, ""
+    feed = r["cartesian_peak_ratio"].get("feed", 0.0)
     if not r["feasible"]:
         order, i, ratio = worst_sample(machine.ik(path.point(prof.s)), prof.T, limits.joint)
         return False, f"joint {order} {ratio:.6g} × its limit at s = {prof.s[i]:.6g} mm"
@@ -223,7 +214,7 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     why = []
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
-        settings = topp3.Settings("optimal", grid_mm / f, refine_radii=topp3.REFINE_RADII / f)
+        settings = topp3.Settings("optimal", grid_mm / f, station_radii=topp3.STATION_RADII / f)
         try:
             prof = topp3.solve(path, machine, limits, settings)
         except PlanningError as e:
@@ -269,9 +260,8 @@ def _faster_of(prof, warm, machine, path, failure) -> Profile:
     """The NLP's solution or, where its start is within the limits at T and faster (the NLP
     failed, or its slow-down cost more than it gained), the start as `optimal`'s answer, saying
     so in info["source"]."""
-    from planners.verify import command_metrics
     r = command_metrics(machine, path.point(warm.s), warm.T, warm.s)
-    warm_ok = r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6
+    warm_ok = keeps_joints_and_feed(r)
     if prof is not None and (not warm_ok or prof.execution_time_s <= warm.execution_time_s):
         prof.info["source"] = "nlp"
         return prof
@@ -286,7 +276,6 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
            retries, turn) -> Profile:
     """Solve, check at T, and on a limit read above 1 refine the thin grids or widen the
     margins; the last resort slows the pieces still above a limit down (_slowed_down)."""
-    from planners.verify import command_metrics
     T = machine.servo_period_s
     bounds = [[p.s0] + [sj for sj, _ in p.joins] + [p.s1] for p in problems]
     starts = [_warm_start(warm, b, node_period_s, max_nodes, stretch, turn) for b in bounds]
@@ -307,7 +296,7 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
             # ≥ T₁·(1 − m) (IPOPT's optimum is local: a bound of the node relaxation, not a certificate)
             bound = sum(float(np.sum(x[0])) for x in sols) * (1 - max(max(m.values()) for m in margins))
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
+        if keeps_joints_and_feed(r):
             break
         if attempt == retries:
             prof = _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slow)
@@ -344,7 +333,6 @@ def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slo
     """The last resort, feasible by construction: each piece that still breaks a limit at T is
     run slower, uniformly (t → λt scales the joint velocity by 1/λ, the acceleration by 1/λ², the
     jerk by 1/λ³), by the factor its worst ratio needs; the info says by how much."""
-    from planners.verify import command_metrics
     total = np.ones(len(sols))
     info = dict(prof.info)
     for _ in range(4):
@@ -359,7 +347,7 @@ def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slo
         _check_duration(sols, too_slow, "solution slowed down to the limits")
         prof = sample_cubic(sols, T, path, dict(info, slowed_down=[float(x) for x in total]))
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0) <= 1 + 1e-6:
+        if keeps_joints_and_feed(r):
             return prof
     raise _limit_error(machine, path, prof, limits, r, statuses)
 
@@ -394,7 +382,6 @@ def _solve_pieces(problems, starts):
 
 def _limit_error(machine, path, prof, limits, r, statuses) -> PlanningError:
     """The error when the last attempt still breaks a limit at T: where and by how much."""
-    from planners.verify import worst_sample
     T = prof.T
     order, i, ratio = worst_sample(machine.ik(path.point(prof.s)), T, limits.joint)
     return PlanningError(f"optimal: solution breaks a limit at T even with margins up to "

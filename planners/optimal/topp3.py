@@ -47,15 +47,16 @@ import copp_py as copp
 import numpy as np
 
 from planners.constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
-                          check_path, feed_cap, join_jumps, joint_derivs, rest_pieces)
+                                  check_path, curvature_splits, feed_cap, join_jumps, joint_derivs,
+                                  rest_pieces, station_grid)
 from planners.profile import Profile
-from planners.verify import FEASIBLE_TOL
+from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
-# stations ≤ REFINE_RADII curvature radii apart (the jerk between stations at lobe tips and
-# blend arcs read above the limit where they were sparser), no closer than REFINE_MIN_MM
+# stations ≤ STATION_RADII curvature radii apart (the jerk between stations at lobe tips and
+# blend arcs read above the limit where they were sparser), no closer than STATION_MIN_MM
 # (closer, Clarabel stopped on insufficient progress)
-REFINE_RADII = 0.5
-REFINE_MIN_MM = 1e-3
+STATION_RADII = 0.5
+STATION_MIN_MM = 1e-3
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
 # read, doubled each round (windows next to a G1 join read above again by less each time);
 # then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit (a stretch
@@ -85,13 +86,13 @@ class Settings:
     gained).  ``kkt_refinement``: Clarabel refines each solve of its KKT system iteratively
     (copp-py's default, kept for every planner on the engine): without, the profiles move
     under other numpy SIMD paths more than the reproducibility contract allows (docs/TUNING.md).
-    ``refine_radii``: stations ≤ this many curvature radii apart (REFINE_RADII by default)."""
+    ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
     max_linearisations: int = 4
     kkt_refinement: bool = True
-    refine_radii: float = REFINE_RADII
+    station_radii: float = STATION_RADII
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -102,26 +103,22 @@ class Settings:
         return opts
 
 
-def grid_of(path, table, joins, s0, s1, grid_mm, refine_radii=REFINE_RADII):
-    """Stations ≤ grid_mm apart (≥ 19 intervals a piece, ≥ 4 a segment: a 0.04 mm G64 blend arc
-    is resolved) with every segment end and G1 join of the piece on it, then cells split to
-    ≤ REFINE_RADII curvature radii (at their ends), none below REFINE_MIN_MM."""
-    step = min(grid_mm, (s1 - s0) / 19)
+def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII):
+    """planners.constraints.station_grid with every segment end and G1 join of the piece on it,
+    then cells split to ≤ ``radii`` curvature radii (at their ends), none below
+    STATION_MIN_MM."""
     inner = [sj for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6]
     edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
                                       inner, [s0, s1]]))
-    parts = [np.linspace(a, b, max(5, int(math.ceil((b - a) / step - 1e-9)) + 1))[:-1]
-             for a, b in zip(edges[:-1], edges[1:])]
-    grid = np.concatenate(parts + [[s1]])
+    grid = station_grid(edges, grid_mm, s0, s1)
     for _ in range(6):
         _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
-        kap = np.linalg.norm(np.cross(P1, P2), axis=1)
         h = np.diff(grid)
-        k = np.minimum(np.ceil(h * np.maximum(kap[:-1], kap[1:]) / refine_radii), 16)
-        need = np.nonzero((k > 1) & (h > REFINE_MIN_MM))[0]
+        need, parts = curvature_splits(h, np.linalg.norm(np.cross(P1, P2), axis=1), radii,
+                                       STATION_MIN_MM, 16)
         if len(need) == 0:
             break
-        new = np.concatenate([grid[i] + h[i] * np.arange(1, int(k[i])) / k[i] for i in need])
+        new = np.concatenate([grid[i] + h[i] * np.arange(1, k) / k for i, k in zip(need, parts)])
         grid = np.sort(np.concatenate([grid, new]))
     return grid
 
@@ -147,7 +144,7 @@ class Piece:
         self.options = settings.clarabel()
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
-        self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.refine_radii)
+        self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)
@@ -402,15 +399,11 @@ def _sample(pieces, T, path, info, settings) -> Profile:
 
 def reads_above(prof, machine, path, limits):
     """[(limit column, first sample of the window, its width in samples, ratio)] of every window
-    that reads a limit above 1 at T: joint v, a, j by differences of the IK'd samples (as
-    planners.verify reads them), the feed against F_max."""
-    from planners.verify import differences
-    T, lim = prof.T, limits.joint
-    D = differences(machine.ik(path.point(prof.s)), T)
-    reads = [np.abs(D["velocity"]).max(axis=1) / lim.v, np.abs(D["acceleration"]).max(axis=1) / lim.a,
-             np.abs(D["jerk"]).max(axis=1) / lim.j, np.diff(prof.s) / T / limits.feed_max]
-    return [(col, int(i), max(col, 1), float(r[i])) for col, r in enumerate(reads)
-            for i in np.nonzero(r > 1 + FEASIBLE_TOL)[0]]
+    that reads a limit above 1 at T (planners.verify.windows_above): joint v, a, j of the IK'd
+    samples, the feed against F_max."""
+    column = {"velocity": 0, "acceleration": 1, "jerk": 2, "feed": 3}
+    return [(column[o], i, max(column[o], 1), r) for o, i, r in
+            windows_above(machine.ik(path.point(prof.s)), prof.T, limits.joint, prof.s, limits.feed_max)]
 
 
 def _tighten(prof, pieces, above, extra) -> None:
@@ -435,7 +428,6 @@ def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
     """The last resort when tightening left windows above a limit: each piece with a sample
     above stretched uniformly in time by the worst need there (planners.verify.stretch_need:
     velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to MAX_STRETCHES times."""
-    from planners.verify import stretch_need
     T = prof.T
     for _ in range(MAX_STRETCHES):
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)

@@ -14,7 +14,6 @@ which gives s(t) in closed form for sampling at T.
 """
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -22,7 +21,8 @@ import toppra
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from planners.constraints import PathTable, PlanningError, check_limits, check_path, feed_cap, rest_pieces
+from planners.constraints import (PathTable, PlanningError, check_limits, check_path, feed_cap, rest_pieces,
+                                  station_grid)
 from planners.profile import Profile
 
 toppra.setup_logging("ERROR")   # a failed interpolation-scheme try is handled below
@@ -72,14 +72,9 @@ def solve_grid(path, machine, limits, table: PathTable, grid_mm: float):
     vj, aj = limits.joint.v, limits.joint.a
     S, SD, fallbacks = [], [], []
     for k, (s0, s1) in enumerate(rest_pieces(path)):
-        # grid: ≤ grid_mm apart (≥ 19 intervals per piece), uniform between the joins of the
-        # path's segments, each join on it and ≥ 4 intervals on each segment (a 0.04 mm G64
-        # blend arc is resolved, not stepped over)
-        step = min(grid_mm, (s1 - s0) / 19)
-        edges = table.edges[(table.edges >= s0 - 1e-12) & (table.edges <= s1 + 1e-12)]
-        parts = [np.linspace(a, b, max(5, int(math.ceil((b - a) / step - 1e-9)) + 1))[:-1]
-                 for a, b in zip(edges[:-1], edges[1:])]
-        grid = np.concatenate(parts + [[s1]])
+        # the stations: every join of the path's segments on the grid
+        grid = station_grid(table.edges[(table.edges >= s0 - 1e-12) & (table.edges <= s1 + 1e-12)],
+                            grid_mm, s0, s1)
         # joints that move identically on this piece (e.g. a vertical move of a linear delta)
         # give identical constraint rows, which toppra's LP solver cannot handle: keep one
         e = np.clip(grid, s0 + 1e-9, s1 - 1e-9)

@@ -53,17 +53,19 @@ import time
 import numpy as np
 
 from planners.constraints import PlanningError, check_limits, check_path
-from planners.profile import Profile
 from planners.optimal import topp3
+from planners.profile import Profile
 from planners.pso.feed import FeedSpline
 from planners.pso.span import FeedSpan
 from planners.pso.swarm import BlockSwarm
+from planners.scurve import plan_joint
+from planners.verify import command_metrics, keeps_joints_and_feed, stretch_need
 
 __all__ = ["plan", "plan_socp"]
 
 # stations ≤ this many curvature radii apart for the swarm: its spline, held to the limits at
 # the stations, read above them between coarser ones at lobe tips
-SWARM_REFINE_RADII = 0.1
+SWARM_STATION_RADII = 0.1
 # the swarm's knots are made twice as dense this many times, ``iterations`` on each
 REFINEMENTS = 2
 SWARM_REPAIRS = 4          # rounds of tightening where the swarm's samples at T read above a limit
@@ -100,8 +102,6 @@ plan_socp.stochastic = True
 
 def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, spread, grid_mm,
           time_budget_s, seed_profile, polish, polish_linearisations) -> Profile:
-    from planners.scurve import plan_joint
-    from planners.verify import command_metrics
 
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
@@ -111,7 +111,7 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
         raise PlanningError(f"{name}: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
-    settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1), refine_radii=SWARM_REFINE_RADII)
+    settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1), station_radii=SWARM_STATION_RADII)
     pieces = topp3.pieces_of(path, machine, limits, settings)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
@@ -158,7 +158,7 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
     ok = []
     for which, prof in candidates:
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"].get("feed", 0.0) <= 1 + 1e-6:
+        if keeps_joints_and_feed(r):
             ok.append((prof.execution_time_s, which, prof))
     if not ok:
         raise PlanningError(f"{name}: neither the swarm's" + (", the polished" if polish else "") + " nor the seed's profile is within the limits at T"
@@ -253,13 +253,12 @@ def _stretched_at_T(spans, T, path, machine, limits, too_slow):
     """The spans sampled at T, each rest-to-rest piece stretched by the worst need of its samples
     (planners.verify.stretch_need), up to 8 times; None if still above a limit or slower than
     ``too_slow``."""
-    from planners.verify import command_metrics, stretch_need
     for _ in range(8):
         if sum(sp.duration for sp in spans) > too_slow:
             return None
         prof = Profile.from_pieces("pso", T, spans, path)
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
-        if r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6:
+        if keeps_joints_and_feed(r):
             return prof
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         starts = np.concatenate([[0.0], np.cumsum([sp.duration for sp in spans])])

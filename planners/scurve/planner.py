@@ -47,7 +47,7 @@ from planners.constraints import (PathTable, PlanningError, check_limits, check_
                           chord_feed_cap, cross_norm, corner_list, ik_along, joint_derivs, second_derivative_jumps)
 from planners.feed import feed_ceiling
 from planners.profile import Profile
-from planners.verify import FEASIBLE_TOL, difference_peaks
+from planners.verify import ORDERS, windows_above
 from planners.scurve.batch import Checker, Joined, drive
 from planners.scurve.pieces import Segment, no_profile, reachable, solver
 
@@ -529,12 +529,14 @@ class _Planner:
         X = self.machine.ik(X) if self.joint else X
         starts = np.concatenate([[0.0], np.cumsum([g.duration for g in segs])])
         over = np.ones((len(segs), 3))
-        for k, ((w, _), L) in enumerate(zip(difference_peaks(X, T), (lim.v, lim.a, lim.j))):
-            n = np.nonzero(w > L * (1.0 + FEASIBLE_TOL))[0]
+        above = windows_above(X, T, lim)
+        for k, order in enumerate(ORDERS):
+            n = np.array([i for o, i, _ in above if o == order], dtype=np.intp)
+            r = np.array([r for o, _, r in above if o == order])
             # difference n of order k + 1 reads the samples n … n + k + 1: every segment of them
             for o in range(k + 2):
                 seg = np.clip(np.searchsorted(starts, (n + o) * T, side="right") - 1, 0, len(segs) - 1)
-                np.maximum.at(over[:, k], seg, w[n] / L)
+                np.maximum.at(over[:, k], seg, r)
         return over
 
     def tighten(self, over):

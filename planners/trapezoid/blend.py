@@ -19,8 +19,8 @@ import numpy as np
 
 from planners.paths.base import cross3, norm3
 from planners.paths.spiral import approximating_circle, tangent_blend_on_spiral
+from planners.trapezoid.rules import ACC_RATIO_NORMAL, GAP_CYCLES
 
-ACC_RATIO_NORMAL = math.sqrt(1.0 - 0.25)      # blendmath.h BLEND_ACC_RATIO_NORMAL
 BLEND_DIST_FRACTION = 0.5                     # tc_types.h: a blend takes at most half a segment
 ANGLE_EPS = 1e-6                              # tp_types.h TP_ANGLE_EPSILON
 MIN_ARC_LENGTH = 1e-6                         # tp_types.h TP_MIN_ARC_LENGTH
@@ -132,7 +132,6 @@ def _check_consume(b: Blend, prev, rest: float, T: float) -> None:
     """blendmath.c blendCheckConsume: a previous line left shorter than GAP_CYCLES periods at
     the blend's speed is taken into the blend segment, unless a parabolic blend ends in it
     (tc.c tcCanConsume; its synced I/O and spindle-at-speed conditions are not modelled)."""
-    from planners.trapezoid.queue import GAP_CYCLES
     b.consume = prev.kind == "line" and not prev.blend_prev and rest / b.v_plan < GAP_CYCLES * T
     b.line_length = rest if b.consume else 0.0
 

@@ -39,16 +39,14 @@ import numpy as np
 
 from planners.constraints import check_limits, check_path_in_workspace
 from planners.errors import PlanningError
-from planners.paths import PathError, SegmentPath
+from planners.paths import Path, PathError, SegmentPath
 from planners.paths.post import prepare_geometry
 from planners.profile import Profile
 from planners.trapezoid import program as tp_plan
 from planners.trapezoid import queue as tp_queue
 from planners.trapezoid import cycle as tp_run
-from planners.trapezoid.cycle import MAX_CYCLES  # noqa: F401  (the cycle cap, also read by tests)
+from planners.trapezoid.rules import ACC_RATIO_NORMAL, ACC_RATIO_TANGENTIAL, arc_speed_radius
 
-ACC_RATIO_TANGENTIAL = 0.5                               # blendmath.h
-ACC_RATIO_NORMAL = math.sqrt(1 - ACC_RATIO_TANGENTIAL**2)  # ≈ 0.866
 
 
 def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: float):
@@ -70,14 +68,7 @@ def segment_limits(path: SegmentPath, v_axis: float, a_axis: float, feed_max: fl
         scale = np.sqrt(u ** 2 + v ** 2 + n ** 2).max(axis=1)
         a_plane = a_axis / scale
         ang = np.array([g.angle for g in A])
-        rho = r + (rise / ang) ** 2 / r     # helix radius of curvature
-        k = np.array([g.spiral for g in A]) / ang
-        if k.any():
-            # a spiral: blendmath.c pmCircleEffectiveMinRadius, the Archimedean spiral's radius of
-            # curvature (r² + k²)^1.5 / (r² + 2k²) at the start radius r, k = dr/dφ
-            sp = k != 0
-            r_sp = (r[sp] ** 2 + k[sp] ** 2) ** 1.5 / (r[sp] ** 2 + 2 * k[sp] ** 2)
-            rho[sp] = r_sp + (rise[sp] / ang[sp]) ** 2 / r_sp
+        rho = arc_speed_radius(r, ang, rise, np.array([g.spiral for g in A]))
         v_machine = np.minimum(feed_max, v_axis / scale)
         vmax[arc] = np.minimum(v_machine, np.sqrt(ACC_RATIO_NORMAL * a_plane * rho))
         # an arc gets the tangential share its machine speed leaves (tc.c

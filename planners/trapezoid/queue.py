@@ -35,14 +35,11 @@ import math
 import numpy as np
 
 from planners.paths.base import norm3
+from planners.paths.segments import Arc
+from planners.trapezoid import blend as tp_blend
+from planners.trapezoid.rules import (ACC_RATIO_NORMAL, ACC_RATIO_TANGENTIAL, KINK_RATIO, MIN_SEGMENT_CYCLES,
+                                      OPT_CUTOFF, OPT_DEPTH, SHARP_CORNER, effective_min_radius)
 
-KINK_RATIO = 0.1            # [TRAJ] ARC_BLEND_KINK_RATIO default (initraj.cc)
-GAP_CYCLES = 4              # [TRAJ] ARC_BLEND_GAP_CYCLES default
-OPT_DEPTH = 50              # [TRAJ] ARC_BLEND_OPTIMIZATION_DEPTH default
-OPT_CUTOFF = 4              # tp_types.h TP_OPTIMIZATION_CUTOFF
-MIN_SEGMENT_CYCLES = 1.02   # tp_types.h TP_MIN_SEGMENT_CYCLES
-ACC_RATIO_TAN = 0.5         # blendmath.h BLEND_ACC_RATIO_TANGENTIAL
-SHARP_CORNER = (math.pi * 2.0 / 180.0) ** 2   # tpSetupTangent: anti-parallel within 2°
 
 STOP, EXACT, PARABOLIC, TANGENT = "stop", "exact", "parabolic", "tangent"
 
@@ -68,7 +65,7 @@ class TC:
         self.term, self.tol = term, tol
         self.blend_prev = False
         self.kink_vel, self.kink_red, self.kink_red_prev = -1.0, 0.0, 0.0     # tcInitKinkProperties
-        self.acc_ratio = ACC_RATIO_TAN                                       # tcInit
+        self.acc_ratio = ACC_RATIO_TANGENTIAL                                       # tcInit
         self.finalized = False
         self.finalvel = 0.0
         self.at_max = False
@@ -131,18 +128,10 @@ def finalize(tc: TC | None, T: float) -> None:
     if tc.kind == "circle":
         a = overall_acc(tc)
         g = tc.arc
-        # blendmath.c pmCircleEffectiveMinRadius: r + h²/r with h the helix's whole rise (its
-        # curvature radius would take the rise per radian; LinuxCNC's is followed)
-        r = g.radius
-        if g.spiral:
-            # a spiral: the Archimedean spiral's radius of curvature (r² + k²)^1.5 / (r² + 2k²) at
-            # its start radius, k = dr/dφ (pmCircleEffectiveMinRadius)
-            k = g.spiral / g.angle
-            r = (r * r + k * k) ** 1.5 / (r * r + 2 * k * k)
-        rho = r + g.rise ** 2 / r
+        rho = effective_min_radius(g.radius, g.angle, g.rise, g.spiral)
         a_n = tc.maxvel ** 2 / rho
-        if a_n > math.sqrt(1.0 - ACC_RATIO_TAN ** 2) * a:
-            tc.maxvel, tc.acc_ratio = math.sqrt(math.sqrt(1.0 - ACC_RATIO_TAN ** 2) * a * rho), ACC_RATIO_TAN
+        if a_n > ACC_RATIO_NORMAL * a:
+            tc.maxvel, tc.acc_ratio = math.sqrt(ACC_RATIO_NORMAL * a * rho), ACC_RATIO_TANGENTIAL
         else:
             tc.acc_ratio = math.sqrt(1.0 - (a_n / a) ** 2)
     tc.finalized = True
@@ -164,7 +153,7 @@ def setup_tangent(prev: TC, tc: TC, T: float, a_axis: float) -> str:
     a_inst = v_max / T + tc.maxaccel
     scale = a_inst * float(np.abs(t2 - t1).max()) / a_axis            # findAccelScale, equal bounds
     if prev.kind == "circle" or tc.kind == "circle":
-        scale /= ACC_RATIO_TAN
+        scale /= ACC_RATIO_TANGENTIAL
     if scale < KINK_RATIO:
         set_term(prev, tc, TANGENT)
         _set_kink(prev, tc, v_max, scale)
@@ -363,7 +352,6 @@ def build(moves, lim: Limits):
 
 def handle_blend(queue: list, prev: TC, tc: TC, lim: Limits) -> bool:
     """tp.c tpHandleBlendArc: the junction prev → tc; True if a blend arc consumed prev."""
-    from planners.trapezoid import blend as tp_blend
     if setup_tangent(prev, tc, lim.T, lim.a_axis) != "no_action":
         return False
     b = None
@@ -386,7 +374,6 @@ def handle_blend(queue: list, prev: TC, tc: TC, lim: Limits) -> bool:
 
 def blend_tc(b, prev: TC, tc: TC, T: float) -> TC:
     """tp.c tpInitBlendArcFromPrev: the blend arc's segment, max velocity v_plan, final."""
-    from planners.paths.segments import Arc
     blend = TC("blend", prev.line, prev.rapid, b.radius * b.angle + b.line_length, b.v_plan, b.v_req,
                b.a_max, TANGENT, tc.tol)
     blend.arc = Arc.exact(b.start, b.center, b.binormal, b.angle, prev.line)
@@ -399,7 +386,6 @@ def blend_tc(b, prev: TC, tc: TC, T: float) -> TC:
 def connect(queue: list, prev: TC, tc: TC, b) -> None:
     """tc.c tcConnectBlendArc (and the line↔arc variants): trim both segments to the blend
     arc, or pop a consumed previous line; the junctions into and out of the arc are tangent."""
-    from planners.paths.segments import Arc
     if b.consume:
         queue.pop()
     elif prev.kind == "line":

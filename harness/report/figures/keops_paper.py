@@ -8,7 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
 from harness.report.figures import pyplot, save
+from kins import load_machine
+from planners.constraints import PathTable, corner_list, join_jumps
+from planners.paths import resolve_path
 from planners.verify import command_metrics, differences
 
 ORDERS = (("velocity", "mm/s", "v"), ("acceleration", "mm/s²", "a"), ("jerk", "mm/s³", "j"))
@@ -33,9 +37,6 @@ def _panels(plt, title, t, D, lim, labels):
 
 
 def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
-    import planners
-    from kins import load_machine
-    from planners.paths import resolve_path
 
     plt = pyplot()
     m = load_machine("keops")
@@ -76,9 +77,6 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     seed), pso (the swarm alone, key pso_swarm), pso_socp (key pso) and optimal over arc length, all within the
     joint limits. Returns the execution times and, per stretch between corners and G1 joins,
     how the swarm alone compares with the optimum (the numbers REPORT.md quotes)."""
-    import planners
-    from kins import load_machine
-    from planners.paths import resolve_path
 
     plt = pyplot()
     m = load_machine("keops")
@@ -104,7 +102,6 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
 def _stretches(path, m, profs, s, cols) -> dict:
     """pso's swarm alone against the optimum on each stretch between the path's ends, corners and
     G1 joins: its time in excess and its peak-feed shortfall, in %, and the seed's highest feed."""
-    from planners.constraints import PathTable, corner_list, join_jumps
 
     joins = [sj for sj, _ in join_jumps(path, PathTable(path, m), m)]
     bounds = sorted([0.0, path.length] + corner_list(path) + joins)

@@ -11,9 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.report.figures import pyplot, save
+from harness.cosim.drive_params import drive_start_values, ethercat_start_values
 from harness.cosim.fmu_driver import SteppedFmu
 from harness.cosim.system import FMU_DIR
+from harness.report.figures import pyplot, save
 
 VELOCITY_TARGETS = (("fig41", 10.0, 0.5), ("fig42", 20.0, 0.3), ("fig43", 30.0, 0.2))
 MOVES = (("fig44", 20.0, 10.0, False), ("fig45", 2.5, 10.0, True), ("fig46", 1.0, 20.0, False))
@@ -36,7 +37,6 @@ def trapezoid(distance, v, a, T, tail=0.3):
 
 
 def latency(out: Path, cycles: int = 1_000_000, seed: int = 1) -> dict:
-    from harness.cosim.drive_params import ethercat_start_values
 
     T = 1e-3
     with tempfile.TemporaryDirectory() as d:
@@ -74,7 +74,6 @@ def _drive_trace(start: dict, x0: float, targets, T: float, outputs) -> list[np.
 
 
 def moves(out: Path) -> dict:
-    from harness.cosim.drive_params import drive_start_values
 
     T, a, x0 = 1e-3, 500.0, 50.0
     start = drive_start_values("kossel")
@@ -114,7 +113,6 @@ def velocity_responses(out: Path) -> dict:
     we emulate that in CSP with the position gain at ~0 (1e-6 s⁻¹; the FMU needs > 0), so the
     velocity loop's setpoint is the feed-forward of the target's velocity. The target velocity is
     one trapezoid of the period's length (ramps at 500 mm/s²) out and one back, then a rest."""
-    from harness.cosim.drive_params import drive_start_values
 
     T, a, x0 = 1e-3, 500.0, 50.0
     start = {**drive_start_values("kossel"), "kp_pos": 1e-6, "following_error_max_mm": 0.0}

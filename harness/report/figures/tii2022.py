@@ -9,7 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
+import planners
 from harness.report.figures import pyplot, save
+from kins import Limits, load_machine
+from planners.paths import resolve_path
 
 PAPER = {("bird", 1): (0.608, 5.665), ("bird", 2): (0.412, 3.728),
          ("flower", 1): (1.109, 7.971), ("flower", 2): (0.778, 5.374)}
@@ -18,9 +21,6 @@ F, EPS = 2500.0, 0.001
 
 
 def table(out: Path) -> dict:
-    import planners
-    from kins import Limits, load_machine
-    from planners.paths import resolve_path
 
     m = load_machine("keops")            # T = 0.25 ms
     rows = {}

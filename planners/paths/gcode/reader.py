@@ -27,6 +27,8 @@ import numpy as np
 from planners.paths.base import PathError, gc_paused
 from planners.paths.blend import blend_corners
 from planners.paths.gcode.naivecam import join_moves
+from planners.paths.gcode.rs274 import RS274Error, interpret
+from planners.paths.gcode.rs274.linuxcnc_reader import linuxcnc_canon
 from planners.paths.segments import Arc, Line, SegmentPath
 
 INCH_MM = 25.4
@@ -131,8 +133,6 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     if max_loops is not None:
         opts["max_loops"] = max_loops
     if reader == "linuxcnc":
-        from planners.paths.gcode.rs274 import RS274Error
-        from planners.paths.gcode.rs274.linuxcnc_reader import linuxcnc_canon
         try:
             cp, positioning = linuxcnc_canon(source, start, home)
         except RS274Error as e:
@@ -183,7 +183,6 @@ def _refused_line(e, text: str, source: str, start, home, opts) -> int:
 def _interpret(text: str, source: str, start, home, opts):
     """(canonical program, positioning?): the interpreter's run from ``start``; without one, from
     an unknown point (NaN) that the first move must set (positioning), else again from ``home``."""
-    from planners.paths.gcode.rs274 import RS274Error, interpret
     positioning = start is None
     at = start if start is not None else (math.nan,) * 3     # unknown: NaN marks it
     try:

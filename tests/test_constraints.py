@@ -1,0 +1,39 @@
+"""planners.constraints: the station grid, splitting cells by curvature, the limits' check —
+against what they must give by construction."""
+import math
+
+import numpy as np
+import pytest
+
+from kins.machine import Limits, MachineLimits
+from planners.constraints import check_limits, curvature_splits, station_grid
+from planners.errors import PlanningError
+
+
+def test_station_grid_puts_every_edge_on_it_within_the_step_and_resolves_short_segments():
+    edges = np.array([0.0, 0.04, 10.0, 10.3])        # a 0.04 mm blend arc between two lines
+    g = station_grid(edges, 0.1, 0.0, 10.3)
+    assert g[0] == 0.0 and g[-1] == 10.3 and (np.diff(g) > 0).all()
+    assert all(np.isclose(g, e, rtol=0, atol=1e-15).any() for e in edges)
+    assert np.diff(g).max() <= 0.1 + 1e-12
+    assert ((g > 0) & (g < 0.04)).sum() == 3            # ≥ 4 intervals between two edges: 3 inside
+    # ≥ 19 intervals on a short piece, however coarse grid_mm
+    assert len(station_grid(np.array([0.0, 1.0]), 5.0, 0.0, 1.0)) - 1 == 19
+
+
+def test_curvature_splits_cells_wider_than_the_radii_into_equal_parts():
+    h = np.array([1.0, 1.0, 1.0, 1e-6])
+    kappa = np.array([0.0, 0.0, 1.0, 10.0, 10.0])       # radii ∞, ∞, 1, 0.1, 0.1 at the cell ends
+    need, parts = curvature_splits(h, kappa, 0.5, 1e-5, 16)
+    # cell 1: 1 mm at radius 1 → 2 parts; cell 2: 1 mm at radius 0.1 → 20, capped at 16; cell 3 below min_mm
+    assert need.tolist() == [1, 2] and parts.tolist() == [2, 16]
+    need, _ = curvature_splits(h, kappa, 0.5, 1e-5, 16, mask=np.array([True, False, True, True]))
+    assert need.tolist() == [2]
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan, math.inf])
+def test_check_limits_refuses_a_limit_that_is_not_a_positive_number_naming_it(bad):
+    ok = Limits(v=1.0, a=1.0, j=1.0)
+    lim = MachineLimits(joint=Limits(v=1.0, a=bad, j=1.0), cartesian=ok, feed_max=1.0, chord_error_mm=0.001)
+    with pytest.raises(PlanningError, match=r"test: joint limit a = .* must be a finite number > 0"):
+        check_limits(lim, "test")
