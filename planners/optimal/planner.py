@@ -49,6 +49,10 @@ from planners.verify import command_metrics, keeps_joints_and_feed, windows_abov
 # closer, up to REFINE_LEVELS times
 STATION_REFINEMENT = 2
 REFINE_LEVELS = 2
+# stations ≤ this many curvature radii apart (copp's engine default is 5 × coarser): where the
+# joints turn fast between stations the check at T read above the limits, and the repairs'
+# tightening cost more time than the few stations it takes (docs/TUNING.md)
+STATION_RADII = 0.1
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # short G64 blend arc the joint derivatives turn through 90° (docs/TUNING.md).
 MIN_PHASE_NODES = 24
@@ -214,7 +218,7 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     why = []
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
-        settings = topp3.Settings("optimal", grid_mm / f, station_radii=topp3.STATION_RADII / f)
+        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f)
         try:
             prof = topp3.solve(path, machine, limits, settings)
         except PlanningError as e:
