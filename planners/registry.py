@@ -7,7 +7,9 @@ pip appears everywhere at once, with no edit of pkmbench:
     known(name)    a name of names(), or a ``module:function`` spec (importable or not: get() says)
     get(name)      the plan function; a PlanningError naming the planner and the cause otherwise
     describe(name) where it comes from (built-in / distribution and version / spec), its guarantees
-    is_stochastic(name)  whether its profile depends on a ``seed`` option (run over seeds)
+    guarantees(name)  the limits it keeps (BUILTIN_GUARANTEES, or a plug-in's ``guarantees``)
+    stochastic(name)  whether its result depends on its ``seed`` option (BUILTIN_STOCHASTIC, or
+                   a plug-in's ``stochastic = True``): reports run it over seeds
 
 A plug-in is any callable that follows :class:`Planner`::
 
@@ -59,6 +61,11 @@ BUILTIN_GUARANTEES = {
 }
 
 
+# The built-ins whose profile depends on their ``seed`` option (the swarm's random numbers):
+# the corpus and the reports run them over seeds and show the distribution.
+BUILTIN_STOCHASTIC = frozenset({"pso", "pso_socp"})   # their plan functions say so too (.stochastic)
+
+
 @runtime_checkable
 class Planner(Protocol):
     """The planner interface (built-ins and plug-ins alike).
@@ -76,9 +83,8 @@ class Planner(Protocol):
       both ends, monotone, finite (:meth:`Profile.validate` checks it; anything else is
       reported as that planner's error, and the other planners go on).
 
-    Optional attribute ``stochastic = True``: the profile depends on a ``seed`` keyword option
-    (same seed, same profile); the corpus and the suites then run it over several seeds and
-    report the distribution.
+    Optional attribute ``stochastic = True``: the result depends on the ``seed`` option; the
+    corpus runs it over seeds and reports the distribution.
 
     Optional attribute ``guarantees``: ``{"joint": [...], "cartesian": [...]}`` naming the
     orders (velocity, acceleration, jerk; Cartesian also feed) whose limits the planner keeps
@@ -145,16 +151,6 @@ def get(name: str):
     raise PlanningError(unknown_message([name]))
 
 
-def is_stochastic(name: str) -> bool:
-    """Whether planner ``name`` declares ``stochastic = True`` (it takes a ``seed`` option and
-    its result is a distribution over seeds); False where it cannot be loaded (get() says why)."""
-    try:
-        fn = get(name)
-    except PlanningError:
-        return False
-    return getattr(fn, "stochastic", False) is True
-
-
 def describe(name: str) -> dict:
     """{"name", "source", "version", "guarantees" (or None), "stochastic", "error" (if it cannot
     be loaded)}."""
@@ -174,11 +170,42 @@ def describe(name: str) -> dict:
     except PlanningError as e:
         out["error"] = str(e)
         return out
-    out["stochastic"] = getattr(fn, "stochastic", False) is True
-    g = BUILTIN_GUARANTEES.get(name) if name in BUILTIN else getattr(fn, "guarantees", None)
-    if isinstance(g, dict):
-        out["guarantees"] = {k: list(g[k]) for k in GUARANTEE_KEYS if k in g}
+    out["guarantees"] = _guarantees(name, fn)
+    out["stochastic"] = _stochastic(name, fn)
     return out
+
+
+def _guarantees(name: str, fn) -> dict | None:
+    g = BUILTIN_GUARANTEES.get(name) if name in BUILTIN else getattr(fn, "guarantees", None)
+    if not isinstance(g, dict):
+        return None
+    return {k: list(g[k]) for k in GUARANTEE_KEYS if k in g}
+
+
+def _stochastic(name: str, fn) -> bool:
+    return name in BUILTIN_STOCHASTIC if name in BUILTIN else getattr(fn, "stochastic", False) is True
+
+
+def guarantees(name: str) -> dict | None:
+    """{"joint": [...], "cartesian": [...]}: the orders whose limits ``name`` keeps (the one
+    table of them: the corpus, `plan --list` and the claims test read it here); None when it
+    declares nothing or cannot be loaded."""
+    if name in BUILTIN:
+        return _guarantees(name, None)
+    try:
+        return _guarantees(name, get(name))
+    except PlanningError:
+        return None
+
+
+def stochastic(name: str) -> bool:
+    """Whether ``name``'s result depends on its ``seed`` option."""
+    if name in BUILTIN:
+        return name in BUILTIN_STOCHASTIC
+    try:
+        return _stochastic(name, get(name))
+    except PlanningError:
+        return False
 
 
 def plugin_version(name: str) -> str | None:

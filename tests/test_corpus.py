@@ -8,13 +8,14 @@ import csv
 import importlib.util
 import json
 import math
+import re
 
 import numpy as np
 import pytest
 
 import planners
 from harness.cli import main as cli_main
-from harness.corpus import (CORPUS_DIR, QUICK_PATHS, Row, load_manifest, performance_profile, ratios,
+from harness.corpus import (CORPUS_DIR, QUICK_PATHS, Row, load_manifest, performance_profile, ratios, seed_spread,
                             run_corpus, summary)
 from kins import load_machine
 from planners.constraints import PathTable, check_path_in_workspace, joint_derivs
@@ -34,11 +35,12 @@ def _maker():
 # -- the corpus itself --------------------------------------------------------------------------
 def test_manifest_covers_machines_kinds_and_sources():
     E = load_manifest()
-    assert len(E) >= 30
+    assert len(E) >= 40
     by_machine = {m: sum(e["machine"] == m for e in E) for m in ("keops", "kossel", "linuxcnc_delta")}
     assert min(by_machine.values()) >= 8, by_machine
     kinds = {e["kind"] for e in E}
-    assert {"nurbs-literature", "nurbs-random", "gcode-contour", "gcode-pocket", "gcode-helix", "gcode-cam"} <= kinds
+    assert {"nurbs-literature", "nurbs-random", "gcode-contour", "gcode-pocket", "gcode-helix", "gcode-cam",
+            "nurbs-knot", "nurbs-rational", "gcode-meander", "nurbs-meander", "nurbs-spiral", "nurbs-cusp"} <= kinds
     assert len({e["name"] for e in E}) == len(E)
     for e in E:
         assert (CORPUS_DIR / e["file"]).is_file(), e["file"]
@@ -60,7 +62,8 @@ def test_every_corpus_path_fits_its_machine():
 
 
 def test_generator_reproduces_the_files_byte_for_byte(tmp_path):
-    names = {"rand_3d_weights_kossel", "rand_hairpin_keops", "cam_blend_kossel", "butterfly_kossel"}
+    names = {"rand_3d_weights_kossel", "rand_hairpin_keops", "cam_blend_kossel", "butterfly_kossel",
+             "rational_quadratic_kossel", "meander_kossel"}
     C = _maker().build(out=tmp_path, only=names)
     assert {e["name"] for e in C.entries} == names
     for e in C.entries:
@@ -118,7 +121,7 @@ def test_corpus_quick_command(tmp_path, capsys):
         if r["planner"] == "scurve_joint":          # its definition: joint-feasible
             assert r["feasible"] == "yes", r
     md = (tmp_path / "corpus.md").read_text()
-    assert "| scurve_joint | 3/3 | 3 |" in md
+    assert "| scurve_joint | 3 | 3 | 3 |" in md
     # the same rows, appended to the results store as one corpus run
     from harness.store import ResultStore
     with ResultStore(tmp_path / "store") as st:
@@ -135,14 +138,18 @@ def test_corpus_quick_command(tmp_path, capsys):
                              ("joint_acceleration", "joint_a"), ("joint_jerk", "joint_j"),
                              ("planning_time_s", "planning_time_s"), ("cart_j", "cart_j")):
             assert float(got[col]) == pytest.approx(float(r[csv_col]), rel=1e-9), (col, r)
-    for png in ("performance_profile.png", "ratio_to_best.png"):
+    for png in ("performance_profile.png", "ratio_to_reference.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_scurve_and_trapezoid_keep_their_cartesian_limits_on_the_quick_paths():
+    """scurve keeps what the registry says it keeps (Cartesian v/a/j and feed); trapezoid
+    declares nothing (own limits: None) but keeps the Cartesian v and a it plans with."""
     e = {x["name"]: x for x in load_manifest()}
     rows = run_corpus([(e[p], ["trapezoid", "scurve"]) for p in QUICK_PATHS])
-    bad = [(r.path, r.planner, r.cart_v, r.cart_a, r.cart_j) for r in rows if not r.own_limits_ok]
+    assert all(r.own_limits_ok for r in rows if r.planner == "scurve")
+    assert all(r.own_limits_ok is None for r in rows if r.planner == "trapezoid")
+    bad = [(r.path, r.cart_v, r.cart_a) for r in rows if r.planner == "trapezoid" and max(r.cart_v, r.cart_a) > 1 + 1e-6]
     assert not bad, bad
 
 
@@ -260,3 +267,108 @@ def test_scurve_joint_is_joint_feasible_on_the_kossel_butterfly():
     met = command_metrics(m, path.point(prof.s), m.servo_period_s, prof.s)
     assert met["joint_peak_ratio"]["jerk"] <= 1 + 1e-6
     assert met["feasible"]
+
+
+# -- issue 32: the reference, fallbacks, stochastic planners, one table and one profile -----------
+def _fallback(path, machine, limits=None, **kw):
+    p = planners.plan("scurve_joint", path, machine)
+    p.info["source"] = "scurve_joint"
+    return p
+
+
+def test_a_profile_from_another_planner_is_its_rows_failure(monkeypatch):
+    """optimal returning scurve_joint's profile (info['source']) is the row's failure: status
+    'fallback', measured but never counted (not in the profile, not the best)."""
+    from planners import registry
+    monkeypatch.setitem(registry.BUILTIN, "optimal", (__name__, "_fallback"))
+    e = next(e for e in load_manifest() if e["name"] == "rand_planar_kossel")
+    rows = run_corpus([(e, ["optimal", "scurve_joint"])])
+    assert [r.status for r in rows] == ["fallback", "ok"]
+    assert "scurve_joint's profile" in rows[0].error and rows[0].feasible
+    assert ratios(rows)["optimal"] == {"rand_planar_kossel": math.inf}
+    assert summary(rows)["optimal"]["failed"] == 1 and summary(rows)["optimal"]["fallbacks"] == 1
+
+
+def _coin(path, machine, limits=None, seed=0, **kw):
+    """A stochastic plug-in: scurve_joint with F_max lowered by seed × 10 %."""
+    import dataclasses
+    lim = machine.limits
+    return planners.plan("scurve_joint", path, machine, dataclasses.replace(lim, feed_max=lim.feed_max / (1 + seed / 10)))
+
+
+_coin.stochastic = True
+
+
+def test_a_stochastic_planner_runs_over_seeds_and_is_a_distribution():
+    from planners import registry
+    assert registry.stochastic("pso") and not registry.stochastic("optimal")
+    assert registry.stochastic(f"{__name__}:_coin")
+    e = next(e for e in load_manifest() if e["name"] == "rand_planar_kossel")
+    name = f"{__name__}:_coin"
+    rows = run_corpus([(e, [name, "scurve_joint"])], seeds=4)
+    coin = [r for r in rows if r.planner == name]
+    assert [r.seed for r in coin] == [0, 1, 2, 3] and all(r.feasible for r in coin)
+    sj = next(r for r in rows if r.planner == "scurve_joint")
+    assert sj.seed is None and coin[0].execution_time_s == sj.execution_time_s
+    T = sorted(r.execution_time_s / sj.execution_time_s for r in coin)   # over the best run, seed 0's
+    assert T[0] == 1.0 and T[-1] > 1.1 and len(set(T)) == 4                # F_max binds on this path
+    sp = seed_spread(rows, {})[("rand_planar_kossel", name)]
+    assert (sp["best"], sp["worst"], sp["n"]) == (pytest.approx(1.0), pytest.approx(T[-1]), 4)
+    assert sp["median"] == pytest.approx(np.median(T)) and sp["q1"] == pytest.approx(np.quantile(T, 0.25))
+    assert sp["q3"] == pytest.approx(np.quantile(T, 0.75))
+    # the profile: the ECDF of the runs, each a quarter of the path
+    rho = performance_profile(rows, [1.0, T[1], T[-1]])
+    assert rho[name].tolist() == pytest.approx([0.25, 0.5, 1.0])
+
+
+def test_the_reference_is_the_denominator_where_a_path_has_one():
+    rows = [_row("A", "p", 1.02, True), _row("A", "q", 1.10, True), _row("B", "p", 2.0, True)]
+    R = ratios(rows, {"A": (1.0, 0.001)})
+    assert R["p"] == pytest.approx({"A": 1.02, "B": 1.0}) and R["q"] == pytest.approx({"A": 1.10})
+    S = summary(rows, {"A": (1.0, 0.001)})
+    assert S["p"]["to_reference"]["median"] == pytest.approx(1.02) and S["p"]["to_reference"]["n"] == 1
+
+
+def _module_sources(*roots):
+    import ast
+    from pathlib import Path
+    repo = Path(__file__).resolve().parent.parent
+    for root in roots:
+        for f in sorted((repo / root).rglob("*.py")):
+            yield f.relative_to(repo).as_posix(), ast.parse(f.read_text())
+
+
+def test_one_table_of_what_a_planner_keeps():
+    """planners/registry.py's BUILTIN_GUARANTEES (and plug-ins' `guarantees`) is the one table:
+    no other module keeps a table keyed by planner names whose values name limits (the corpus
+    had its own, OWN_LIMITS: "cartesian v/a" for trapezoid, …)."""
+    import ast
+    from planners import registry
+    names = set(registry.BUILTIN)
+    found = []
+    for rel, tree in _module_sources("harness", "planners"):
+        if rel == "planners/registry.py":
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Dict):
+                keys = {k.value for k in node.keys if isinstance(k, ast.Constant) and isinstance(k.value, str)}
+                # values that say which limits: {"joint": [...]} dicts or "cartesian v/a"-like strings
+                text = " ".join(ast.unparse(v) for v in node.values).lower()
+                if len(keys & names) >= 2 and re.search(r"'(joint|cartesian)'\s*:|(joint|cartesian) v/a", text):
+                    found.append(f"{rel}:{node.lineno}")
+    assert not found, f"a second table keyed by planner names: {found}"
+
+
+def test_one_performance_profile():
+    """The Dolan–Moré profile is harness/perfprofile.py's: every other function of that name
+    calls it (the corpus and the HTML report counted different runs before issue 32)."""
+    import ast
+    found = []
+    for rel, tree in _module_sources("harness"):
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef) and "performance_profile" in node.name and rel != "harness/perfprofile.py":
+                calls = [n for n in ast.walk(node) if isinstance(n, ast.Attribute) and n.attr == "performance_profile"
+                         and isinstance(n.value, ast.Name) and n.value.id == "perfprofile"]
+                if not calls:
+                    found.append(f"{rel}:{node.lineno} {node.name}")
+    assert not found, f"a second performance profile: {found}"

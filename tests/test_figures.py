@@ -1,5 +1,6 @@
 """The reproduced figures' data (not pixels): the paper's effect, the latency preset, the
 thesis moves, determinism of the CSVs, and the committed pso panel."""
+import json
 from pathlib import Path
 
 import numpy as np
@@ -8,6 +9,7 @@ import pytest
 from harness.report.figures import keops_paper, kossel_thesis
 from harness.cosim.system import FMU_DIR
 from kins import load_machine
+from kins.resources import FIGURES_DIR, REPO
 
 pytestmark = pytest.mark.skipif(not (FMU_DIR / "EtherCAT.fmu").exists(), reason="make fmus")
 COMMITTED = Path(__file__).resolve().parent.parent / "results" / "figures"
@@ -52,3 +54,13 @@ def test_velocity_responses_follow_without_overshoot(tmp_path):
         assert d["overshoot_pct"] <= 2.0
         assert 0.0 < d["lag_ms"] < 5.0
         assert 0.0 < d["ripple_mm_s"] < 10.0   # encoder quantisation: 1.96 um per 1 ms sample ~ 2 mm/s per count
+
+
+def test_readmes_caption_is_the_one_made_from_the_committed_run():
+    # README's caption is written by `pkmbench figures --readme RUN_DIR`, never typed: it must be
+    # the caption of the summary committed beside the picture
+    from harness.report import readme
+    summary = json.loads((FIGURES_DIR / f"{readme.NAME}.json").read_text())
+    text = (REPO / "README.md").read_text()
+    assert f"{readme.BEGIN}\n{readme.caption(summary)}\n{readme.END}" in text
+    assert "keeps its axes within their limits but breaks the joints' acceleration and jerk" in readme.caption(summary)

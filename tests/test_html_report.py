@@ -15,26 +15,39 @@ import numpy as np
 import pytest
 
 from harness.cli import main as cli
-from harness.report.html_report import TABLE_HEAD_COLOUR, along_path, performance_profile
+from harness.report.html_report import TABLE_HEAD_COLOUR, along_path
 from harness.store import ResultStore, make_row
 
 LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
         "control_points": [[-50, 0, -400], [50, 0, -400]], "weights": [1, 1]}
 
 
-def row(case, planner, t):
-    return {"machine": "m", "path": case, "preset": "none", "variation": "base", "seed": 0, "planner": planner,
-            "status": "ok" if t else "error", "metrics": {"execution_time_s": t} if t else None}
+def row(case, planner, t, feasible=True, seed=0):
+    return {"machine": "m", "path": case, "preset": "none", "variation": "base", "seed": seed, "planner": planner,
+            "status": "ok" if t else "error",
+            "metrics": {"execution_time_s": t, "feasible": feasible} if t else None}
 
 
 def test_performance_profile_by_hand():
-    rows = [row("A", "p1", 1.0), row("A", "p2", 2.0), row("B", "p1", 3.0), row("B", "p2", 1.5), row("B", "p3", None)]
-    cases, tau, prof = performance_profile(rows)
-    assert cases == ["m/A/none/base/0", "m/B/none/base/0"]
-    at = lambda p, x: prof[p][np.searchsorted(tau, x)]  # noqa: E731
-    # A: ratios p1 1, p2 2; B: p1 3/1.5 = 2, p2 1; p3 failed (B) and absent (A): never counts
-    assert at("p1", 1.0) == 0.5 and at("p2", 1.0) == 0.5 and at("p1", 2.0) == 1.0 and at("p2", 2.0) == 1.0
-    assert np.all(prof["p3"] == 0.0)
+    """The report's profile is harness.perfprofile's (the corpus's): joint-feasible runs only,
+    a case = machine × path × preset × variation, its seeds runs of it."""
+    from harness import perfprofile
+    from harness.report.html_report import _profile_runs
+    rows = [row("A", "p1", 1.0), row("A", "p2", 2.0), row("B", "p1", 3.0), row("B", "p2", 1.5), row("B", "p3", None),
+            row("B", "p4", 0.5, feasible=False), row("A", "p5", 1.0, seed=0), row("A", "p5", 4.0, seed=1)]
+    runs = _profile_runs(rows)
+    assert sorted({c for c, _, _ in runs}) == ["m/A/none/base", "m/B/none/base"]
+    tau = [1.0, 2.0, 4.0]
+    prof = perfprofile.performance_profile(runs, tau)
+    # A: p1 1, p2 2, p5 1 and 4 (half each); B: p1 3/1.5 = 2, p2 1; p3 failed; p4 broke the joint
+    # limits: its 0.5 s neither counts nor sets B's best
+    assert prof["p1"].tolist() == [0.5, 1.0, 1.0] and prof["p2"].tolist() == [0.5, 1.0, 1.0]
+    assert prof["p3"].tolist() == [0.0, 0.0, 0.0] and prof["p4"].tolist() == [0.0, 0.0, 0.0]
+    assert prof["p5"].tolist() == [0.25, 0.25, 0.5]
+    # the spread band: p5's best seed alone (1.0) and its worst (4.0)
+    best = perfprofile.performance_profile(_profile_runs(rows, worst=False), tau)
+    worst = perfprofile.performance_profile(_profile_runs(rows, worst=True), tau)
+    assert best["p5"].tolist() == [0.5, 0.5, 0.5] and worst["p5"].tolist() == [0.0, 0.0, 0.5]
 
 
 def test_along_path_feed_of_a_constant_speed_line(tmp_path):

@@ -164,11 +164,13 @@ def test_feasible_at_T_never_slower_than_its_seed_and_both_results_reported():
 
 
 def test_both_are_declared_stochastic_and_the_others_not():
-    from planners.registry import describe, is_stochastic
-    assert is_stochastic("pso") and is_stochastic("pso_socp")
-    assert not is_stochastic("optimal") and not is_stochastic("scurve_joint")
-    assert not is_stochastic("no_such_planner")
+    from planners.registry import describe, get, stochastic
+    assert stochastic("pso") and stochastic("pso_socp")
+    assert not stochastic("optimal") and not stochastic("scurve_joint")
+    assert not stochastic("no_such_planner")
     assert describe("pso")["stochastic"] and not describe("copp")["stochastic"]
+    # the registry's table of the built-ins and their plan functions' own attribute agree
+    assert get("pso").stochastic is True and get("pso_socp").stochastic is True
 
 
 def test_the_push_keeps_the_limits_and_only_raises_the_feed():

@@ -6,8 +6,10 @@ check at T), a table, a performance profile and a per-path T/T_best chart.
     pkmbench corpus --paths 'butterfly_*,rand_*kossel' --planners scurve,scurve_joint --out D
     pkmbench corpus --suite benchmarks/suites/corpus.toml --out D  # the nightly run
 
-Writes OUT/corpus.csv, OUT/corpus.md, OUT/performance_profile.png, OUT/ratio_to_best.png, and
-appends one row per plan to the results store (kind = 'corpus'; `pkmbench query`).
+Writes OUT/corpus.csv, OUT/corpus.md, OUT/performance_profile.png, OUT/ratio_to_reference.png
+(every run against the path's converged minimum time, benchmarks/paths/corpus/reference.json),
+and appends one row per plan to the results store (kind = 'corpus'; `pkmbench query`). A
+stochastic planner (pso) runs over --seeds seeds (default 10) and is reported as a distribution.
 Exit 0 when every planner returned a profile or a PlanningError, 1 when a planner raised
 something else (an internal error, listed), 2 on a user error.
 """
@@ -30,6 +32,8 @@ def add_arguments(p) -> None:
                    help="a small subset (3 paths, one per machine; the fast planners unless --planners)")
     p.add_argument("--suite", default=None,
                    help="take machines × paths × planners from a suite file (e.g. benchmarks/suites/corpus.toml)")
+    p.add_argument("--seeds", type=int, default=None,
+                   help="runs of each stochastic planner (pso) per path, seeds 0 … N−1 (default 10)")
     p.add_argument("--store", default=None,
                    help="results store folder the rows are appended to (default: $PKMBENCH_STORE "
                         "or results/store; 'none' = do not append)")
@@ -37,8 +41,11 @@ def add_arguments(p) -> None:
 
 def main(args) -> int:
     import planners
-    from harness.corpus import (FAST_PLANNERS, CorpusError, entries_from_suite, load_manifest,
-                                run_corpus, select, summary, write_outputs)
+    from harness.corpus import (FAST_PLANNERS, SEEDS, CorpusError, entries_from_suite, load_manifest,
+                                load_reference, run_corpus, select, summary, write_outputs)
+    seeds = SEEDS if args.seeds is None else args.seeds
+    if seeds < 1:
+        raise CliError(f"--seeds {args.seeds}: need at least 1")
     try:
         if args.suite:
             if args.paths or args.quick:
@@ -60,19 +67,29 @@ def main(args) -> int:
     n = sum(len(ps) for _, ps in selection)
     print(f"corpus: {len(selection)} paths, {n} plans → {out}")
 
+    reference = load_reference()
+
     def progress(r):
         what = (f"T = {r.execution_time_s:.4f} s, joint {r.joint_worst:.3f}, cart {r.cart_worst:.3f}, "
                 f"{'feasible' if r.feasible else 'INFEASIBLE'}") if r.status == "ok" else r.error
-        print(f"  {r.path:28s} {r.planner:13s} {r.planning_time_s:8.2f} s  {what}", flush=True)
+        ref = reference.get(r.path)
+        if r.status == "ok" and ref:
+            what += f", T/T_ref {r.execution_time_s / ref[0]:.4f}"
+        seed = f" s{r.seed}" if r.seed is not None else ""
+        print(f"  {r.path:28s} {r.planner + seed:13s} {r.planning_time_s:8.2f} s  {what}", flush=True)
 
-    rows = run_corpus(selection, progress=progress)
-    files = write_outputs(rows, out)
+    rows = run_corpus(selection, progress=progress, seeds=seeds)
+    files = write_outputs(rows, out, reference)
     if args.store != "none":
         _append(rows, args, out)
-    print(f"{'planner':13s} {'profiles':>9s} {'feasible':>9s} {'cart-feas':>9s} {'own-lim':>7s} {'T/Tbest med':>11s} {'worst':>7s} {'plan med s':>10s} {'worst':>8s}")
-    for k, s in summary(rows).items():
-        print(f"{k:13s} {s['profiles']:4d}/{s['paths']:<4d} {s['feasible']:9d} {s['cartesian_feasible']:9d} {s['own_limits']:7d} "
-              f"{s['ratio_median']:11.4g} {s['ratio_worst']:7.4g} {s['plan_median_s']:10.3g} {s['plan_worst_s']:8.3g}")
+    print(f"{'planner':13s} {'profiles':>9s} {'feasible':>9s} {'cart-feas':>9s} {'own-lim':>7s} {'T/Tref med':>10s} "
+          f"{'IQR':>15s} {'worst':>7s} {'T/Tbest med':>11s} {'plan med s':>10s} {'worst':>8s}")
+    for k, s in summary(rows, reference).items():
+        q = s["to_reference"]
+        own = "—" if s["own_limits"] is None else str(s["own_limits"])
+        print(f"{k:13s} {s['profiles']:4d}/{s['runs']:<4d} {s['feasible']:9d} {s['cartesian_feasible']:9d} {own:>7s} "
+              f"{q['median']:10.4g} {q['q1']:7.4g}–{q['q3']:<7.4g} {q['worst']:7.4g} {s['ratio_median']:11.4g} "
+              f"{s['plan_median_s']:10.3g} {s['plan_worst_s']:8.3g}")
     print("wrote " + ", ".join(str(f) for f in files.values()))
     errors = [r for r in rows if r.status == "error"]
     for r in errors:

@@ -19,6 +19,9 @@ def add_arguments(p):
                    "exit 1 if any differs or is missing")
     p.add_argument("--exact", action="store_true", help="with --compare: byte for byte (the same-machine contract)")
     p.add_argument("--quick", action="store_true", help="10⁵ latency cycles instead of 10⁶, no pso (a fast check)")
+    p.add_argument("--readme", metavar="RUN_DIR", help="only README's picture and caption, from a finished run "
+                   "(e.g. results/default/keops_bird of `make run`): copied to results/figures/, the caption "
+                   "written from its summary.json")
 
 
 def main(args) -> int:
@@ -27,6 +30,12 @@ def main(args) -> int:
     from harness.report.compare import compare_csvs
     from harness.report.figures_report import report
 
+    if args.readme:
+        from harness.report import readme
+        if not (Path(args.readme) / "summary.json").is_file():
+            raise CliError(f"--readme {args.readme}: no summary.json there (a finished run folder)")
+        print(readme.update(Path(args.readme)))
+        return 0
     out = output_dir(args.out)
     steps = [("KEOPS paper Figs. 5–6", lambda: keops_paper.figures(out, pso=not args.quick)),
              ("KEOPS flat bird at the workspace centre",

@@ -27,8 +27,9 @@ def list_planners() -> int:
         g = d["guarantees"]
         keeps = "; ".join(f"{k}: {', '.join(v)}" for k, v in g.items()) if g else "—"
         line = f"{name:16s} {d['source']}" + (f" {d['version']}" if d["version"] and d["version"] not in d["source"] else "")
-        print(f"{line}\n{'':16s} keeps: {keeps}" + (f"\n{'':16s} stochastic: its profile depends on its seed option"
-                                                    if d.get("stochastic") else "") + (f"\n{'':16s} BROKEN: {d['error']}" if "error" in d else ""))
+        stoch = f"\n{'':16s} stochastic: its result depends on its seed (reports run it over seeds)" \
+            if d.get("stochastic") else ""
+        print(f"{line}\n{'':16s} keeps: {keeps}{stoch}" + (f"\n{'':16s} BROKEN: {d['error']}" if "error" in d else ""))
     return 0
 
 

@@ -18,6 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from harness import perfprofile
+from harness.corpus.analysis import load_reference, reference_cell, reference_for
+
 TABLE_HEAD_COLOUR = "#1f3b5c"    # tests/test_html_report.py finds the table in a screenshot by it
 MAX_POINTS = 1500                # per trace: the report stays a few MB
 TREND_METRICS = ("execution_time_s", "joint_peak_ratio.jerk", "planning_time_ratio")
@@ -27,24 +30,36 @@ def _case(r) -> tuple:
     return (r["machine"], r["path"], r["preset"], r["variation"], r["seed"])
 
 
-def performance_profile(rows: list[dict]) -> tuple[list[str], np.ndarray, dict[str, np.ndarray]]:
-    """(cases, τ grid, {planner: ρ(τ)}) of the execution times in ``rows``."""
-    times = defaultdict(dict)
+def _profile_runs(rows: list[dict], worst: bool | None = None):
+    """(case, planner, T or None) per run for harness.perfprofile: a case is machine × path ×
+    preset × variation (the seeds are runs of it); T only for a joint-feasible profile. With
+    ``worst`` True/False: each planner's worst/best seed per case alone (the spread band)."""
+    out = {}
     for r in rows:
-        et = (r["metrics"] or {}).get("execution_time_s") if r["status"] == "ok" else None
-        times[_case(r)][r["planner"]] = et if et and et > 0 else math.inf
-    planners = sorted({r["planner"] for r in rows})
-    cases = sorted(c for c in times if any(math.isfinite(v) for v in times[c].values()))
-    ratios = {p: [] for p in planners}
-    for c in cases:
-        best = min(v for v in times[c].values())
-        for p in planners:
-            ratios[p].append(times[c].get(p, math.inf) / best)
-    finite = [x for v in ratios.values() for x in v if math.isfinite(x)]
-    tau = np.unique(np.concatenate([[1.0], finite, [max(finite + [1.0]) * 1.05]]))
-    prof = {p: np.array([np.mean(np.array(ratios[p]) <= t) for t in tau]) if cases else np.zeros_like(tau)
-            for p in planners}
-    return ["/".join(map(str, c)) for c in cases], tau, prof
+        m = r["metrics"] or {}
+        et = m.get("execution_time_s") if r["status"] == "ok" and m.get("feasible") else None
+        t = et if et and et > 0 else None
+        key = (_case(r)[:4], r["planner"])
+        if worst is None:
+            out.setdefault(key, []).append(t)
+            continue
+        v = math.inf if t is None else t
+        old = out.get(key, [None])[0]
+        ov = math.inf if old is None else old
+        if key not in out or (v > ov if worst else v < ov):
+            out[key] = [t]
+    return [("/".join(map(str, c)), p, t) for (c, p), ts in out.items() for t in ts]
+
+
+def _references(rows: list[dict]) -> dict:
+    """case → T_reference_s of the cases whose path is a corpus path on its machine."""
+    ref = load_reference()
+    out = {}
+    for r in rows:
+        got = reference_for(r["machine"], r["path"], ref)
+        if got:
+            out["/".join(map(str, _case(r)[:4]))] = got[0]
+    return out
 
 
 def _thin(*arrays, n=MAX_POINTS):
@@ -132,44 +147,71 @@ def _comparison(doc: _Doc, rows, groups, reference: str) -> None:
                  f"|derivative| / limit on the commanded joints (feasible ⇔ all ≤ 1). ÷ best: execution "
                  f"time over the fastest planner's on the same case; ÷ {html.escape(reference)}: over "
                  f"{html.escape(reference)}'s.</p>")
-    cols = ["planner", "seed", "execution time s", "÷ best", f"÷ {reference}", "feasible", "joint v", "joint a",
+    cols = ["planner", "seed", "execution time s", "÷ best", f"÷ {reference}", "÷ T_ref", "feasible", "joint v", "joint a",
             "joint j", "following µm", "contour µm", "planning s", "status"]
     parts.append("<h2>Comparison</h2>")
+    refs = load_reference()
     for key in sorted(groups):
+        t_ref = reference_for(key[0], key[1], refs)
         rs = sorted(groups[key], key=lambda r: (r["planner"], r["seed"]))
         t = {(r["seed"], r["planner"]): r["metrics"]["execution_time_s"] for r in rs if r["status"] == "ok"}
         parts.append(f"<h3>{html.escape(' / '.join(map(str, key)))}</h3><table class='comparison'><tr>"
                      + "".join(f"<th>{html.escape(c)}</th>" for c in cols) + "</tr>")
         for r in rs:
-            cells = _cells(r, t, reference)
+            cells = _cells(r, t, reference, t_ref)
             cls = " class='bad'" if r["status"] != "ok" or not (r["metrics"] or {}).get("feasible") else ""
             parts.append(f"<tr{cls}>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
         parts.append("</table>")
 
 
-def _cells(r, t: dict, reference: str) -> list[str]:
-    """One run's table cells; ``t``: (seed, planner) → execution time of the case's ok runs."""
+def _cells(r, t: dict, reference: str, t_ref=None) -> list[str]:
+    """One run's table cells; ``t``: (seed, planner) → execution time of the case's ok runs;
+    ``t_ref``: (T_reference_s, error_s) of a corpus path."""
     if r["status"] != "ok":
-        return [r["planner"], str(r["seed"])] + ["—"] * 10 + [f"FAILED: {r['error']}"]
+        return [r["planner"], str(r["seed"])] + ["—"] * 11 + [f"FAILED: {r['error']}"]
     m = r["metrics"]
     jp = m.get("joint_peak_ratio", {})
     et = m["execution_time_s"]
     best = min(v for (sd, _), v in t.items() if sd == r["seed"])
     ref = t.get((r["seed"], reference))
     return [r["planner"], str(r["seed"]), _f(et), _f(et / best, "{:.3f}"),
-            _f(et / ref if ref else None, "{:.3f}"), "yes" if m.get("feasible") else "NO",
+            _f(et / ref if ref else None, "{:.3f}"), reference_cell(et, t_ref), "yes" if m.get("feasible") else "NO",
             _f(jp.get("velocity"), "{:.3f}"), _f(jp.get("acceleration"), "{:.3f}"),
             _f(jp.get("jerk"), "{:.3f}"), _f(m.get("max_following_error_um")),
             _f(m.get("max_contour_error_um")), _f(m.get("planning_time_s"), "{:.3g}"), "ok"]
 
 
 def _profile_section(doc: _Doc, rows) -> None:
+    """The performance profile of harness.perfprofile (the corpus's too): joint-feasible runs
+    only, against the converged reference where the case is a corpus path; a planner with
+    several seeds per case as the ECDF of its runs, its best-to-worst-seed band shaded."""
     import plotly.graph_objects as go
-    cases, tau, prof = performance_profile(rows)
+
+    ref = _references(rows)
+    runs = _profile_runs(rows)
+    cases = list(dict.fromkeys(c for c, _, _ in runs))
+    R = perfprofile.run_ratios(runs, ref)
+    tau = perfprofile.tau_grid(R)
+    prof = perfprofile.performance_profile(runs, tau, ref)
+    multi = {p for p, by in R.items() if any(len(v) > 1 for v in by.values())}
+    lo = perfprofile.performance_profile(_profile_runs(rows, worst=True), tau, ref) if multi else {}
+    hi = perfprofile.performance_profile(_profile_runs(rows, worst=False), tau, ref) if multi else {}
     doc.parts.append(f"<h2>Performance profile</h2><p>Over {len(cases)} case(s): the share of cases in which a "
-                     f"planner's execution time is within τ × the best planner's (Dolan &amp; Moré 2002); "
-                     f"higher and further left is better, ρ(1) = share of cases it is the fastest.</p>")
-    fig = go.Figure([go.Scatter(x=tau, y=prof[p], name=p, mode="lines", line_shape="hv") for p in sorted(prof)])
+                     f"planner's joint-feasible execution time is within τ × the case's denominator "
+                     f"(Dolan &amp; Moré 2002): the converged minimum time on the {len(ref)} corpus case(s), "
+                     f"else the fastest joint-feasible run; a run that breaks the joint limits never counts. "
+                     f"A planner run over several seeds is the share of its runs (as COCO's ECDFs), "
+                     f"shaded from its worst to its best seed. Higher and further left is better.</p>")
+    traces = []
+    for n, p in enumerate(sorted(prof)):
+        colour = f"hsl({(n * 67) % 360},60%,45%)"
+        if p in multi:
+            traces.append(go.Scatter(x=tau, y=lo[p], mode="lines", line_shape="hv", line=dict(width=0, color=colour),
+                                     showlegend=False, hoverinfo="skip"))
+            traces.append(go.Scatter(x=tau, y=hi[p], mode="lines", line_shape="hv", line=dict(width=0, color=colour),
+                                     fill="tonexty", opacity=0.2, name=f"{p} best–worst seed"))
+        traces.append(go.Scatter(x=tau, y=prof[p], name=p, mode="lines", line_shape="hv", line=dict(color=colour)))
+    fig = go.Figure(traces)
     fig.update_layout(xaxis_title="τ (execution time ÷ best)", yaxis_title="ρ(τ)", yaxis_range=[0, 1.05],
                       height=380, margin=dict(t=30))
     doc.add(fig, "profile")

@@ -14,13 +14,14 @@ from collections import defaultdict
 from pathlib import Path
 
 from harness.ci.history import History
+from harness.corpus.analysis import load_reference, reference_cell, reference_for
 from harness.report.html_report import write_html
 from harness.sweep import SweepStore
 from kins import load_machine
 from kins.resources import REPO
 from planners.verify import within
 
-COLUMNS = ["planner", "seed", "execution time s", "÷ optimal", "feasible", "joint v", "joint a",
+COLUMNS = ["planner", "seed", "execution time s", "÷ optimal", "÷ T_ref", "feasible", "joint v", "joint a",
            "joint j", "following µm", "contour µm", "planning s", "status"]
 
 
@@ -29,7 +30,9 @@ def _f(v, fmt="{:.4g}") -> str:
 
 
 def build(rows: list[dict], reference: str) -> list[dict]:
-    """Groups of table rows: [{"title", "key", "rows": [[cells]], "plot": {...}}]."""
+    """Groups of table rows: [{"title", "key", "rows": [[cells]], "plot": {...}}]; a corpus
+    path on its machine gets T / T_reference (benchmarks/paths/corpus/reference.json)."""
+    refs = load_reference()
     multi_case = len({(r["preset"], r["variation"]) for r in rows}) > 1
     groups = defaultdict(list)
     for r in rows:
@@ -41,16 +44,17 @@ def build(rows: list[dict], reference: str) -> list[dict]:
         ref_time = {(r["preset"], r["variation"], r["seed"]): r["metrics"]["execution_time_s"]
                     for r in rs if r["planner"] == reference and r["status"] == "ok"}
         table, plot = [], {"planner": [], "time": [], "worst": []}
+        t_ref = reference_for(key[0], key[1], refs)
         for r in rs:
             m = r["metrics"] or {}
             if r["status"] != "ok":
-                table.append([r["planner"], str(r["seed"])] + ["—"] * 9 + [f"FAILED: {r['error']}"])
+                table.append([r["planner"], str(r["seed"])] + ["—"] * 10 + [f"FAILED: {r['error']}"])
                 continue
             jp = m.get("joint_peak_ratio", {})
             ref = ref_time.get((r["preset"], r["variation"], r["seed"]))
             et = m.get("execution_time_s")
             table.append([r["planner"], str(r["seed"]), _f(et), _f(et / ref if ref and et else None, "{:.3f}"),
-                          "yes" if m.get("feasible") else "**no**",
+                          reference_cell(et, t_ref), "yes" if m.get("feasible") else "**no**",
                           _f(jp.get("velocity"), "{:.3f}"), _f(jp.get("acceleration"), "{:.3f}"),
                           _f(jp.get("jerk"), "{:.3f}"), _f(m.get("max_following_error_um")),
                           _f(m.get("max_contour_error_um")), _f(m.get("planning_time_s"), "{:.3g}"), "ok"])
@@ -111,7 +115,9 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal", results_sto
     md = [f"# pkmbench sweep report — `{sweep}`", "",
           f"{len(latest)} runs, {n_ok} ok, {len(latest) - n_ok} failed. Joint ratios are peak "
           f"|derivative| / limit on the commanded joints (feasible ⇔ all ≤ 1 + 1e-6); "
-          f"÷ optimal is the execution time over `{reference}`'s on the same case.", ""]
+          f"÷ optimal is the execution time over `{reference}`'s on the same case; ÷ T_ref over the "
+          f"path's converged minimum time (corpus paths: benchmarks/paths/corpus/reference.json), "
+          f"± its error bar.", ""]
     for i, g in enumerate(groups):
         png = f"group{i:02d}.png"
         _plot(g, out / png)

@@ -225,7 +225,7 @@ def rows_from_corpus(rows) -> list[dict]:
                         "cartesian_peak_ratio": {"velocity": r.cart_v, "acceleration": r.cart_a,
                                                  "jerk": r.cart_j, "feed": r.feed}}
         out.append(make_row(entry=f"{r.machine}/{r.path}/{r.planner}", machine=r.machine, path=r.path,
-                            planner=r.planner, seed=0, status=r.status, error=r.error or None, metrics=metrics))
+                            planner=r.planner, seed=r.seed or 0, status=r.status, error=r.error or None, metrics=metrics))
     return out
 
 

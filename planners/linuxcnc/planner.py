@@ -14,13 +14,10 @@ Feed: the programmed F caps the feed (``programmed_feed=True``, the default: it 
 LinuxCNC does); ``programmed_feed=False`` replaces every F word by F_max (the suite's
 planner-only comparison mode).
 
-Determinism (measured, see tests/test_linuxcnc_oracle.py and the benchmark note): LinuxCNC
-runs in a non-real-time ``rtapi_app`` here, but its tp advances by the nominal period, not
-the clock, so the command at T depends only on what is in the motion queue. Programs whose
-moves reach the queue before motion needs them give identical samples run after run (measured: 7 of 8
-oracle programs identical over two runs, test_part 45.631 / 45.632 s); a queue sync (M
-codes) waits a task cycle that is not aligned to the servo thread, so such a stop varies by
-tens of periods (mcodes.ngc: 12.420–12.482 s over three runs).
+Determinism: LinuxCNC runs in a non-real-time ``rtapi_app`` here, but its tp advances by the
+nominal period, not the clock, so the command at T depends only on what is in the motion queue;
+a queue sync (M codes) waits a task cycle that is not aligned to the servo thread, so such a
+stop varies by some periods (measurements: docs/TUNING.md, "linuxcnc").
 """
 from __future__ import annotations
 

@@ -95,7 +95,7 @@ def plan_socp(path, machine, limits=None, *, seed: int = 0, particles: int = 20,
                  seed_profile=seed_profile, polish=True, polish_linearisations=polish_linearisations)
 
 
-# the corpus and the suites run a stochastic planner over seeds (planners.registry.is_stochastic)
+# the corpus and the suites run a stochastic planner over seeds (planners.registry.stochastic)
 plan.stochastic = True
 plan_socp.stochastic = True
 

@@ -1,8 +1,7 @@
 """The s-curve's segment checks (planners.scurve.planner) for many segments in one numpy pass.
 
 A round of the repair loop checks every changed segment, and each repair tests a segment at
-several J and A values: a Python pass per test (~30 numpy calls on ~100 samples) made a
-10⁵-line program take minutes. Here the tests of one round are run in lockstep
+several J and A values: a Python pass per test is too slow on a long program. Here the tests of one round are run in lockstep
 (:func:`drive`) and each step's tests are evaluated together (:class:`Checker`). Every value
 is computed with the same floating-point operations in the same order as the per-segment
 form it replaces (phase samples, ``Segment.at``, the table, the reads at T of the joins), and
@@ -15,7 +14,7 @@ import numpy as np
 from planners.constraints import JUMP_READ_FACTOR
 from planners.scurve.pieces import Segment
 
-CHUNK_POINTS = 32_768     # samples per numpy pass (16 384: +8 % CPU, 65 536: +2 %, once the checks had fewer passes)
+CHUNK_POINTS = 32_768     # samples per numpy pass (its choice: docs/TUNING.md, "scurve's checks")
 
 
 def drive(gens, checker):

@@ -25,6 +25,9 @@ def min_distance(v0, v1, A, J):
 # ruckig accepts a profile whose end is within 1e-8 of the target position and velocity
 # (profile.hpp: p_precision, v_precision): the end feed is read as anywhere within _V_TOL of v1
 _V_TOL = 2e-8
+# a length within this of the shortest change still has a profile (ruckig's and the
+# distance's rounding: relative, then absolute mm)
+_L_REL, _L_ABS = 1e-6, 1e-7
 
 
 def no_profile(v0, v1, L, A, J) -> bool:
@@ -34,7 +37,7 @@ def no_profile(v0, v1, L, A, J) -> bool:
     slows to 0 (shorter for a change of several times v0): a profile that slows to some feed
     in between is split there into two changes, whose summed min_distance is concave in that
     feed, so it is shortest at an end."""
-    bound = L * (1 + 1e-6) + 1e-7
+    bound = L * (1 + _L_REL) + _L_ABS
     if min_distance(v0, v1, A, J) <= bound or abs(v1 - v0) <= _V_TOL:
         return False
     # min_distance from v0 is concave on each side of it: over the end feeds ruckig accepts it

@@ -272,6 +272,38 @@ def interp_curve(machine, fn, n, fill=0.9, tilt=(0.0, 0.0), centre=None):
     return build
 
 
+def dense_curve(machine, fn, n, fill=0.9, tilt=(0.0, 0.0), turn_density=0.0):
+    """Like interp_curve, with the n interpolation points spread by arc length and, with
+    ``turn_density`` > 0, by turned angle too (a spiral's centre or a near-cusp gets its points
+    where the curve turns, so the spline follows the curve there instead of cutting it)."""
+    def build(rng):
+        t = np.linspace(0.0, 1.0, 40 * n)
+        X = np.array([fn(x) for x in t])
+        d = np.linalg.norm(np.diff(X, axis=0), axis=1)
+        T = np.diff(X, axis=0) / np.maximum(d, 1e-300)[:, None]
+        ang = np.concatenate([[0.0], np.arccos(np.clip((T[1:] * T[:-1]).sum(axis=1), -1, 1))])
+        w = d / d.sum() + turn_density * ang / max(ang.sum(), 1e-300)
+        m = np.concatenate([[0.0], np.cumsum(w)])
+        tt = np.interp(np.linspace(0, m[-1], n), m, t)
+        P = place(np.array([fn(x) for x in tt]), machine, fill, tilt=tilt)
+        spl = make_interp_spline(np.linspace(0.0, 1.0, n), P, k=3)
+        return nurbs_dict(spl.c, spl.t, np.ones(len(spl.c)))
+    return build
+
+
+def rational_nurbs(machine, n, weights=(0.05, 20.0), degree=3, dims=3, turn=0.7, fill=0.85):
+    """A smooth random control polygon with weights log-uniform over a wide range: weight
+    spikes pull the curve hard towards single control points, light weights flatten it."""
+    def build(rng):
+        P = random_walk(rng, n, dims=dims, turn=turn, z_sd=0.6)
+        Q = place(P, machine, fill)
+        lw = np.log(weights)
+        w = np.exp(rng.uniform(lw[0], lw[1], n))
+        w[0] = w[-1] = 1.0
+        return nurbs_dict(Q, clamped_knots(n, rng, degree, 0.4), w, degree)
+    return build
+
+
 # --- G-code builders ----------------------------------------------------------------------
 def _n(x):
     s = f"{x:.4f}".rstrip("0").rstrip(".")
@@ -374,6 +406,35 @@ def helix_program(machine, radius_frac=0.6, turns=4, pitch=3.0):
                f"G1 X{_n(c[0] + r2)}",
                f"G3 X{_n(c[0] - r2)} Y{_n(c[1])} Z{_n(z0)} I{_n(-r2)} J0 P{turns}",
                "M2", "%"]
+        return out
+    return lines
+
+
+def meander_program(machine, legs=12, radius=1.0, size_frac=0.8, z_step=0.0):
+    """A meander: parallel G1 legs joined by tangent G2/G3 half circles of ``radius`` (tight
+    U-turns, no exact stop: every join a G1 join where the curvature jumps), legs of random
+    length, z stepping down ``z_step`` per leg."""
+    c = np.array(FRAME[machine]["centre"])
+    h = FRAME[machine]["half"]
+
+    def lines(rng):
+        width = 2 * size_frac * h[0]
+        y0 = c[1] - radius * legs
+        x0 = c[0] - width / 2
+        z = c[2]
+        out = ["%", f"(pkmbench corpus: {machine} meander, U-turns of radius {radius})",
+               "G21 G90 G17 G64", f"G0 X{_n(x0)} Y{_n(y0)} Z{_n(z)}", f"F{_n(FEED[machine])}"]
+        y = y0
+        for k in range(legs):
+            right = k % 2 == 0
+            # right legs end in the last 30 % of the width, left legs in the first 30 %
+            x = x0 + width * (rng.uniform(0.7, 1.0) if right else rng.uniform(0.0, 0.3))
+            z = c[2] - z_step * (k + 1)
+            out.append(f"G1 X{_n(x)} Z{_n(z)}" if z_step else f"G1 X{_n(x)}")
+            if k < legs - 1:        # heading +x turns left (G3), heading −x turns right (G2)
+                y += 2 * radius
+                out.append(f"{'G3' if right else 'G2'} X{_n(x)} Y{_n(y)} I0 J{_n(radius)}")
+        out += ["M2", "%"]
         return out
     return lines
 
@@ -534,6 +595,73 @@ def build(out=HERE, only=None) -> Corpus:
     C.gcode("cam_dense_lcnc", "linuxcnc_delta", "gcode-cam",
             "~1500 G1 lines of 0.2…0.5 mm along a 2-turn curve, G64 P0.02",
             cam_program("linuxcnc_delta", step=(0.2, 0.5), blend=0.02, turns=2.0))
+    # issue 32: the families the corpus lacked (appended: the paths above keep their seeds)
+    trefoil = lambda t: (math.sin(2 * math.pi * t) + 2 * math.sin(4 * math.pi * t),
+                         math.cos(2 * math.pi * t) - 2 * math.cos(4 * math.pi * t),
+                         -math.sin(6 * math.pi * t))
+
+    def torus_knot(p, q, R=2.0, r=1.0):
+        return lambda t: ((R + r * math.cos(2 * math.pi * q * t)) * math.cos(2 * math.pi * p * t),
+                          (R + r * math.cos(2 * math.pi * q * t)) * math.sin(2 * math.pi * p * t),
+                          r * math.sin(2 * math.pi * q * t))
+    C.nurbs("trefoil_keops", "keops", "nurbs-knot", "trefoil knot x = sin t + 2 sin 2t, y = cos t − 2 cos 2t, "
+            "z = −sin 3t (analytic), cubic interpolation",
+            "a 3-D knot: z swings through the box's height three times per loop, so every "
+            "turn loads all three joints at once", interp_curve("keops", trefoil, 181, 0.85))
+    C.nurbs("torus_knot_3_5_kossel", "kossel", "nurbs-knot", "(3, 5) torus knot on a torus R = 2, r = 1 "
+            "(analytic), cubic interpolation",
+            "a 3-D knot winding 5 times through the torus's hole: tight helix-like turns with "
+            "z reversing 10 times", interp_curve("kossel", torus_knot(3, 5), 301, 0.8))
+    C.nurbs("torus_knot_2_7_lcnc", "linuxcnc_delta", "nurbs-knot", "(2, 7) torus knot on a torus R = 2, "
+            "r = 0.8 (analytic), cubic interpolation",
+            "a 3-D knot of 7 windings, tilted 0.3 mm/mm along y", 
+            interp_curve("linuxcnc_delta", torus_knot(2, 7, 2.0, 0.8), 301, 0.85, tilt=(0.0, 0.3)))
+    C.nurbs("rational_keops", "keops", "nurbs-rational", gen,
+            "rational cubic, 50 control points in 3-D, weights 0.05…20 (log-uniform): weight "
+            "spikes pull single points into tight turns, light weights flatten whole spans",
+            rational_nurbs("keops", 50))
+    C.nurbs("rational_quadratic_kossel", "kossel", "nurbs-rational", gen,
+            "rational quadratic (degree 2), 40 control points, weights 0.1…10: P″ jumps at every "
+            "knot (a G1 join whose jerk the drive reads at T)",
+            rational_nurbs("kossel", 40, weights=(0.1, 10.0), degree=2))
+    C.gcode("meander_keops", "keops", "gcode-meander",
+            "meander of 14 legs joined by tangent half circles of radius 1 mm (G2/G3): 180° "
+            "U-turns at full programmed F, the curvature jumping at every join",
+            meander_program("keops", legs=14, radius=1.0))
+    C.gcode("meander_kossel", "kossel", "gcode-meander",
+            "meander of 16 legs, U-turns of radius 0.3 mm, z stepping 0.5 mm per leg",
+            meander_program("kossel", legs=16, radius=0.3, size_frac=0.7, z_step=0.5))
+    C.nurbs("meander_lcnc", "linuxcnc_delta", "nurbs-meander",
+            "serpentine x = 0.8·sin-like square wave of 9 legs (analytic, tanh-sharpened), cubic interpolation",
+            "a meander as one NURBS: 8 U-turns whose radius (~1 mm) is set by the sharpening, "
+            "straight legs between",
+            dense_curve("linuxcnc_delta", lambda t: (math.tanh(6 * math.sin(9 * math.pi * t)), 2 * t - 1, 0.0),
+                        500, 0.85, turn_density=1.0))
+    spiral = lambda turns, r_in, z=0.0: (lambda t: ((1 - (1 - r_in) * t) * math.cos(2 * math.pi * turns * t),
+                                                    (1 - (1 - r_in) * t) * math.sin(2 * math.pi * turns * t),
+                                                    z * t))
+    C.nurbs("spiral_in_keops", "keops", "nurbs-spiral",
+            "Archimedean spiral r = 1 − 0.99·t over 6 turns (analytic), inwards, cubic interpolation",
+            "curvature grows towards the centre (radius ~1 mm at the end): the feed falls turn by "
+            "turn, the chord-error cap takes over", dense_curve("keops", spiral(6, 0.01), 500, 0.9, turn_density=0.5))
+    C.nurbs("spiral_cone_kossel", "kossel", "nurbs-spiral",
+            "conical Archimedean spiral, 5 turns inwards to r = 0.02, rising 40 % of the box (analytic)",
+            "3-D spiral whose radius falls to ~1 mm at the centre while z rises: curvature and "
+            "the joints' mix both change along it",
+            dense_curve("kossel", spiral(5, 0.02, 0.6), 500, 0.85, turn_density=0.5))
+    C.nurbs("cusp_epitrochoid_keops", "keops", "nurbs-cusp",
+            "epitrochoid of 5 lobes, pen at 0.95 of the rolling radius (analytic), cubic interpolation",
+            "5 near-cusps: the curve almost stops turning and reverses (radius ~0.1 mm at each)",
+            dense_curve("keops", lambda t: (6 * math.cos(2 * math.pi * t) - 0.95 * math.cos(12 * math.pi * t),
+                                            6 * math.sin(2 * math.pi * t) - 0.95 * math.sin(12 * math.pi * t), 0.0),
+                        600, 0.85, turn_density=1.0))
+    C.nurbs("cusp_trochoid_lcnc", "linuxcnc_delta", "nurbs-cusp",
+            "curtate trochoid x = t − 0.97 sin t, y = 1 − 0.97 cos t over 6 arches with a z ramp (analytic)",
+            "6 near-cusps at the arches' feet (radius ~0.05 mm): the feed falls almost to rest "
+            "and the direction reverses there",
+            dense_curve("linuxcnc_delta", lambda t: (12 * math.pi * t - 0.97 * math.sin(12 * math.pi * t),
+                                                     1 - 0.97 * math.cos(12 * math.pi * t), 0.3 * t),
+                        600, 0.9, turn_density=1.0))
     return C
 
 

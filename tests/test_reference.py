@@ -1,0 +1,70 @@
+"""The corpus's yardstick (issue 32): benchmarks/paths/corpus/reference.py against the
+jerk-limited closed form on a line, its Richardson arithmetic, and reference.json covering
+every corpus path with a current entry."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+
+import pytest
+
+from harness.corpus import CORPUS_DIR, load_manifest
+from kins import load_machine
+from planners.paths import Line, SegmentPath
+
+
+def _ref():
+    spec = importlib.util.spec_from_file_location("corpus_reference", CORPUS_DIR / "reference.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_richardson_recovers_a_second_order_limit():
+    R = _ref()
+    T = [2.0 + 0.3 * h ** 2 for h in (1.0, 0.5, 0.25, 0.125)]
+    Ts, err, p = R.richardson(T)
+    assert p == pytest.approx(2.0, abs=1e-9)
+    assert Ts == pytest.approx(2.0, abs=1e-12)
+    # its bar: the last correction |T* − T₄| = 0.3/64 (the limits of the two triples agree)
+    assert err == pytest.approx(0.3 / 64, rel=1e-6)
+    # differences that change sign: no order, no extrapolation, the larger difference as the bar
+    Ts, err, p = R.richardson([1.0, 1.003, 1.001])
+    assert (Ts, err, math.isnan(p)) == (1.001, pytest.approx(0.003), True)
+
+
+@pytest.mark.slow
+def test_a_line_driving_the_joints_one_to_one_is_the_closed_form():
+    """q = z + const on kossel's three joints: the minimum time rest to rest is the 1-D
+    jerk-limited optimum L/V + 2√(V/J) (V·J ≤ A²: A is never reached). The extrapolated
+    reference lies within its error bar of it, the bar is < 0.03 %, and the finest profile,
+    sampled at T, keeps the joint limits to 0.1 % (what it overshoots between its nodes)."""
+    R = _ref()
+    m = load_machine("kossel")
+    lim = m.limits.joint
+    assert lim.v * lim.j <= lim.a ** 2
+    L = 5.0
+    exact = L / lim.v + 2 * math.sqrt(lim.v / lim.j)
+    r = R.reference(SegmentPath([Line([0, 0, -300], [0, 0, -300 + L])]), m, levels=4, base_nodes=150)
+    assert abs(r["T_reference_s"] - exact) <= r["error_s"] + 1e-7
+    assert r["error_s"] < 3e-4 * exact          # a tenth of the 0.3 % the planners are held to
+    # nested grids: each twice the cells of the one before; the finest within 0.01 % already
+    n = [g["nodes"] for g in r["grids"]]
+    assert all(b - 1 == 2 * (a - 1) for a, b in zip(n, n[1:]))
+    assert r["grids"][-1]["T_s"] == pytest.approx(exact, rel=1e-4)
+    assert max(r["check_at_T"]["joint_peak_ratio"].values()) <= 1 + 1e-3   # the finest grid between its nodes
+
+
+def test_reference_json_covers_every_corpus_path_with_a_current_entry():
+    R = _ref()
+    data = json.loads((CORPUS_DIR / "reference.json").read_text())["paths"]
+    for e in load_manifest():
+        assert e["name"] in data, f"{e['name']}: no reference (run benchmarks/paths/corpus/reference.py)"
+        r = data[e["name"]]
+        assert r["key"] == R.entry_key(e), f"{e['name']}: reference out of date"
+        assert set(r) >= {"T_reference_s", "error_s", "grids"}
+        T = [g["T_s"] for g in r["grids"]]
+        assert len(T) >= 3 and all(g["nodes"] > 0 for g in r["grids"])
+        # the bar: at most 0.2 % of the time (optimal is held to 0.3 % of it)
+        assert 0 <= r["error_s"] <= 2e-3 * r["T_reference_s"], (e["name"], r["error_s"])
