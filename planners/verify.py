@@ -6,6 +6,11 @@ Peak ratios are read on the commanded trajectory exactly as a drive would see it
 positions at period T, derivatives by backward finite differences at T (velocity a first
 difference, acceleration a second, jerk a third). At 250 µs this makes an 8 nm position error
 read as 5·10⁵ mm/s³, which is why everything upstream keeps full double precision.
+
+The drive holds the first position before t = 0 and the last one after the end: the
+differences are taken over the samples with that rest on both sides (:func:`at_rest`), so the
+step out of rest and into it counts, whatever the profile's length (a 2-sample profile that
+jumps 14 mm reads that jump as a velocity, an acceleration and a jerk).
 """
 from __future__ import annotations
 
@@ -16,11 +21,30 @@ from kins.machine import Limits
 FEASIBLE_TOL = 1e-6          # DESIGN.md: feasible ⇔ every peak ratio ≤ 1 + 1e-6
 ORDERS = ("velocity", "acceleration", "jerk")
 BLOCK = 1 << 14               # samples per block of difference_peaks
+# rest samples on each side: a jerk window (4 samples) reaching one moving sample needs 2 more
+REST_PAD = len(ORDERS) - 1
 
 
-def differences(X: np.ndarray, T: float) -> dict[str, np.ndarray]:
-    """Velocity, acceleration, jerk of samples X (N, k) at period T (lengths N-1, N-2, N-3)."""
+def at_rest(X: np.ndarray) -> np.ndarray:
+    """X (N, k) with its first row repeated REST_PAD times before it and its last row after it:
+    the trajectory with the rest it starts and ends in."""
     X = np.asarray(X, float)
+    if len(X) == 0:
+        return X
+    return np.concatenate([np.repeat(X[:1], REST_PAD, axis=0), X, np.repeat(X[-1:], REST_PAD, axis=0)])
+
+
+def window_sample(i, n: int, k: int = 0):
+    """The sample of X (n samples) that sample ``k`` of rest-padded difference window ``i``
+    reads (clipped to 0 … n-1: the rest before and after is the first and last sample)."""
+    return np.clip(np.asarray(i) + k - REST_PAD, 0, max(n - 1, 0))
+
+
+def differences(X: np.ndarray, T: float, rest: bool = True) -> dict[str, np.ndarray]:
+    """Velocity, acceleration, jerk of samples X (N, k) at period T. With ``rest`` (the
+    metrics) over :func:`at_rest` (X): lengths N+3, N+2, N+1, window i reading samples i-2 …
+    (:func:`window_sample`); without it (plots of the sampled motion) lengths N-1, N-2, N-3."""
+    X = at_rest(X) if rest else np.asarray(X, float)
     v = np.diff(X, 1, axis=0) / T
     a = np.diff(v, 1, axis=0) / T
     j = np.diff(a, 1, axis=0) / T
@@ -52,11 +76,12 @@ def windows_above(X: np.ndarray, T: float, limits: Limits, s=None, feed_max: flo
     """[(order, first sample of the window, ratio)] of every difference window of X at T that
     reads above its limit (ratio > 1 + FEASIBLE_TOL), by order (velocity, acceleration, jerk,
     then "feed": the arc lengths ``s`` against ``feed_max``) and sample: where a profile breaks
-    a limit, for the planners that repair it there."""
+    a limit, for the planners that repair it there. A window starting in the rest before t = 0
+    gives sample 0 (:func:`window_sample`)."""
     out = []
     for order, (w, _), L in zip(ORDERS, difference_peaks(X, T), (limits.v, limits.a, limits.j)):
         r = w / L
-        out += [(order, int(i), float(r[i])) for i in np.nonzero(r > 1.0 + FEASIBLE_TOL)[0]]
+        out += [(order, int(window_sample(i, len(X))), float(r[i])) for i in np.nonzero(r > 1.0 + FEASIBLE_TOL)[0]]
     if s is not None:
         r = np.diff(np.asarray(s, float)) / T / feed_max
         out += [("feed", int(i), float(r[i])) for i in np.nonzero(r > 1.0 + FEASIBLE_TOL)[0]]
@@ -65,7 +90,8 @@ def windows_above(X: np.ndarray, T: float, limits: Limits, s=None, feed_max: flo
 
 def worst_sample(X: np.ndarray, T: float, limits: Limits) -> tuple[str, int, float]:
     """(order, first sample index of its difference window, ratio) of the largest limit ratio
-    of X at T: where a trajectory breaks its limits worst, for an error message."""
+    of X at T: where a trajectory breaks its limits worst, for an error message (a window
+    starting in the rest before t = 0 gives sample 0)."""
     lim = {"velocity": limits.v, "acceleration": limits.a, "jerk": limits.j}
     best = ("velocity", 0, 0.0)
     for order, D in differences(X, T).items():
@@ -73,7 +99,7 @@ def worst_sample(X: np.ndarray, T: float, limits: Limits) -> tuple[str, int, flo
             r = np.abs(D).max(axis=1) / lim[order]
             i = int(np.argmax(r))
             if r[i] > best[2]:
-                best = (order, i, float(r[i]))
+                best = (order, int(window_sample(i, len(X))), float(r[i]))
     return best
 
 
@@ -116,22 +142,25 @@ def chord_error_mm(P: np.ndarray, path, s: np.ndarray) -> float:
 def stretch_need(Q: np.ndarray, s: np.ndarray, T: float, limits) -> np.ndarray:
     """Per sample, the time stretch λ ≥ its ratios that brings joint samples Q (N, 3) and the
     feed of arc lengths s back within ``limits`` at T: velocity and feed scale as 1/λ,
-    acceleration as 1/λ², jerk as 1/λ³; a difference window counts at its last sample."""
+    acceleration as 1/λ², jerk as 1/λ³; a difference window counts at its last sample (a
+    window ending in the rest after the end, at the last one)."""
     lim = limits.joint
-    D = {o: np.abs(x).max(axis=1) for o, x in differences(Q, T).items()}
-    feed = np.diff(s) / T / limits.feed_max
-    need = np.zeros(len(s))
-    need[1:] = np.maximum(D["velocity"] / lim.v, feed)
-    need[2:] = np.maximum(need[2:], np.sqrt(D["acceleration"] / lim.a))
-    need[3:] = np.maximum(need[3:], np.cbrt(D["jerk"] / lim.j))
+    n = len(s)
+    need = np.zeros(n)
+    need[1:] = np.diff(s) / T / limits.feed_max
+    for k, (o, x) in enumerate(differences(Q, T).items(), start=1):
+        r = np.abs(x).max(axis=1) / {"velocity": lim.v, "acceleration": lim.a, "jerk": lim.j}[o]
+        np.maximum.at(need, window_sample(np.arange(len(r)), n, k), r ** (1.0 / k))
     return need
 
 
 def difference_peaks(X, T: float, orders: int = 3) -> list:
     """Per window, the largest |k-th difference at T| over the columns of X and the column of
     it (the first of equals, as np.argmax), for k = 1 … ``orders``: [(peaks, columns)] of the
-    differences of :func:`differences`, in blocks of samples (a 10⁶-sample profile's
+    differences of :func:`differences` (with the rest at both ends: window i reads samples
+    i-2 …, :func:`window_sample`), in blocks of samples (a 10⁶-sample profile's
     temporaries stay in cache instead of being fresh 10⁶-element arrays each)."""
+    X = at_rest(X)
     sizes = [max(len(X) - k, 0) for k in range(1, orders + 1)]
     # the axis of each maximum as one byte (an axis number < 3): fresh memory is slow to
     # touch the first time, and 6 such arrays of 10⁶ samples were 80 MB as np.intp

@@ -70,14 +70,14 @@ def test_fmu_seed_keeps_32_bit_seeds_and_hashes_larger_ones():
 @needs_fmus
 def test_a_64_bit_seed_reaches_the_bus_and_the_sweep_store(tmp_path):
     """Seed 2³² drew the bus lateness of seed 0 (ctypes wrapped it); 2⁶⁴ − 1 overflowed SQLite."""
-    from harness.sweep import SweepStore, run_sweep
+    from harness.sweep import TaskTable, run_sweep
     from harness.sweep.suite import expand
 
     suite = {"run": [{"machine": "keops", "path": LINE, "planners": ["trapezoid"]}],
              "sweep": {"seeds": [0, 2**32, 2**64 - 1], "presets": ["tuned_rt"]}}
     res = run_sweep(expand(suite), tmp_path, workers=0, progress=False)
     assert (res.ok, res.failed) == (3, 0), res.failures
-    rows = SweepStore(tmp_path / "results.sqlite").to_rows()
+    rows = TaskTable(tmp_path / "results.sqlite").to_rows()
     assert sorted(r["seed"] for r in rows) == [0, 2**32, 2**64 - 1]
     hist = {s: next(tmp_path.glob(f"runs/**/seed{s}/trapezoid/trapezoid/lateness.csv")).read_text()
             for s in (0, 2**32)}

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+import harness.cosim.fmu_file
 import harness.cosim.master
 import harness.cosim.system
 from harness.cli import main
@@ -96,7 +97,8 @@ def test_run_with_a_truncated_or_missing_fmu_is_one_line(tmp_path, monkeypatch, 
 
 
 def test_stepped_fmu_on_a_damaged_fmu(tmp_path, monkeypatch):
-    monkeypatch.setattr(harness.cosim.master, "EXTRACT_DIR", tmp_path / "extracted")
+    monkeypatch.setattr(harness.cosim.fmu_file, "EXTRACT_DIR", tmp_path / "extracted")
+    monkeypatch.setattr(harness.cosim.fmu_file, "USER_EXTRACT_DIR", tmp_path / "extracted")   # the damaged ones
     good = tmp_path / "Drive.fmu"
     shutil.copy(FMU_DIR / "Drive.fmu", good)
     sim = SteppedFmu(good, {}, 1e-3, "drive")                  # the checks accept a whole FMU

@@ -116,9 +116,9 @@ def test_missing_and_corrupt_fmu(keops, tmp_path, monkeypatch):
         chain(keops, tmp_path / "a", tmp_path / "b", 0.01)
     bad = tmp_path / "Bad.fmu"
     bad.write_bytes(b"not a zip")
-    from harness.cosim.master import _extract
+    from harness.cosim.master import extract
     with pytest.raises(SystemError_, match=r"Bad.fmu: not a valid FMU \(corrupt zip\)"):
-        _extract(bad)
+        extract(bad)
 
 
 def test_bad_run_arguments(tmp_path):

@@ -60,9 +60,10 @@ def test_query_answers_median_pso_over_optimal_of_the_last_10_nightly_runs(tmp_p
 
 
 def test_empty_store_answers_no_rows_and_bad_sql_is_one_line(tmp_path, capsys):
-    assert cli(["query", "--store", str(tmp_path / "none"), "SELECT count(*) AS n FROM results"]) == 0
+    (tmp_path / "empty").mkdir()       # an empty store; one that does not exist is said (test_hostile_inputs)
+    assert cli(["query", "--store", str(tmp_path / "empty"), "SELECT count(*) AS n FROM results"]) == 0
     assert capsys.readouterr().out.split() == ["n", "0"]
-    assert cli(["query", "--store", str(tmp_path / "none"), "SELECT nope FROM results"]) == 2
+    assert cli(["query", "--store", str(tmp_path / "empty"), "SELECT nope FROM results"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("pkmbench query: error: query failed:") and "nope" in err[0]
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from harness.cli import main as cli
-from harness.sweep import (SweepStore, make_task, run_sweep, task_key, tasks_from_suite_file)
+from harness.sweep import (TaskTable, make_task, run_sweep, task_key, tasks_from_suite_file)
 from harness.sweep.suite import REPO
 
 LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
@@ -46,7 +46,7 @@ def test_failing_task_is_recorded_others_finish_and_rerun_skips(tmp_path):
     r = run_sweep(tasks, out, task_fn=LINE_TASK, workers=2, progress=False)
     assert (r.ok, r.failed, r.skipped) == (2, 2, 0)
     assert all("bogus" in err and "TaskError" in err for _, err in r.failures)
-    rows = SweepStore(out / "results.sqlite").to_rows()
+    rows = TaskTable(out / "results.sqlite").to_rows()
     ok = [row for row in rows if row["status"] == "ok"]
     assert len(ok) == 2 and {row["seed"] for row in ok} == {0, 1}
     # closed forms of the quintic: L = 100 mm, peak feed 500 mm/s ⇒ D = 0.375 s; limits 1000/1e4/5e5
@@ -105,7 +105,7 @@ set = { "limits.cartesian.vv" = 1.0 }
     r = run_sweep(tasks_from_suite_file(suite), tmp_path / "o", task_fn=LINE_TASK, workers=0, progress=False)
     assert (r.ok, r.failed) == (2, 1)
     assert "typo" in r.failures[0][1] and "limits.cartesian.vv" in r.failures[0][1]
-    rows = {row["variation"]: row["metrics"] for row in SweepStore(tmp_path / "o/results.sqlite").to_rows()}
+    rows = {row["variation"]: row["metrics"] for row in TaskTable(tmp_path / "o/results.sqlite").to_rows()}
     base, slow = rows["base"]["cartesian_peak_ratio"]["velocity"], rows["slow_axes"]["cartesian_peak_ratio"]["velocity"]
     assert slow == pytest.approx(2 * base, rel=1e-12)
 
@@ -146,7 +146,7 @@ def test_sweep_through_a_real_scheduler_with_two_worker_processes(tmp_path, caps
         out = capsys.readouterr().out
         assert code == 1                                     # the bogus tasks failed …
         assert "3 run, 0 already done, 3 failed" in out      # … and the others finished
-        rows = SweepStore(tmp_path / "out/results.sqlite").to_rows()
+        rows = TaskTable(tmp_path / "out/results.sqlite").to_rows()
         assert sorted(r["status"] for r in rows) == ["error"] * 3 + ["ok"] * 3
         pids = {r["worker"].rsplit(":", 1)[1] for r in rows}
         assert str(__import__("os").getpid()) not in pids    # ran on the workers, not here
@@ -205,7 +205,7 @@ def test_fmus_reach_dask_workers_as_files(tmp_path, monkeypatch):
     tasks = tasks_from_suite_file(write_suite(tmp_path, planners=["quintic"]))
     r = run_sweep(tasks, tmp_path / "o", task_fn=f"{__name__}:fmu_size_task", workers=1, progress=False)
     assert (r.ok, r.failed) == (1, 0), r.failures
-    row, = SweepStore(tmp_path / "o/results.sqlite").to_rows()
+    row, = TaskTable(tmp_path / "o/results.sqlite").to_rows()
     assert row["metrics"]["execution_time_s"] == 1236.0
     assert row["worker"].rsplit(":", 1)[1] != str(__import__("os").getpid())   # another process
 

@@ -158,7 +158,7 @@ def test_sweep_and_ci_run_a_suites_user_fmu_as_run_does(fmus, tmp_path):
     import hashlib
 
     from harness.store import ResultStore
-    from harness.sweep import SweepStore, task_key, tasks_from_suite_file
+    from harness.sweep import TaskTable, task_key, tasks_from_suite_file
     shutil.copy(fmus["good"], tmp_path / "LagDrive.fmu")
     runs = f'[[run]]\nmachine = "keops"\npath = "{fmus["line"]}"\nplanners = ["scurve"]\n'
     suite = tmp_path / "s.toml"
@@ -169,7 +169,7 @@ def test_sweep_and_ci_run_a_suites_user_fmu_as_run_does(fmus, tmp_path):
 
     assert cli(["sweep", str(suite), "--workers", "1", "--out", str(tmp_path / "sw"),
                 "--store", str(tmp_path / "store"), "--no-progress"]) == 0
-    row, = SweepStore(tmp_path / "sw/results.sqlite").to_rows()
+    row, = TaskTable(tmp_path / "sw/results.sqlite").to_rows()
     assert row["worker"].rsplit(":", 1)[1] != str(__import__("os").getpid())   # another process
     assert {k: v for k, v in row["metrics"].items() if k != "planning_time_s"} == want
     sha = hashlib.sha256(fmus["good"].read_bytes()).hexdigest()

@@ -31,11 +31,44 @@ def test_differences_of_a_cubic_are_exact():
     T = 1e-3
     t = np.arange(50) * T
     x = 2.0 + 3.0 * t + 5.0 * t**2 + 7.0 * t**3          # third derivative 42
-    d = differences(x[:, None], T)
+    d = differences(x[:, None], T, rest=False)
     assert d["velocity"].shape == (49, 1) and d["jerk"].shape == (47, 1)
     np.testing.assert_allclose(d["jerk"], 42.0, rtol=1e-6)
     # backward difference of a quadratic: exact derivative at the midpoint
     np.testing.assert_allclose(d["acceleration"][:, 0], 10.0 + 42.0 * (t[1:-1]), rtol=1e-6)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 6])
+def test_differences_count_the_rest_before_and_after_for_every_length(n):
+    """A ramp x_k = k·d (k < n) between rest before t = 0 and after the end: the third
+    differences with the rest read d/T³ where the motion starts and stops (coefficients 1, −3,
+    3, −1 on x = 0, 0, 0, d), except for n = 2 (0, 0, d, d: −2d) and n = 1 (no motion); the
+    velocity d/T, the acceleration d/T² (0, 0, d). Before, n < 4 read jerk 0 (n = 1, 2, 3)."""
+    T, d = 1e-3, 1e-5          # a 10 nm step per period, as a 10 nm G1 sampled at 1 ms
+    x = (np.arange(n) * d)[:, None]
+    D = differences(x, T)
+    assert [len(D[o]) for o in ("velocity", "acceleration", "jerk")] == [n + 3, n + 2, n + 1]
+    peak = {o: float(np.abs(D[o]).max()) for o in D}
+    moving = n > 1
+    assert peak["velocity"] == pytest.approx(moving * d / T, rel=1e-9)
+    assert peak["acceleration"] == pytest.approx(moving * d / T**2, rel=1e-9)
+    assert peak["jerk"] == pytest.approx(moving * (2 if n == 2 else 1) * d / T**3, rel=1e-9)
+    # the metrics read the same: a 10 nm move at 1 ms is 1e4 mm/s³ of jerk, not 0
+    ratios, viol = limit_ratios(x, T, Limits(v=1.0, a=1.0, j=1.0))
+    assert ratios["jerk"] == pytest.approx(peak["jerk"], rel=1e-9)
+    assert (ratios["jerk"] > 1) == moving and (viol["jerk"] > 0) == moving
+
+
+def test_a_one_period_jump_is_infeasible():
+    """A 2-sample profile jumping 14 mm in one period (a plug-in's): velocity 14 mm / T,
+    infeasible; before, its acceleration and jerk read 0 and a 3-sample one read 'feasible'."""
+    m = load_machine("keops")
+    T = m.servo_period_s
+    P = np.array([[0.0, 0.0, -400.0], [14.0, 0.0, -400.0]])
+    out = command_metrics(m, P, T, np.array([0.0, 14.0]))
+    assert out["cartesian_peak_ratio"]["velocity"] == pytest.approx(14.0 / T / m.limits.cartesian.v, rel=1e-12)
+    assert out["cartesian_peak_ratio"]["jerk"] == pytest.approx(2 * 14.0 / T**3 / m.limits.cartesian.j, rel=1e-9)
+    assert out["feasible"] is False
 
 
 def test_limit_ratios_peak_and_violation_time():
@@ -59,10 +92,14 @@ def test_command_metrics_keops_line_closed_form():
     out = command_metrics(m, P, T, s)
     assert out["cartesian_peak_ratio"]["velocity"] == pytest.approx(feed / 1000.0, rel=1e-9)
     assert out["cartesian_peak_ratio"]["feed"] == pytest.approx(feed / 1000.0, rel=1e-9)
-    assert out["cartesian_peak_ratio"]["acceleration"] < 1e-6
+    # it starts and stops at full feed: from and into rest, a step of feed/T (acceleration) and
+    # of feed/T² (jerk: third differences 1, −3, 3, −1 on x0, x0, x0, x0 + feed·T)
+    assert out["cartesian_peak_ratio"]["acceleration"] == pytest.approx(feed / T / 1e4, rel=1e-9)
+    assert out["cartesian_peak_ratio"]["jerk"] == pytest.approx(feed / T**2 / 5e5, rel=1e-9)
+    assert out["cartesian_violation_time_s"]["acceleration"] == pytest.approx(2 * T)
     dq = np.abs(m.jacobian(P)[:, :, 0]).max() * feed
     assert out["joint_peak_ratio"]["velocity"] == pytest.approx(dq / 1000.0, rel=1e-3)
-    assert out["feasible"] is True
+    assert out["feasible"] is False
     assert out["execution_time_s"] == pytest.approx((n - 1) * T)
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-from harness.sweep import SweepStore, flatten, task_label  # noqa: E402
+from harness.sweep import TaskTable, flatten, task_label  # noqa: E402
 from harness.ci import baseline as ci  # noqa: E402
 
 # numpy ≥ 2.4 dispatch targets on x86-64 (numpy._core._multiarray_umath.__cpu_dispatch__):
@@ -49,7 +49,7 @@ def run_suite(suite: Path, out: Path, setting: str, workers: int, reuse: bool) -
 
 
 def entries(store: Path) -> dict:
-    with SweepStore(store) as s:
+    with TaskTable(store) as s:
         return {task_label(r["task"]): flatten(r["metrics"]) for r in s.to_rows() if r["status"] == "ok"}
 
 

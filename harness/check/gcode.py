@@ -289,8 +289,9 @@ def _check(file, machine, planner: str, workspace_step_mm: float, start, reader:
 
     file = Path(file)
     rep = Report(str(file), machine.name, planner)
-    if planner not in planners.PLANNERS:
-        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.PLANNERS)}")
+    if not planners.registry.known(planner):      # built-ins, installed plug-ins, module:function
+        raise CheckError(f"unknown planner '{planner}'; valid: {', '.join(planners.registry.names())} "
+                         f"or module:function")
     if not file.exists():
         raise CheckError(f"{file}: no such file")
     # 1. compile
@@ -392,9 +393,11 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
             mask = worst > L * (1 + M.FEASIBLE_TOL)
             if not mask.any():
                 continue
-            n = len(worst)
-            ln = slines[-n:]
-            feed = (speed[-n:], programmed, order == "velocity")
+            k = M.ORDERS.index(order) + 1
+            last = M.window_sample(np.arange(len(worst)), len(P), k)   # each window at its last sample
+            ln = slines[last]
+            feed = (speed[np.clip(last - 1, 0, None)] if len(speed) else np.zeros(len(last)),
+                    programmed, order == "velocity")
             if space == "joint":
                 rep.findings += _group(f"joint_{order}", mask, worst, ln, L, unit, order, joints=col, feed=feed)
             else:

@@ -89,6 +89,9 @@ def load_baseline(file: Path) -> dict:
         raise BaselineError(f"{file}: cannot read it: {e}") from None
     if not isinstance(b, dict) or b.get("format") != FORMAT or not isinstance(b.get("entries"), dict):
         raise BaselineError(f"{file}: not a pkmbench baseline (format must be '{FORMAT}' with 'entries')")
+    bad = next((k for k, v in b["entries"].items() if not isinstance(v, dict)), None)
+    if bad is not None:
+        raise BaselineError(f"{file}: entries.{bad} must be an object of metrics")
     return b
 
 

@@ -6,8 +6,10 @@ prints.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import math
+import os
 import sys
 
 from harness.outdir import OutDirError
@@ -28,6 +30,7 @@ COMMANDS = {
     "ci": ("harness.cli.ci", "nightly performance CI against a committed baseline"),
     "history": ("harness.cli.history", "plot the CI history trend (the ci runs of the results store)"),
     "query": ("harness.cli.query", "SQL over the results store (sweeps, corpus, ci)"),
+    "store": ("harness.cli.store", "the results store's files: `store check` lists those it skips"),
     "corpus": ("harness.cli.corpus", "every planner on every corpus path: table and performance profile"),
     "kins-demo": ("harness.cli.kins_demo", "workspace and joint-range plots for every machine"),
 }
@@ -52,6 +55,25 @@ def add_gcode_arguments(p) -> None:
     p.add_argument("--reader", choices=("pkmbench", "linuxcnc"), default="pkmbench", help=READER_HELP)
 
 
+def planner_timeout_s(text: str) -> float:
+    """--planner-timeout S: a finite number of seconds > 0 (argparse's type: a bad one is exit 2)."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a number of seconds > 0")
+    return x
+
+
+def add_timeout_argument(p) -> None:
+    """--planner-timeout (run, plan, sweep, ci)."""
+    p.add_argument("--planner-timeout", type=planner_timeout_s, default=None, metavar="S",
+                   help="stop a planner after S seconds of planning: its row is an error naming the "
+                        "timeout, the other planners run (planned in a child process; a suite's "
+                        "planner_timeout_s does the same; default: no limit)")
+
+
 def parse_start(text: str | None) -> list[float] | None:
     """--start X,Y,Z → [x, y, z] (mm), None when not given; CliError naming the value otherwise."""
     if text is None:
@@ -63,6 +85,29 @@ def parse_start(text: str | None) -> list[float] | None:
     if len(xyz) != 3 or not all(map(math.isfinite, xyz)):
         raise CliError(f"--start {text}: expected X,Y,Z in mm (three finite numbers)")
     return xyz
+
+
+def warn_skipped(command: str, store) -> None:
+    """One line on stderr per file a results store skipped (harness.store.ResultStore.skipped)."""
+    for f, why in store.skipped:
+        print(f"pkmbench {command}: warning: skipped {f}: {why} (`pkmbench store check` lists them)",
+              file=sys.stderr)
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """What is printed in the body (a plug-in's print(), a C library's write to fd 1) goes to
+    stderr: stdout stays for a command's machine-readable output (check --json)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def version_string() -> str:
@@ -105,4 +150,24 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"pkmbench {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout (head, less) left: stdout to /dev/null, or the interpreter's own
+        # flush at exit fails again with a second message
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        print(f"pkmbench {args.command}: error: output closed before it was all written (broken pipe)",
+              file=sys.stderr)
+        return 2
+    except OSError as e:   # a file the command reads or writes: too long a name, no space, no access, …
+        where = f"{shorten(e.filename)}: " if e.filename else ""
+        print(f"pkmbench {args.command}: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 2
+
+
+def shorten(name, keep: int = 80) -> str:
+    """A file name for a one-line message: a name of thousands of characters shows its ends."""
+    name = str(name)
+    return name if len(name) <= keep else f"{name[:keep // 2]}…{name[-keep // 2:]} ({len(name)} characters)"
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 # Local imports: every command module is imported to build the parser; a command loads what it
 # needs when it runs (`pkmbench --help` and the other commands stay fast)
 
-from harness.cli import CliError, add_gcode_arguments, parse_start
+import contextlib
+
+from harness.cli import CliError, add_gcode_arguments, parse_start, stdout_to_stderr
 
 
 def add_arguments(p):
@@ -24,8 +26,10 @@ def main(args) -> int:
     from kins.machine import MachineFileError
 
     try:
-        m = load_machine(args.machine)
-        rep = check_program(args.program, m, args.planner, start=parse_start(args.start), reader=args.reader)
+        # --json: stdout holds the report alone (a plug-in planner's prints go to stderr)
+        with stdout_to_stderr() if args.json else contextlib.nullcontext():
+            m = load_machine(args.machine)
+            rep = check_program(args.program, m, args.planner, start=parse_start(args.start), reader=args.reader)
     except (MachineFileError, CheckError) as e:
         raise CliError(str(e)) from None
     print(rep.to_json() if args.json else rep.text(limit=None if args.all else TEXT_LIMIT))

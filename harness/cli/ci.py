@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from harness.cli import CliError
+from harness.cli import CliError, add_timeout_argument
 from harness.outdir import output_dir, output_file
 from kins.resources import BASELINE, CI_DIR, SUITE_DIR, repo_relative
 
@@ -43,6 +43,7 @@ def add_arguments(p) -> None:
     p.add_argument("--task", default=None, metavar="MODULE:FUNCTION", help="task function (see sweep)")
     p.add_argument("--fmu", action="append", metavar="BLOCK=FILE.fmu",
                    help="a user FMU in place of ours, as for run (repeatable; wins over the suite's [fmus])")
+    add_timeout_argument(p)
 
 
 def main(args) -> int:
@@ -115,6 +116,8 @@ def _load_tasks(args, suite_file: Path, task_fn: str):
     try:
         suite = load_suite(suite_file)
         tasks = with_user_fmus(expand(suite, src=args.suite, base=Path.cwd()), suite, suite_file, args.fmu)
+        if args.planner_timeout is not None:     # wins over the suite's planner_timeout_s
+            tasks = [t | {"planner_timeout_s": args.planner_timeout} for t in tasks]
         tolerances = ci.tolerances_from_suite(suite)
         if args.no_timing:
             tolerances = ci.without_timing(tolerances)
@@ -144,7 +147,7 @@ def _run_suite(args, tasks, task_fn: str, out: Path):
     after) in OUT/run; the run folder, the reference time, the metrics, the errors, the wall
     time."""
     from harness.ci import baseline as ci
-    from harness.sweep import SweepError, SweepStore, run_sweep
+    from harness.sweep import SweepError, TaskTable, run_sweep
     t0 = time.perf_counter()
     reference_s = ci.reference_workload_s()
     run_dir = out / "run"
@@ -156,7 +159,7 @@ def _run_suite(args, tasks, task_fn: str, out: Path):
     except SweepError as e:
         raise CliError(str(e)) from None
     reference_s = min(reference_s, ci.reference_workload_s())   # best of before and after
-    with SweepStore(run_dir / "results.sqlite") as store:
+    with TaskTable(run_dir / "results.sqlite") as store:
         entries, errors = ci.entries_from_rows(store.to_rows(), reference_s)
     wall_s = time.perf_counter() - t0
     return run_dir, reference_s, entries, errors, wall_s
@@ -183,13 +186,13 @@ def _update_baseline(args, baseline_file: Path, task_fn: str, version: str, refe
 def _store_rows(run_dir: Path, entries, checks) -> list:
     """The results-store rows of the run, each with its metrics out of tolerance."""
     from harness.store import make_row
-    from harness.sweep import SweepStore, task_label
+    from harness.sweep import TaskTable, task_label
     regressions: dict[str, list[str]] = {}
     for c in checks:
         if not c.ok:
             regressions.setdefault(c.entry, []).append(c.metric)
     rows = []
-    with SweepStore(run_dir / "results.sqlite") as store:
+    with TaskTable(run_dir / "results.sqlite") as store:
         for r in store.to_rows():
             label = task_label(r["task"])
             rows.append(make_row(entry=label, machine=r["machine"], path=r["path"], planner=r["planner"],

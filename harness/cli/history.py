@@ -9,7 +9,7 @@ from __future__ import annotations
 # needs when it runs (`pkmbench --help` and the other commands stay fast)
 
 import fnmatch
-from harness.cli import CliError
+from harness.cli import CliError, warn_skipped
 from harness.outdir import output_file
 from kins.resources import CI_DIR
 
@@ -27,11 +27,12 @@ def add_arguments(p) -> None:
 
 def main(args) -> int:
     from harness.ci.history import History
-    from harness.store import StoreError
+    from harness.store import StoreError, existing_store
     try:
-        h = History(args.store)
+        h = History(existing_store(args.store))
     except StoreError as e:
         raise CliError(str(e)) from None
+    warn_skipped("history", h.store)
     with h:
         runs = h.runs()
         if not runs:

@@ -14,10 +14,12 @@ from __future__ import annotations
 # needs when it runs (`pkmbench --help` and the other commands stay fast)
 
 import csv
+import decimal
 import json
+import math
 import sys
 
-from harness.cli import CliError
+from harness.cli import CliError, warn_skipped
 
 # README's example: the median pso/optimal execution-time ratio per machine, last 10 nightly runs
 PSO_OPTIMAL = """
@@ -49,10 +51,25 @@ def _cell(v) -> str:
     return str(v)
 
 
+def strict_json(v):
+    """A value as strict JSON has it: NaN and ±Infinity (which JSON parsers refuse) as null,
+    decimals as numbers."""
+    if isinstance(v, decimal.Decimal):        # DuckDB's DECIMAL: a JSON number, not a string
+        v = float(v)
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: strict_json(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [strict_json(x) for x in v]
+    return v
+
+
 def main(args) -> int:
-    from harness.store import ResultStore, StoreError
+    from harness.store import ResultStore, StoreError, existing_store
     try:
-        with ResultStore(args.store) as st:
+        with ResultStore(existing_store(args.store), read_only=True) as st:
+            warn_skipped("query", st)
             cols, rows = st.query(args.sql)
     except StoreError as e:
         raise CliError(str(e)) from None
@@ -61,7 +78,8 @@ def main(args) -> int:
         w.writerow(cols)
         w.writerows(rows)
     elif args.json:
-        print(json.dumps([dict(zip(cols, r)) for r in rows], default=str, indent=1))
+        print(json.dumps([strict_json(dict(zip(cols, r))) for r in rows], default=str, indent=1,
+                         allow_nan=False))
     else:
         cells = [[_cell(v) for v in r] for r in rows]
         width = [max([len(c)] + [len(r[i]) for r in cells]) for i, c in enumerate(cols)]

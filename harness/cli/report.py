@@ -28,9 +28,17 @@ def add_arguments(p) -> None:
 def main(args) -> int:
     from harness.report.sweep_report import ReportError, write_report
     from harness.store import StoreError
+    from harness.sweep import TaskTable, TaskTableError
     sweep = Path(args.sweep)
-    if not (sweep / "results.sqlite").exists():      # before the report folder is made in it
+    # the sweep's table checked before the report folder is made in it: no empty report/ is left
+    if not (sweep / "results.sqlite").is_file():
         raise CliError(f"{sweep}: not a sweep folder (no results.sqlite); run `pkmbench sweep` first")
+    try:
+        with TaskTable(sweep / "results.sqlite") as st:
+            if not st.db.execute("SELECT count(*) FROM results").fetchone()[0]:
+                raise CliError(f"{sweep / 'results.sqlite'}: the sweep has no results")
+    except TaskTableError as e:
+        raise CliError(str(e)) from None
     out = output_dir(args.out or sweep / "report", "report folder")
     try:
         tables, runs = write_report(sweep, out, args.reference, args.store)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from harness.cli import CliError, add_gcode_arguments, parse_start
+from harness.cli import CliError, add_gcode_arguments, add_timeout_argument, parse_start
 from harness.outdir import output_dir
 from kins.resources import run_dir, suite_run_dir
 
@@ -31,6 +31,7 @@ def add_arguments(p):
                    help="a user FMU in place of ours: BLOCK one of Interpolator, Kinematics, EtherCAT, Drive "
                         "(repeatable; a suite's [fmus] table does the same; interface: harness/cosim/blocks.py)")
     add_gcode_arguments(p)
+    add_timeout_argument(p)
     p.add_argument("--max-feed", action="store_true",
                    help="run G-code at F_max, ignoring its F words (planner-only comparisons; "
                         "summary.json's 'feed' says so); a suite's [[run]] takes max_feed = true")
@@ -81,8 +82,9 @@ def table(summary: dict) -> str:
 
 def _written(odir: Path, summary: dict) -> str:
     """The per-planner files this run wrote (a failed planner or --no-recordings writes fewer)."""
+    from harness.cosim.run import planner_folder     # the co-simulation stack loads only when a run runs
     names = [f for f in ("command.csv", "run.mcap", "run.rrd")
-             if any((odir / p / f).exists() for p in summary["planners"])]
+             if any((odir / planner_folder(p) / f).exists() for p in summary["planners"])]
     hints = [h for f, h in (("run.rrd", "open the .rrd with 'rerun'"), ("run.mcap", "the .mcap with Foxglove"))
              if f in names]
     return (f"; per planner: {', '.join(names)}" if names else "") + (f" ({', '.join(hints)})" if hints else "")
@@ -102,11 +104,14 @@ def main(args) -> int:
     from harness.cosim.system import SystemError_
     from harness.sweep.suite import SuiteError, load_suite
     try:
-        fmus = command_fmus(args.fmu, load_suite(args.suite) if args.suite else None, args.suite)
+        suite = load_suite(args.suite) if args.suite else None
+        fmus = command_fmus(args.fmu, suite, args.suite)
     except (SystemError_, SuiteError) as e:
         raise CliError(str(e)) from None
     start = parse_start(args.start)
     cases, out = cases_of(args)
+    # --planner-timeout wins over the suite's planner_timeout_s
+    timeout = args.planner_timeout if args.planner_timeout is not None else (suite or {}).get("planner_timeout_s")
     output_dir(out)
     failed = 0
     for machine, path, planners, opts, max_feed in cases:
@@ -116,7 +121,7 @@ def main(args) -> int:
             summary = run_case(machine, path, planners, odir, seed=args.seed, jitter=args.jitter, ideal=args.ideal,
                                engine=args.engine, jacobi=args.jacobi, planner_options=opts,
                                recordings=not args.no_recordings, progress=_progress, max_feed=max_feed,
-                               fmus=fmus or None, start=start, reader=args.reader)
+                               fmus=fmus or None, start=start, reader=args.reader, planner_timeout_s=timeout)
         except RunError as e:
             raise CliError(str(e)) from None
         sys.stderr.write("\r" + " " * 60 + "\r")

@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import os
 
-from harness.cli import CliError
-from harness.outdir import output_dir
+import sys
+
+from harness.cli import CliError, add_timeout_argument
+from harness.outdir import output_dir, run_lock
 from kins.resources import sweep_dir
 
 
@@ -34,8 +36,10 @@ def add_arguments(p) -> None:
     p.add_argument("--force", action="store_true", help="re-run tasks that are already done")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--store", default=None,
-                   help="results store folder the finished tasks are appended to (default: $PKMBENCH_STORE "
-                        "or results/store; 'none' = do not append)")
+                   help="results store folder the finished tasks are appended to, each once, those of an "
+                        "interrupted sweep when it is resumed (default: $PKMBENCH_STORE or results/store; "
+                        "'none' = do not append)")
+    add_timeout_argument(p)
 
 
 def main(args) -> int:
@@ -47,20 +51,25 @@ def main(args) -> int:
         tasks = tasks_from_suite_file(args.suite, args.fmu)
     except SuiteError as e:
         raise CliError(str(e)) from None
+    if args.planner_timeout is not None:     # wins over the suite's planner_timeout_s
+        tasks = [t | {"planner_timeout_s": args.planner_timeout} for t in tasks]
     out = output_dir(args.out or sweep_dir(args.suite), "sweep folder")
-    try:
-        res = run_sweep(tasks, out, task_fn=args.task or DEFAULT_TASK, workers=args.workers,
-                        scheduler=args.scheduler, processes=not args.threads, force=args.force,
-                        progress=not args.no_progress)
-    except SweepError as e:
-        raise CliError(str(e)) from None
-    if args.store != "none" and res.keys:
-        from harness.store import StoreError, append_sweep
+    print(f"sweep {args.suite}: {len(tasks)} tasks → {out}", file=sys.stderr, flush=True)
+    with run_lock(out):        # a second sweep into the folder is refused: else tasks run twice
         try:
-            append_sweep(out / "results.sqlite", res.keys, kind="sweep", suite=str(args.suite),
-                         store=args.store, code_version=res.code_version, run_info=user_fmus_info(tasks))
-        except StoreError as e:
-            raise CliError(f"{e} (the sweep's results are in {out}/results.sqlite)") from None
+            res = run_sweep(tasks, out, task_fn=args.task or DEFAULT_TASK, workers=args.workers,
+                            scheduler=args.scheduler, processes=not args.threads, force=args.force,
+                            progress=not args.no_progress)
+        except SweepError as e:
+            raise CliError(str(e)) from None
+        if args.store != "none":
+            from harness.store import StoreError
+            from harness.sweep.to_store import append_unstored
+            try:
+                append_unstored(out / "results.sqlite", kind="sweep", suite=str(args.suite), store=args.store,
+                                code_version=res.code_version, run_info=user_fmus_info(tasks))
+            except StoreError as e:
+                raise CliError(f"{e} (the sweep's results are in {out}/results.sqlite)") from None
     print(f"sweep {args.suite}: {res.total} tasks — {res.ok} run, {res.skipped} already done, "
           f"{res.failed} failed — {res.wall_s:.1f} s → {out}/results.sqlite")
     for label, err in res.failures:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from harness.cosim.fmu_file import SystemError_, fmu_problem
+from harness.cosim.fmu_file import SystemError_, fmu_problem, unpack
 
 # block → {variable: (causality, type)}: what the chain connects and run.RECORD reads
 INTERFACE = {
@@ -88,7 +88,7 @@ def check_user_fmu(block: str, fmu) -> Path:
                            f"co-simulation FMUs")
     if md.coSimulation is None:
         raise SystemError_(f"{block} FMU {fmu}: no co-simulation interface (model exchange only)")
-    why = fmu_problem(fmu)
+    why = fmu_problem(fmu) or _binary_problem(fmu, md)
     if why:
         raise SystemError_(f"{block} FMU {fmu}: not loadable here ({why})")
     have = {v.name: v for v in md.modelVariables}
@@ -101,6 +101,21 @@ def check_user_fmu(block: str, fmu) -> Path:
             raise SystemError_(f"{block} FMU {fmu.name}: variable '{name}' is {v.causality} {v.type}, "
                                f"expected {want}")
     return fmu
+
+
+def _binary_problem(fmu: Path, md) -> str | None:
+    """Why the FMU's shared library does not load in this process (junk bytes, another
+    platform's, a missing dependency), or None: found here, not in every planner's run."""
+    import ctypes
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
+
+    fmi3 = str(md.fmiVersion).startswith("3.")
+    rel = f"binaries/{platform_tuple if fmi3 else platform}/{md.coSimulation.modelIdentifier}{sharedLibraryExtension}"
+    try:
+        ctypes.CDLL(str(unpack(fmu) / rel))     # the master's unpacked folder: the run loads this same file
+    except OSError as e:
+        return f"its binary {rel} does not load: {e}"
+    return None
 
 
 def user_start(fmu: Path, start: dict) -> dict:

@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cosim.system import FMU_DIR, System, SystemError_, check_fmu
+from harness.cosim.fmu_file import unpack
+from harness.cosim.system import CHAIN_FMUS, FMU_DIR, System, SystemError_, check_fmu
 
 TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "Enumeration": 1, "Float64": 0, "Int32": 1}   # FMI 2.0 and 3.0 names
 NATIVE_SRC = Path(__file__).with_name("native_master.c")
-EXTRACT_DIR = FMU_DIR / "extracted"
 
 
 class CoSimError(RuntimeError):
@@ -42,26 +42,17 @@ class Result:
         return self.data[:, self.columns.index(name)]
 
 
-def _extract(fmu: Path) -> Path:
-    """Unzip an FMU once per content hash (FMUs are re-used across runs and processes);
-    a missing or corrupt one is a SystemError_ naming it."""
-    fmu = check_fmu(fmu)
-    digest = hashlib.sha256(fmu.read_bytes()).hexdigest()[:16]
-    target = EXTRACT_DIR / f"{fmu.stem}-{digest}"
-    if not (target / ".complete").exists():
-        EXTRACT_DIR.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=EXTRACT_DIR))
-        try:
-            with zipfile.ZipFile(fmu) as z:
-                z.extractall(tmp)
-            (tmp / ".complete").write_text("ok")
-            try:
-                tmp.rename(target)
-            except OSError:   # another process got there first
-                pass
-        finally:   # an interrupted or failed extraction leaves no half-filled folder
-            shutil.rmtree(tmp, ignore_errors=True)
-    return target
+def rebuild_hint(fmu: Path) -> str:
+    """What to do about an FMU that does not load: one named as our blocks are is rebuilt with
+    make; a user's FMU (blocks.check_user_fmu loads its binary first) is its maker's to rebuild."""
+    ours = Path(fmu).name in {f"{b}.fmu" for b in CHAIN_FMUS}
+    return "rebuild with 'make fmus'" if ours else "rebuild it for this platform with the tool that made it"
+
+
+def extract(fmu: Path) -> Path:
+    """The unpacked folder of an FMU (harness.cosim.fmu_file.unpack); a missing or corrupt one
+    is a SystemError_ naming it."""
+    return unpack(check_fmu(fmu))
 
 
 class _Instance:
@@ -73,11 +64,11 @@ class _Instance:
         from fmpy import read_model_description
 
         self.name = comp.name
-        unzip = Path(comp.fmu) if Path(comp.fmu).is_dir() else _extract(comp.fmu)   # a folder: already unzipped
+        unzip = Path(comp.fmu) if Path(comp.fmu).is_dir() else extract(comp.fmu)   # a folder: already unzipped
         try:
             md = read_model_description(str(unzip), validate=False)
         except Exception as e:
-            raise SystemError_(f"{comp.fmu}: unreadable modelDescription.xml: {e}; rebuild with 'make fmus'") from None
+            raise SystemError_(f"{comp.fmu}: unreadable modelDescription.xml: {e}; {rebuild_hint(comp.fmu)}") from None
         self.vars = {v.name: v for v in md.modelVariables}
         self.logs = logs
         self.fmi3 = str(md.fmiVersion).startswith("3.")
@@ -90,7 +81,7 @@ class _Instance:
                 instanceName=comp.name)
         except Exception as e:
             os.chdir(cwd)   # fmpy left the process in the FMU's binaries folder
-            raise SystemError_(f"{comp.fmu}: cannot load the FMU's binary ({e}); rebuild with 'make fmus'") from None
+            raise SystemError_(f"{comp.fmu}: cannot load the FMU's binary ({e}); {rebuild_hint(comp.fmu)}") from None
         try:
             self._instantiate(logging_on)
         except Exception as e:

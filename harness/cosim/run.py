@@ -48,6 +48,15 @@ PLANNER_FILES = {"path.json", "profile.csv", "SystemStructure.ssd", "SystemStruc
 TAIL_S = 0.02   # co-simulate a little past the profile's end, so the drives settle
 
 
+def planner_folder(name: str) -> str:
+    """The folder of a planner's files in a run's output: its name with every character but
+    letters, digits, '-', '_' and '.' made '_', never starting with '.', so that a
+    ``module:function`` spec such as '../../x:plan' or '/abs/x:plan' stays inside the output
+    folder (the built-in names are unchanged)."""
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    return safe if safe and not safe.startswith(".") else "_" + safe
+
+
 class RunError(Exception):
     """A run cannot start (unknown machine/path/planner, a missing or corrupt FMU, an output
     folder that cannot be written or that another run holds)."""
@@ -78,13 +87,16 @@ def cosimulate(machine, profile, out: Path, *, seed: int = 0, jitter: str | None
 def run_case(machine_name: str, path_name: str, planner_names: list[str], out_dir, *, seed: int = 0,
              jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
              planner_options: dict | None = None, recordings: bool = True, progress=None,
-             max_feed: bool = False, fmus: dict | None = None, start=None, reader: str = "pkmbench") -> dict:
+             max_feed: bool = False, fmus: dict | None = None, start=None, reader: str = "pkmbench",
+             planner_timeout_s: float | None = None) -> dict:
     """``max_feed``: run a G-code program at F_max instead of its programmed F (planner-only
     comparisons); summary.json's ``feed`` says which. ``fmus``: {block: user .fmu} in place of
     ours (harness.cosim.blocks), checked before anything runs; summary.json's ``fmus`` names them.
     ``start``: G-code only, the machine position before the program (default: its first positioning
     move, else the machine's home; planners.paths.gcode.parse_gcode); ``reader``: G-code read by
-    pkmbench's interpreter or LinuxCNC's (summary.json names it when it is not pkmbench's)."""
+    pkmbench's interpreter or LinuxCNC's (summary.json names it when it is not pkmbench's).
+    ``planner_timeout_s``: each planner's time limit (planners.plan_in_time; None: none); a planner
+    over it is that planner's error, the others run."""
 
     try:
         machine = load_machine(machine_name)
@@ -98,6 +110,12 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     unknown = [p for p in planner_names if not planners.registry.known(p)]
     if unknown:
         raise RunError(planners.registry.unknown_message(unknown))
+    folders: dict[str, str] = {}
+    for p in planner_names:
+        other = folders.setdefault(planner_folder(p), p)
+        if other != p:
+            raise RunError(f"planners {other!r} and {p!r} would share the output folder {planner_folder(p)!r}; "
+                           f"run them apart")
     try:
         seed = check_seed(seed)
         for name, opts in (planner_options or {}).items():
@@ -117,18 +135,20 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
         with run_lock(output_dir(out_dir)):
             return _run(machine, path, path_name, planner_names, out_dir, seed=seed, jitter=jitter, ideal=ideal,
                         engine=engine, jacobi=jacobi, planner_options=planner_options, recordings=recordings,
-                        progress=progress, fmus=fmus, start=start, reader=reader)
+                        progress=progress, fmus=fmus, start=start, reader=reader,
+                        planner_timeout_s=planner_timeout_s)
     except OutDirError as e:
         raise RunError(str(e)) from None
 
 
 def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter, ideal, engine, jacobi,
-         planner_options, recordings, progress, fmus=None, start=None, reader="pkmbench") -> dict:
+         planner_options, recordings, progress, fmus=None, start=None, reader="pkmbench",
+         planner_timeout_s=None) -> dict:
     """run_case's work, with the folder locked: nothing of an earlier run may look like this one's."""
 
     for stale in ("summary.json", "timing.json", "comparison.png"):
         (out_dir / stale).unlink(missing_ok=True)
-    for d in stale_planner_dirs(out_dir, planner_names):
+    for d in stale_planner_dirs(out_dir, [planner_folder(n) for n in planner_names]):
         shutil.rmtree(d)
 
     summary = {"machine": machine.name, "path": path_name, "servo_period_s": machine.servo_period_s,
@@ -144,11 +164,12 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
     for k, name in enumerate(planner_names):
         if progress:
             progress(k, len(planner_names), name)
-        pdir = out_dir / name
+        pdir = out_dir / planner_folder(name)
         shutil.rmtree(pdir, ignore_errors=True)
         pdir.mkdir(parents=True)
         try:
-            profile = planners.plan(name, path, machine, **(planner_options or {}).get(name, {}))
+            profile = planners.plan_in_time(planner_timeout_s, name, path, machine,
+                                            **(planner_options or {}).get(name, {}))
         except Exception as e:   # PlanningError and anything a planner raised: record, go on
             summary["planners"][name] = {"error": f"planning failed: {type(e).__name__}: {e}"}
             continue
@@ -248,7 +269,7 @@ def _recordings(pdir: Path, machine, res, P, Q) -> None:
     }
     write_mcap(pdir / "run.mcap", ch)
     T = machine.servo_period_s
-    d = differences(Q, T)
+    d = differences(Q, T, rest=False)   # the sampled motion, plotted sample by sample
     lim = machine.limits.joint
     ratio = np.zeros(len(Q))
     for order, L in (("velocity", lim.v), ("acceleration", lim.a), ("jerk", lim.j)):

@@ -16,7 +16,7 @@ from pathlib import Path
 from harness.ci.history import History
 from harness.corpus.analysis import load_reference, reference_cell, reference_for
 from harness.report.html_report import write_html
-from harness.sweep import SweepStore
+from harness.sweep import TaskTable
 from kins import load_machine
 from kins.resources import REPO
 from planners.verify import within
@@ -102,7 +102,7 @@ def write_report(sweep: Path, out: Path, reference: str = "optimal", results_sto
     if not db.exists():
         raise ReportError(f"{sweep}: not a sweep folder (no results.sqlite); run `pkmbench sweep` first")
     out.mkdir(parents=True, exist_ok=True)
-    with SweepStore(db) as store:
+    with TaskTable(db) as store:
         rows = store.to_rows()
     if not rows:
         raise ReportError(f"{db}: the sweep has no results")

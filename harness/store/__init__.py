@@ -13,7 +13,7 @@ fail on its lock), and a file in DuckDB's own format is tied to its storage vers
 file is written once, whole, under a temporary name and renamed in (atomic: a reader never sees
 half a file, a killed run leaves nothing); any number of writers append side by side, and the
 files can be copied, merged (``cp``) and read by DuckDB, pandas, polars or Spark: results to
-share. The per-task SQLite table of a sweep (harness/sweep/store.py) stays: it is the resume
+share. The per-task SQLite table of a sweep (harness/sweep/table.py) stays: it is the resume
 log of one sweep folder, written row by row while the sweep runs; the store gets the finished
 rows.
 
@@ -34,7 +34,6 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from harness.provenance import git_commit, host_info, package_version
-from harness.sweep import SweepStore, task_label
 from kins.resources import RESULTS
 
 ENV = "PKMBENCH_STORE"
@@ -62,12 +61,46 @@ TYPED = {"execution_time_s": "execution_time_s", "feasible": "feasible",
          "max_contour_error_um": "max_contour_error_um", "planning_time_s": "planning_time_s"}
 
 
+# the columns every file of the store has (older files may lack later ones, never these)
+CORE = ("run_id", "kind", "entry", "status")
+# what `pkmbench query` may run over a store opened read-only: reads, nothing that writes
+READ_STATEMENTS = ("SELECT", "EXPLAIN")
+
+
 class StoreError(ValueError):
     """The store cannot be read or written, or a query is wrong; the message says which."""
 
 
 def default_store() -> Path:
     return Path(os.environ.get(ENV) or RESULTS / "store")
+
+
+def existing_store(folder=None) -> Path:
+    """The store folder to read, StoreError if it does not exist (a mistyped --store would
+    otherwise answer 0 rows as if the store were empty)."""
+    folder = Path(folder) if folder else default_store()
+    if not folder.is_dir():
+        raise StoreError(f"results store {folder}: no such folder (sweep, ci and corpus create it; "
+                         f"--store or ${ENV} names another)")
+    return folder
+
+
+def file_problem(db, file: Path) -> str | None:
+    """Why ``file`` is not a file of the store (unreadable, truncated, another table's), or None."""
+    import duckdb
+    name = str(file).replace("'", "''")
+    try:
+        cols = {c: t for c, t, *_ in db.execute(f"DESCRIBE SELECT * FROM read_parquet('{name}')").fetchall()}
+    except duckdb.Error as e:
+        return f"not a readable Parquet file ({str(e).strip().splitlines()[0]})"
+    types = dict(SCHEMA)
+    missing = [c for c in CORE if c not in cols]
+    if missing:
+        return f"not a results-store file: no column {', '.join(missing)}"
+    odd = [f"{c} {t}" for c, t in cols.items() if types.get(c) != t]
+    if odd:
+        return f"not a results-store file: column(s) {', '.join(odd)[:200]} not in the store's schema"
+    return None
 
 
 def _flatten(metrics: dict, prefix: str = "") -> dict:
@@ -103,16 +136,42 @@ def make_row(*, entry: str, machine: str, path: str, planner: str, seed: int, pr
 
 
 class ResultStore:
-    def __init__(self, folder: str | Path | None = None):
+    """The store's files as the views ``results`` and ``runs``. A file that is not one of the
+    store's (truncated, foreign) is skipped and named in ``skipped``, so the others stay
+    readable. ``read_only``: the connection may read the store's files and nothing else (no
+    COPY, ATTACH, other files, extensions), and :meth:`query` runs only SELECT / EXPLAIN."""
+
+    def __init__(self, folder: str | Path | None = None, read_only: bool = False):
         import duckdb
         self.folder = Path(folder) if folder else default_store()
-        if self.folder.exists() and not self.folder.is_dir():
-            raise StoreError(f"results store {self.folder} is a file, not a folder")
+        try:
+            if self.folder.exists() and not self.folder.is_dir():
+                raise StoreError(f"results store {self.folder} is a file, not a folder")
+        except OSError as e:      # a name too long, a folder we may not enter
+            raise StoreError(f"results store {self.folder}: {e.strerror}") from None
+        self.read_only = read_only
+        self.skipped: list[tuple[Path, str]] = []
         self.db = duckdb.connect()
         self._view()
+        if read_only:   # after the views are made: they read the files, nothing else may
+            paths = ", ".join("'" + str(f).replace("'", "''") + "'" for f in self.files)
+            self.db.execute(f"SET allowed_paths = [{paths}]")
+            self.db.execute("SET enable_external_access = false")
+            self.db.execute("SET lock_configuration = true")
 
     def _view(self) -> None:
-        files = sorted(self.folder.glob("*.parquet")) if self.folder.is_dir() else []
+        try:
+            found = sorted(self.folder.glob("*.parquet")) if self.folder.is_dir() else []
+        except OSError as e:
+            raise StoreError(f"results store {self.folder}: cannot list it: {e.strerror}") from None
+        files, self.skipped = [], []
+        for f in found:
+            why = file_problem(self.db, f)
+            if why:
+                self.skipped.append((f, why))
+            else:
+                files.append(f)
+        self.files = files
         cols = ", ".join(f'"{c}" {t}' for c, t in SCHEMA)
         self.db.execute("DROP VIEW IF EXISTS runs")
         kind = self.db.execute("SELECT 'VIEW' FROM duckdb_views() WHERE view_name = 'results' UNION ALL "
@@ -120,8 +179,8 @@ class ResultStore:
         if kind:      # DuckDB drops a view or a table only by its own kind
             self.db.execute(f"DROP {kind[0]} results")
         if files:   # union_by_name: files written by an older schema lack the newer columns
-            glob = str(self.folder / "*.parquet").replace("'", "''")
-            self.db.execute(f"CREATE VIEW results AS SELECT * FROM read_parquet('{glob}', union_by_name = true)")
+            names = ", ".join("'" + str(f).replace("'", "''") + "'" for f in files)
+            self.db.execute(f"CREATE VIEW results AS SELECT * FROM read_parquet([{names}], union_by_name = true)")
         else:       # an empty store answers with no rows, not with an error
             self.db.execute(f"CREATE TABLE results ({cols})")
         # one row per command run: what the nightly history and "the last N runs" are about
@@ -141,13 +200,21 @@ class ResultStore:
         self.close()
 
     # -- writing ---------------------------------------------------------------------------
+    @staticmethod
+    def new_run_id(kind: str, time: datetime | None = None) -> str:
+        time = time or datetime.now(timezone.utc)
+        return f"{kind}-{time.strftime('%Y%m%dT%H%M%S%f')}-{secrets.token_hex(3)}"
+
     def append(self, rows: list[dict], *, kind: str, suite: str = "", code_version: str = "",
-               run_info: dict | None = None, time: datetime | None = None) -> str:
-        """Append one command run's rows (from :func:`make_row`) as one Parquet file; returns its run_id."""
+               run_info: dict | None = None, time: datetime | None = None, run_id: str | None = None) -> str:
+        """Append one command run's rows (from :func:`make_row`) as one Parquet file, named
+        ``run_id`` (default a new one); returns the run_id."""
         if not rows:
             return ""
+        if self.read_only:
+            raise StoreError(f"results store {self.folder}: opened read-only")
         time = time or datetime.now(timezone.utc)
-        run_id = f"{kind}-{time.strftime('%Y%m%dT%H%M%S%f')}-{secrets.token_hex(3)}"
+        run_id = run_id or self.new_run_id(kind, time)
         common = {"run_id": run_id, "kind": kind, "suite": suite, "time": time.replace(tzinfo=None),
                   "code_version": code_version, "git_commit": git_commit(), "pkmbench_version": package_version(),
                   "host": json.dumps(host_info(), sort_keys=True),
@@ -179,10 +246,19 @@ class ResultStore:
     def query(self, sql: str, params=None) -> tuple[list[str], list[tuple]]:
         """(column names, rows) of ``sql`` over the views ``results`` and ``runs``."""
         import duckdb
+        if not sql.strip():
+            raise StoreError("query is empty")
         try:
+            if self.read_only:
+                kinds = [st.type.name for st in self.db.extract_statements(sql)]
+                bad = [k for k in kinds if k not in READ_STATEMENTS]
+                if bad:
+                    raise StoreError(f"query refused: {bad[0]} statement; the results store is read-only "
+                                     f"here (only {' and '.join(READ_STATEMENTS)})")
             cur = self.db.execute(sql, params) if params is not None else self.db.execute(sql)
-            cols = [d[0] for d in cur.description] if cur.description else []
-            return cols, cur.fetchall()
+            if cur is None or cur.description is None:      # only comments, or a statement with no result
+                return [], []
+            return [d[0] for d in cur.description], cur.fetchall()
         except duckdb.Error as e:
             first = str(e).strip().splitlines()[0]
             raise StoreError(f"query failed: {first}") from None
@@ -190,25 +266,6 @@ class ResultStore:
     def dicts(self, sql: str, params=None) -> list[dict]:
         cols, rows = self.query(sql, params)
         return [dict(zip(cols, r)) for r in rows]
-
-
-def rows_from_sweep(sweep_db: Path, keys=None, regressions: dict | None = None) -> list[dict]:
-    """Store rows of a sweep's SQLite table (only ``keys`` when given); ``regressions`` maps a
-    task label to its metrics out of tolerance (ci)."""
-    with SweepStore(sweep_db) as s:
-        rows = s.to_rows()
-    want = set(keys) if keys is not None else None
-    out = []
-    for r in rows:
-        if want is not None and r["key"] not in want:
-            continue
-        label = task_label(r["task"])
-        out.append(make_row(entry=label, machine=r["machine"], path=r["path"], planner=r["planner"],
-                            seed=r["seed"], preset=r["preset"], variation=r["variation"],
-                            status=r["status"], error=r["error"], metrics=r["metrics"],
-                            regressions=(regressions or {}).get(label, ()),
-                            run_dir=str(Path(sweep_db).parent / r["run_dir"]) if r["run_dir"] else None))
-    return out
 
 
 def rows_from_corpus(rows) -> list[dict]:
@@ -227,13 +284,3 @@ def rows_from_corpus(rows) -> list[dict]:
         out.append(make_row(entry=f"{r.machine}/{r.path}/{r.planner}", machine=r.machine, path=r.path,
                             planner=r.planner, seed=r.seed or 0, status=r.status, error=r.error or None, metrics=metrics))
     return out
-
-
-def append_sweep(sweep_db: Path, keys, *, kind: str, suite: str, store: str | Path | None = None,
-                 run_info: dict | None = None, regressions: dict | None = None,
-                 code_version: str = "") -> str:
-    """Append the rows ``keys`` of a sweep folder's table to the store (sweep and ci call this;
-    corpus appends :func:`rows_from_corpus`)."""
-    rows = rows_from_sweep(sweep_db, keys, regressions)
-    with ResultStore(store) as st:
-        return st.append(rows, kind=kind, suite=suite, code_version=code_version, run_info=run_info)

@@ -37,7 +37,7 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.sweep.store import SweepStore
+from harness.sweep.table import TaskTable, TaskTableError
 from harness.sweep.suite import code_version, expand, load_suite, task_key, task_label, with_user_fmus
 from kins.resources import FMU_DIR, REPO
 
@@ -253,7 +253,11 @@ def run_sweep(tasks: list[dict], out_dir: str | Path, *, task_fn: str = DEFAULT_
     resolve_task_fn(task_fn)                         # fail early, here, with a clear message
     version = code_version(extra=_task_fn_files(task_fn))
     res = SweepResult(out_dir, total=len(tasks), code_version=version)
-    with SweepStore(out_dir / "results.sqlite") as store:
+    try:
+        store = TaskTable(out_dir / "results.sqlite")
+    except TaskTableError as e:
+        raise SweepError(str(e)) from None
+    with store:
         done = set() if force else store.done_keys()
         keyed = [(task_key(t, version, task_fn), t) for t in tasks]
         todo = [(k, t) for k, t in keyed if k not in done]

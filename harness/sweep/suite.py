@@ -3,6 +3,7 @@
 A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axes:
 
     name = "nightly"
+    planner_timeout_s = 600      # optional: a planner over it is its row's error (--planner-timeout)
     [[run]]                      # any number; machines × paths × planners of each are crossed
     machine = "keops"            # or machines = [...]; an id of benchmarks/machines/ or a .toml file
     path = "bird"                # or paths = [...]; an id of benchmarks/paths/ or a .json/.ngc file
@@ -18,7 +19,8 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
 
 This module is the one parser of suite files: `pkmbench run SUITE` takes the [[run]] tables
 (:func:`suite_runs`), `pkmbench sweep`/`ci` expand them with the axes (:func:`expand`); both
-refuse the same unknown keys and accept ``planner``/``planners`` alike.
+refuse the same unknown keys (in every table) and accept ``planner``/``planners`` alike; a
+suite expands to at most MAX_TASKS tasks.
 
 One task = (machine, path, planner, seed, preset, variation). A task carries the *contents*
 of its machine and path files, so a worker on another host needs only the code.
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -42,8 +45,13 @@ PATH_SUFFIXES = (".json", ".ngc")
 CODE_DIRS = ("kins", "planners", "harness")
 
 
-TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus")
+TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus", "planner_timeout_s")
 RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed")
+SWEEP_KEYS = ("seeds", "presets", "variation")
+VARIATION_KEYS = ("name", "set")
+# tasks a suite may expand to: each is a co-simulation of seconds (10⁵ is days on one host);
+# a suite asking for 10⁶ seeds filled 9.7 GB of task dicts before this limit
+MAX_TASKS = 100_000
 
 
 class SuiteError(ValueError):
@@ -68,6 +76,7 @@ def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> li
     for key in suite:
         if key not in TOP_KEYS:
             raise SuiteError(f"{src}{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(TOP_KEYS))})")
+    _check_tables(suite, src, text)
     runs = suite.get("run")
     if not isinstance(runs, list) or not runs:
         raise SuiteError(f"{src}: no [[run]] tables (need machine(s), path(s), planners)")
@@ -91,7 +100,61 @@ def _list(d: dict, one: str, many: str, src: str, where: str) -> list:
     v = [d[one]] if one in d else d.get(many)
     if not isinstance(v, list) or not v:
         raise SuiteError(f"{src}: {where} needs '{one}' or a non-empty list '{many}'")
+    bad = next((x for x in v if not isinstance(x, str) or not x.strip()), None)
+    if bad is not None:
+        raise SuiteError(f"{src}: {where}: {one if one in d else many} = {bad!r}: expected a name "
+                         f"(a string){' or a list of names' if many in d else ''}")
     return v
+
+
+def _check_tables(suite: dict, src: str, text: str | None) -> None:
+    """The types of the top-level keys, and the keys of [sweep] and [[sweep.variation]]: an
+    unknown one is refused (``seedz = [1, 2]`` ran seed 0 only)."""
+    for key, typ, what in (("name", str, "a string"), ("description", str, "a string"),
+                           ("run", list, "[[run]] tables"), ("sweep", dict, "a [sweep] table"),
+                           ("planner_options", dict, "a table of [planner_options.NAME] tables"),
+                           ("ci", dict, "a [ci] table"), ("fmus", dict, "an [fmus] table")):
+        if key in suite and not isinstance(suite[key], typ):
+            raise SuiteError(f"{src}{_line_of(text, key)}: '{key}' must be {what}, got {suite[key]!r}"[:300])
+    if not all(isinstance(r, dict) for r in suite.get("run", [])):
+        raise SuiteError(f"{src}: 'run' must be [[run]] tables")
+    for name, opts in suite.get("planner_options", {}).items():
+        if not isinstance(opts, dict):
+            raise SuiteError(f"{src}{_line_of(text, name)}: planner_options.{name} must be a table of options")
+    if "planner_timeout_s" in suite:
+        planner_timeout(suite["planner_timeout_s"], f"{src}{_line_of(text, 'planner_timeout_s')}: planner_timeout_s")
+    sweep = suite.get("sweep", {})
+    for key in sweep:
+        if key not in SWEEP_KEYS:
+            raise SuiteError(f"{src}{_line_of(text, key)}: [sweep]: unknown key '{key}' "
+                             f"(valid: {', '.join(SWEEP_KEYS)})")
+    variations = sweep.get("variation", [])
+    if not isinstance(variations, list):
+        raise SuiteError(f"{src}: [[sweep.variation]] must be tables")
+    for i, v in enumerate(variations):
+        for key in (v if isinstance(v, dict) else {}):
+            if key not in VARIATION_KEYS:
+                raise SuiteError(f"{src}{_line_of(text, key)}: [[sweep.variation]] #{i + 1}: unknown key '{key}' "
+                                 f"(valid: {', '.join(VARIATION_KEYS)})")
+
+
+def planner_timeout(value, where: str) -> float:
+    """A planner time limit in seconds (a suite's planner_timeout_s, --planner-timeout): a finite
+    number > 0, else SuiteError naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise SuiteError(f"{where} = {value!r}: must be a number of seconds > 0")
+    return float(value)
+
+
+def task_count(suite: dict) -> int:
+    """How many tasks the suite's [[run]] tables and [sweep] axes cross to (before listing them)."""
+    sweep = suite.get("sweep", {})
+    per_run = sum(len(m) * len(p) * len(pl) for m, p, pl, _ in suite_runs(suite))
+    axes = [sweep.get("seeds", [0]), sweep.get("presets", ["none"]), sweep.get("variation", [{}])]
+    n = per_run
+    for a in axes:
+        n *= len(a) if isinstance(a, list) else 1
+    return n
 
 
 def resolve_machine(name: str, base: Path = REPO) -> Path:
@@ -137,6 +200,10 @@ def load_suite(file: str | Path) -> dict:
 def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     """The tasks of a suite, in a stable order (runs × seeds × presets × variations)."""
     runs = suite_runs(suite, src)
+    n = task_count(suite)
+    if n > MAX_TASKS:
+        raise SuiteError(f"{src}: the suite expands to {n} tasks (runs × seeds × presets × variations), "
+                         f"more than the {MAX_TASKS} a sweep takes; split it into several suites")
     sweep = suite.get("sweep", {})
     seeds = sweep.get("seeds", [0])
     presets = sweep.get("presets", ["none"])
@@ -177,6 +244,8 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
                                               options.get(pl, {}))
                                 if max_feed:       # only then: the other tasks' keys stay as they were
                                     t["max_feed"] = True
+                                if "planner_timeout_s" in suite:    # the same
+                                    t["planner_timeout_s"] = float(suite["planner_timeout_s"])
                                 ident = (t["machine"], t["path"], pl, seed, preset, v["name"])
                                 if ident in seen:
                                     continue           # the same task listed twice runs once
@@ -250,6 +319,7 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     """sha256 of everything that determines a task's result."""
     ident = {k: task[k] for k in ("planner", "planner_options", "seed", "preset", "variation", "files")}
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
+    # not planner_timeout_s: only finished (ok) tasks are skipped, and their result is the same
     if task.get("fmus"):    # only then: the keys of tasks on our own chain stay as they were
         ident["fmus"] = {b: [d["file"], d["sha256"]] for b, d in task["fmus"].items()}
     plugin = plugin_version(task["planner"])

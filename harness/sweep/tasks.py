@@ -156,7 +156,8 @@ def plan_task(task: dict, out_dir: Path) -> dict:
     machine = task_machine(task)
     _, pfile = task_input_files(task, out_dir / "inputs")
     path = load_path(pfile)
-    prof = planners.plan(task["planner"], path, machine, **task["planner_options"])
+    prof = planners.plan_in_time(task.get("planner_timeout_s"), task["planner"], path, machine,
+                                 **task["planner_options"])
     P = path.point(prof.s)
     metrics = command_metrics(machine, P, prof.T, prof.s)
     metrics["planning_time_s"] = float(prof.planning_time_s)
@@ -182,7 +183,7 @@ def cosim_task(task: dict, out_dir: Path) -> dict:
                        jitter=None if preset == "machine" else preset,
                        planner_options={planner: dict(task.get("planner_options") or {})},
                        recordings=False, max_feed=bool(task.get("max_feed", False)),
-                       fmus=task.get("fmu_paths"))
+                       fmus=task.get("fmu_paths"), planner_timeout_s=task.get("planner_timeout_s"))
     m = summary["planners"][planner]
     if "error" in m:
         raise TaskError(m["error"])

@@ -59,12 +59,12 @@ def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
             ax.legend(fontsize=8)
             fig.tight_layout()
             save(fig, out, f"keops_fig5a_{name}_feed", {"t_s": t, "feed_mm_s": prof.sd})
-            D = differences(P, T)
+            D = differences(P, T, rest=False)
             fig = _panels(plt, f"Fig. 5 — {name}: Cartesian axes (limits dashed), keops / {path_name}", t, D,
                           m.limits.cartesian, ["x", "y", "z"])
             save(fig, out, f"keops_fig5_{name}_cartesian",
                  {"t_s": t, **{f"{o}_{a}": D[o][:, k] for o, _, _ in ORDERS for k, a in enumerate("xyz")}})
-        D = differences(Q, T)
+        D = differences(Q, T, rest=False)
         fig = _panels(plt, f"Fig. 6 — {name}: linear axes after the IK (joint limits dashed), keops / {path_name}",
                       t, D, m.limits.joint, ["q1", "q2", "q3"])
         save(fig, out, f"keops_fig6_{name}_joints",
