@@ -3,7 +3,7 @@ gets findings with their line numbers."""
 import tempfile
 from pathlib import Path
 
-from harness.check.gcode import check_program
+from harness.check import as_text, check_program
 from kins import load_machine
 
 program = """G21 G90 G61
@@ -17,4 +17,4 @@ with tempfile.TemporaryDirectory() as d:
     f = Path(d) / "demo.ngc"
     f.write_text(program)
     report = check_program(f, load_machine("kossel"), "trapezoid")
-    print(report.text())
+    print(as_text(report))

@@ -24,10 +24,18 @@ SEED_PROGRAMS += [
     "o1 repeat [3]\nG91 G1 X1\no1 endrepeat\nG90\nM70\nG20\nM72\no2 do\n#3=[#3+1]\no2 while [#3 le 2]\n"
     "G28.1\nG28 Z-390\nG53 G0 X0\n/G1 Y1\nG64 P0.01 Q0.005\nG1 @1 ^45\nN70 Z-400 M09\nM30\n",
 ]
+SEED_PROGRAMS += [
+    # issue 33: canned cycles, probing, messages
+    "G21 G90 G0 X0 Y0 Z-390\nF300 S1000 M3\nG99 G81 X1 Y1 Z-400 R-395\nX2\nG98 G83 X3 Z-401 R-395 Q1.5 L2\n"
+    "G91 G73 X1 Z-3 R-2 Q0.7 L3\nG90 G82 X4 Z-400 R-395 P0.1\nG84 X5 Z-400 R-395\nG86 X6 Z-400 R-395 P0\n"
+    "G87 X7 Z-405 R-395 I1 J0 K-401\nG88 X8 Z-400 R-395 P0.2\nG18 G81 X1 Z1 Y-2 R1\nG19 G85 Y1 Z1 X-2 R1\n"
+    "G17 G80\n(MSG, drilled)\nG38.3 Z-410 F50\nG0 Z[#5063+#5070]\n(DEBUG, at #5063 %d#5070)\nM2\n",
+]
 ALPHABET = "GXYZIJKRFNPMST0123456789.-+ ()\n;%#[]<>=*/oO_@^"
 TOKENS = ["sub", "endsub", "call", "while", "endwhile", "if", "endif", "else", "do", "repeat", "endrepeat",
           "break", "continue", "return", "sin[", "atan[1]/[", "mod", "**", "#<a>", "#5220", "##1", "G10 L2",
-          "G92", "G43.1 Z1", "M72", "M73", "exists[#<a>]"]
+          "G92", "G43.1 Z1", "M72", "M73", "exists[#<a>]", "G81 R1 Z-1", "G83 Q", "G73", "L2", "G98", "G99",
+          "G38.2 Z", "G38.4 X", "G80", "(ABORT,", "(DEBUG,#1)", "(MSG,"]
 
 
 def mutate(text: str, rng: random.Random) -> str:

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.check.gcode import check_program
+from harness.check import check_program
 from kins import load_machine
 
 KEOPS, KOSSEL, PN101 = load_machine("keops"), load_machine("kossel"), load_machine("pn101")

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from planners.paths.gcode import GCodeError, parse_gcode, program_path, read_gcode
+from planners.paths.gcode import EmptyProgram, GCodeError, parse_gcode, program_path, read_gcode
 from planners.paths import Arc, Line, PathError, load_path
 
 START = "G90 G21 G17\nG0 X0 Y0 Z0\n"
@@ -191,7 +191,7 @@ def test_start_errors_and_empty_program(tmp_path):
         parse_gcode("G1 X1 Y1 F60\n", "a.ngc")
     with pytest.raises(GCodeError, match="no motion mode"):
         parse_gcode("X1 Y2 Z3\n", "a.ngc")
-    with pytest.raises(GCodeError, match="empty path"):
+    with pytest.raises(EmptyProgram, match="nothing to plan: the program makes no move"):
         parse_gcode("G21\n(no motion)\nM2\n", "a.ngc")
     # a positioning move alone is a move (test_one_move_program_is_a_move_from_home)
     with pytest.raises(GCodeError, match="only move positions the tool"):

@@ -277,3 +277,30 @@ def test_trapezoid_caps_a_small_helix_as_linuxcnc_canon_does():
     assert feed[on_helix[1:]].max() == pytest.approx(math.sqrt(5000 * math.sqrt(3) / 2 * 6.6573) * 1.006, rel=2e-3)
     r = command_metrics(m, tz.path.point(tz.s), tz.T, tz.s)
     assert r["cartesian_peak_ratio"]["acceleration"] <= 1 + 1e-6
+
+
+@needs_linuxcnc
+def test_linuxcnc_runs_a_program_placed_by_var_file_tool_table_and_offset(tmp_path, kossel):
+    """A program written at its stock origin, placed by a var file (#5220 = 2: G55), a G92 by
+    --offset and a tool length from the tool table: the real LinuxCNC runs the machine points our
+    interpreter computes from the same files, and an M0 between moves is resumed (not a hang)."""
+    from planners.paths.gcode import read_gcode
+    from planners.paths.gcode.rs274.setup import make_setup
+    (tmp_path / "t.tbl").write_text("T3 P3 Z7.5 D2 ;end mill\n")
+    (tmp_path / "v.var").write_text("5220\t2\n5241\t-10\n5242\t5\n5243\t-260\n")
+    f = tmp_path / "stock.ngc"
+    f.write_text("G21 G90 G17 G61\nT3 M6\nG43 H3\nG0 X0 Y0 Z5\nG1 Z0 F600\nG1 X20\nM0\nG1 Y15\n"
+                 "G2 X0 Y15 I-10 J0\nG0 Z5\nM2\n")
+    setup = make_setup(tmp_path / "t.tbl", tmp_path / "v.var", ["G92=0,0,-2"])
+    prog = read_gcode(f, setup=setup)
+    path = program_path(prog)
+    # G55 (-10, 5, -260) + G92 (0, 0, -2) + tool 3's 7.5 mm: the first point of the stock
+    assert prog.start == pytest.approx([-10, 5, -260 - 2 + 7.5 + 5], abs=1e-12)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    P = lc.path.point(lc.s)
+    ends = np.array([m.segment.end for m in prog.moves])
+    gap = [np.linalg.norm(P - e, axis=1).min() for e in ends]
+    assert max(gap) < 1e-6
+    assert np.linalg.norm(P[0] - prog.start) < 1e-6 and np.linalg.norm(P[-1] - ends[-1]) < 1e-6
+    # the M0 stop: both rest there (LinuxCNC a few task cycles to resume)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.02

@@ -2,8 +2,8 @@
 
     PYTHONPATH=. python benchmarks/oracle/linuxcnc_oracle.py [--only NAME,...] [--repeat N]
 
-Every program of benchmarks/oracle/programs/ (plus the standard test_part and the corpus CAM
-programs) runs on LinuxCNC (headless, serialised: minutes of wall time, one heavy job) and
+Every program of benchmarks/oracle/programs/ (plus the standard test_part, the corpus CAM
+programs and public CAM programs placed on the kossel by a work offset: PLACED) runs on LinuxCNC (headless, serialised: minutes of wall time, one heavy job) and
 is planned by `trapezoid` with the programmed feed. Prints a Markdown table — execution times, Δ % and the joint
 velocity peak ratio Δ % (both from planners.verify on each planner's own geometry) — and
 writes results/oracle/linuxcnc_oracle.json. ``--repeat N`` runs LinuxCNC N times per program
@@ -25,6 +25,7 @@ from planners.verify import command_metrics  # noqa: E402
 from kins import load_machine  # noqa: E402
 from planners import plan  # noqa: E402
 from planners.paths import resolve_path  # noqa: E402
+from planners.paths.gcode.rs274.setup import make_setup  # noqa: E402
 
 # program → machine (the delta's program is written for linuxcnc_delta's workspace)
 PROGRAMS = {
@@ -51,6 +52,23 @@ PROGRAMS = {
     "helix_kossel": ("kossel", CORPUS / "helix_kossel.ngc"),
     "cam_dense_lcnc": ("linuxcnc_delta", CORPUS / "cam_dense_lcnc.ngc"),
 }
+# public CAM programs placed on the kossel by a work offset (issue 33): (file, --offset, var
+# file); the collection's files are not in the repository (benchmarks/paths/programs/README.md)
+COLLECTION = REPO / "benchmarks/paths/programs/collection"
+LCNC = REPO / "benchmarks/paths/programs/linuxcnc/nc_files"
+PLACED = {
+    "lcnc_3dtest": (LCNC / "3dtest.ngc", "G54=-25.4,-25.4,-250", None),
+    "lcnc_3dtest_var": (LCNC / "3dtest.ngc", None, HERE / "programs/g55_3dtest.var"),
+    "jscut_outside": (COLLECTION / "jscut/jscut-outside.gcode", "G54=-21,21,-250", None),
+    "fusion360_1022": (COLLECTION / "fusion360/1022_block2x2_17bit.nc", "G54=-10,-10,-250", None),
+    "fusion360_bore": (COLLECTION / "fusion360/1101_bore_tests.nc", "G54=-22.5,-15,-250", None),
+    "gcodetools_arc": (COLLECTION / "gcodetools/arc_0001.gcode", "G54=-15,-25,-250", None),
+    "pcb2gcode_d1mini_front": (COLLECTION / "pcb2gcode/D1MiniGSR_front.ngc", "G54=-12.5,-10,-250", None),
+    "openvoronoi_vcarve": (COLLECTION / "openvoronoi/vcarve.ngc", "G54=-5,-2.5,-250", None),
+    "pcb2gcode_drill_g81": (COLLECTION / "pcb2gcode/example_board_new_default_drill.ngc", "G54=-21,10,-250", None),
+    "lcnc_tort": (LCNC / "tort.ngc", "G54=-10,-13,-250", None),
+}
+TOOLS = REPO / "benchmarks/paths/programs/collection.tbl"
 
 
 def measure(name, planner, path, machine):
@@ -65,14 +83,21 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=1, help="LinuxCNC runs per program")
     ap.add_argument("--out", default=str(REPO / "results/oracle/linuxcnc_oracle.json"))
     args = ap.parse_args(argv)
-    names = [n for n in args.only.split(",") if n] or list(PROGRAMS)
+    names = [n for n in args.only.split(",") if n] or list(PROGRAMS) + list(PLACED)
     rows = []
     print("| program | machine | LinuxCNC s | trapezoid s | Δ % | joint v ratio LinuxCNC | trapezoid | Δ % |")
     print("|---|---|---|---|---|---|---|---|")
     for name in names:
-        mname, file = PROGRAMS[name]
+        if name in PLACED:
+            file, offset, var = PLACED[name]
+            if not file.is_file():
+                print(f"| {name} | not here: {file} |")
+                continue
+            mname, setup = "kossel", make_setup(TOOLS, var, [offset] if offset else [])
+        else:
+            (mname, file), setup = PROGRAMS[name], None
         machine = load_machine(mname)
-        path = resolve_path(str(file))
+        path = resolve_path(str(file), **({"setup": setup} if setup else {}))
         runs = [measure(name, "linuxcnc", path, machine) for _ in range(max(1, args.repeat))]
         lc, mlc = runs[0]
         tz, mtz = measure(name, "trapezoid", path, machine)

@@ -50,9 +50,36 @@ READER_HELP = ("G-code reader: pkmbench (the built-in RS274NGC interpreter) or l
 
 
 def add_gcode_arguments(p) -> None:
-    """--start and --reader: how a G-code program is read (run, plan, check)."""
+    """--start, --reader, --tool-table, --var-file, --offset: how a G-code program is read and
+    where it is placed (run, plan, check)."""
     p.add_argument("--start", default=None, metavar="X,Y,Z", help=START_HELP)
     p.add_argument("--reader", choices=("pkmbench", "linuxcnc"), default="pkmbench", help=READER_HELP)
+    p.add_argument("--tool-table", default=None, metavar="FILE",
+                   help="G-code: LinuxCNC tool table (.tbl: T P X Y Z D … ;comment, mm) for T, M6, G43 H")
+    p.add_argument("--var-file", default=None, metavar="FILE",
+                   help="G-code: LinuxCNC parameter file (.var: 'number value' lines, mm): work offsets "
+                        "G54…G59.3 (#5221…), G92 (#5211…, in force when #5210 = 1), G28/G30 (#5161…, #5181…), "
+                        "the active system #5220")
+    p.add_argument("--offset", action="append", default=[], metavar="CODE=X,Y,Z",
+                   help="G-code: set a work offset before the program (mm; repeatable, after --var-file): "
+                        "CODE one of G54…G59.3 (origin of that system; G54 is active unless #5220 says "
+                        "otherwise), G92 (in force from the start), G28, G30 (stored positions). "
+                        "E.g. --offset G54=0,0,-300 puts a program's origin at z = -300 mm")
+
+
+def gcode_setup(args):
+    """The rs274 Setup of --tool-table, --var-file and --offset (None when none is given);
+    CliError naming the file and line, or the spec."""
+    tbl, var, offsets = (getattr(args, k, None) for k in ("tool_table", "var_file", "offset"))
+    if not (tbl or var or offsets):
+        return None
+    # loaded only when a setup is given: every command's parser imports this package
+    from planners.paths.gcode.rs274 import RS274Error
+    from planners.paths.gcode.rs274.setup import make_setup  # (the same reason)
+    try:
+        return make_setup(tbl, var, offsets or ())
+    except (RS274Error, ValueError) as e:
+        raise CliError(str(e)) from None
 
 
 def planner_timeout_s(text: str) -> float:

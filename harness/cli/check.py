@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import contextlib
 
-from harness.cli import CliError, add_gcode_arguments, parse_start, stdout_to_stderr
+from harness.cli import CliError, add_gcode_arguments, gcode_setup, parse_start, stdout_to_stderr
 
 
 def add_arguments(p):
@@ -21,7 +21,7 @@ def add_arguments(p):
 
 
 def main(args) -> int:
-    from harness.check.gcode import TEXT_LIMIT, CheckError, check_program
+    from harness.check import TEXT_LIMIT, CheckError, as_text, check_program
     from kins import load_machine
     from kins.machine import MachineFileError
 
@@ -29,8 +29,9 @@ def main(args) -> int:
         # --json: stdout holds the report alone (a plug-in planner's prints go to stderr)
         with stdout_to_stderr() if args.json else contextlib.nullcontext():
             m = load_machine(args.machine)
-            rep = check_program(args.program, m, args.planner, start=parse_start(args.start), reader=args.reader)
+            rep = check_program(args.program, m, args.planner, start=parse_start(args.start), reader=args.reader,
+                                setup=gcode_setup(args))
     except (MachineFileError, CheckError) as e:
         raise CliError(str(e)) from None
-    print(rep.to_json() if args.json else rep.text(limit=None if args.all else TEXT_LIMIT))
+    print(rep.to_json() if args.json else as_text(rep, None if args.all else TEXT_LIMIT))
     return rep.exit_code

@@ -4,7 +4,7 @@ from __future__ import annotations
 # Local imports: every command module is imported to build the parser; a command loads what it
 # needs when it runs (`pkmbench --help` and the other commands stay fast)
 
-from harness.cli import CliError, add_gcode_arguments, add_timeout_argument, parse_start
+from harness.cli import CliError, add_gcode_arguments, add_timeout_argument, gcode_setup, parse_start
 from harness.outdir import output_dir
 
 
@@ -19,6 +19,11 @@ def add_arguments(p):
     add_timeout_argument(p)
     p.add_argument("--max-feed", action="store_true", help="run G-code at F_max, ignoring its F words")
     p.add_argument("--out", default=None, help="folder for NAME/profile.csv, NAME/path.json, NAME/metrics.json (default: print only)")
+
+
+def _setup_option(args) -> dict:
+    setup = gcode_setup(args)
+    return {"setup": setup} if setup else {}
 
 
 def list_planners() -> int:
@@ -48,7 +53,8 @@ def main(args) -> int:
 
     try:
         m = load_machine(args.machine)
-        path = resolve_path(args.path, home=m.home, start=parse_start(args.start), reader=args.reader)
+        path = resolve_path(args.path, home=m.home, start=parse_start(args.start), reader=args.reader,
+                            **_setup_option(args))
     except (MachineFileError, PathError) as e:
         raise CliError(str(e)) from None
     from harness.cosim.run import feed_summary, planner_folder

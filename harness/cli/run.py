@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from harness.cli import CliError, add_gcode_arguments, add_timeout_argument, parse_start
+from harness.cli import CliError, add_gcode_arguments, add_timeout_argument, gcode_setup, parse_start
 from harness.outdir import output_dir
 from kins.resources import run_dir, suite_run_dir
 
@@ -43,23 +43,32 @@ def _progress(k, n, name):
     sys.stderr.flush()
 
 
-def cases_of(args) -> tuple[list[tuple[str, str, list[str], dict]], Path]:
-    """(machine, path, planners, planner options) of each run, and the output folder."""
+def cases_of(args) -> tuple[list[tuple], Path]:
+    """(machine, path, planners, planner options, max_feed, G-code setup) of each run, and the
+    output folder."""
     if args.suite:
         from harness.sweep.suite import SuiteError, load_suite, suite_runs
+        from harness.sweep.suite import gcode_setup as run_setup
         try:
             suite = load_suite(args.suite)
             runs = suite_runs(suite, args.suite)
         except SuiteError as e:
             raise CliError(str(e)) from None
-        cases = [(m, p, list(planners), suite.get("planner_options", {}), max_feed or args.max_feed)
-                 for machines, paths, planners, max_feed in runs for m in machines for p in paths]
+        if gcode_setup(args):
+            raise CliError("--tool-table, --var-file and --offset are for --machine/--path; a suite's "
+                           "[[run]] takes tool_table, var_file and offset")
+        try:
+            cases = [(m, p, list(planners), suite.get("planner_options", {}), max_feed or args.max_feed,
+                      run_setup(gcode))
+                     for machines, paths, planners, max_feed, gcode in runs for m in machines for p in paths]
+        except SuiteError as e:
+            raise CliError(str(e)) from None
         return cases, Path(args.out or suite_run_dir(args.suite))
     if not (args.machine and args.path):
         raise CliError("give a suite file, or --machine and --path")
     planners = [p.strip() for p in args.planners.split(",") if p.strip()]
     out = Path(args.out) if args.out else run_dir(args.machine, args.path)
-    return [(args.machine, args.path, planners, {}, args.max_feed)], out
+    return [(args.machine, args.path, planners, {}, args.max_feed, gcode_setup(args))], out
 
 
 def table(summary: dict) -> str:
@@ -114,14 +123,15 @@ def main(args) -> int:
     timeout = args.planner_timeout if args.planner_timeout is not None else (suite or {}).get("planner_timeout_s")
     output_dir(out)
     failed = 0
-    for machine, path, planners, opts, max_feed in cases:
+    for machine, path, planners, opts, max_feed, setup in cases:
         odir = out if len(cases) == 1 else out / f"{Path(machine).stem}_{Path(path).stem}"
         print(f"pkmbench run: {machine} / {path}: {', '.join(planners)} → {odir}", file=sys.stderr)
         try:
             summary = run_case(machine, path, planners, odir, seed=args.seed, jitter=args.jitter, ideal=args.ideal,
                                engine=args.engine, jacobi=args.jacobi, planner_options=opts,
                                recordings=not args.no_recordings, progress=_progress, max_feed=max_feed,
-                               fmus=fmus or None, start=start, reader=args.reader, planner_timeout_s=timeout)
+                               fmus=fmus or None, start=start, reader=args.reader, planner_timeout_s=timeout,
+                               setup=setup)
         except RunError as e:
             raise CliError(str(e)) from None
         sys.stderr.write("\r" + " " * 60 + "\r")

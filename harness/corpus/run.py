@@ -141,7 +141,7 @@ def entries_from_suite(file) -> list[tuple[dict, list[str]]]:
     except CorpusError:
         pass
     out = []
-    for machines, paths, planners_, _max_feed in runs:
+    for machines, paths, planners_, _max_feed, _gcode in runs:
         for m in machines:
             for p in paths:
                 f = Path(p) if Path(p).is_absolute() else REPO / p

@@ -88,7 +88,7 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
              jitter: str | None = None, ideal: bool = False, engine: str = "native", jacobi: bool = False,
              planner_options: dict | None = None, recordings: bool = True, progress=None,
              max_feed: bool = False, fmus: dict | None = None, start=None, reader: str = "pkmbench",
-             planner_timeout_s: float | None = None) -> dict:
+             planner_timeout_s: float | None = None, setup=None) -> dict:
     """``max_feed``: run a G-code program at F_max instead of its programmed F (planner-only
     comparisons); summary.json's ``feed`` says which. ``fmus``: {block: user .fmu} in place of
     ours (harness.cosim.blocks), checked before anything runs; summary.json's ``fmus`` names them.
@@ -96,14 +96,17 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
     move, else the machine's home; planners.paths.gcode.parse_gcode); ``reader``: G-code read by
     pkmbench's interpreter or LinuxCNC's (summary.json names it when it is not pkmbench's).
     ``planner_timeout_s``: each planner's time limit (planners.plan_in_time; None: none); a planner
-    over it is that planner's error, the others run."""
+    over it is that planner's error, the others run. ``setup``: G-code only, the tool table, var
+    file and work offsets it starts with (planners.paths.gcode.rs274.setup.Setup; summary.json's
+    ``gcode_setup`` names them)."""
 
     try:
         machine = load_machine(machine_name)
     except MachineFileError as e:
         raise RunError(str(e)) from None
     try:
-        path = resolve_path(path_name, home=machine.home, start=start, reader=reader)
+        path = resolve_path(path_name, home=machine.home, start=start, reader=reader,
+                            **({"setup": setup} if setup else {}))
     except PathError as e:
         raise RunError(str(e)) from None
     use_max_feed(path, bool(max_feed))
@@ -136,14 +139,14 @@ def run_case(machine_name: str, path_name: str, planner_names: list[str], out_di
             return _run(machine, path, path_name, planner_names, out_dir, seed=seed, jitter=jitter, ideal=ideal,
                         engine=engine, jacobi=jacobi, planner_options=planner_options, recordings=recordings,
                         progress=progress, fmus=fmus, start=start, reader=reader,
-                        planner_timeout_s=planner_timeout_s)
+                        planner_timeout_s=planner_timeout_s, setup=setup)
     except OutDirError as e:
         raise RunError(str(e)) from None
 
 
 def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter, ideal, engine, jacobi,
          planner_options, recordings, progress, fmus=None, start=None, reader="pkmbench",
-         planner_timeout_s=None) -> dict:
+         planner_timeout_s=None, setup=None) -> dict:
     """run_case's work, with the folder locked: nothing of an earlier run may look like this one's."""
 
     for stale in ("summary.json", "timing.json", "comparison.png"):
@@ -158,6 +161,8 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
         summary["start_mm"] = [float(v) for v in start]
     if reader != "pkmbench":
         summary["gcode_reader"] = reader
+    if setup:      # only then: the summaries of other runs keep their bytes
+        summary["gcode_setup"] = [f"{kind}: {what}" for kind, what in setup.sources]
     if fmus:   # only then: the summaries of runs with our chain keep their bytes
         summary["fmus"] = {b: str(f) for b, f in sorted(fmus.items())}
     timing = {}

@@ -8,6 +8,9 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
     machine = "keops"            # or machines = [...]; an id of benchmarks/machines/ or a .toml file
     path = "bird"                # or paths = [...]; an id of benchmarks/paths/ or a .json/.ngc file
     planners = ["trapezoid", "scurve"]
+    tool_table = "my.tbl"        # optional, G-code: LinuxCNC tool table, var file (paths relative
+    var_file = "my.var"          # to the suite file) and work offsets (as --offset), see
+    offset = ["G54=0,0,-300"]    # planners/paths/gcode/rs274/setup.py
     [planner_options.pso]        # optional, passed to the planner
     iterations = 40
     [sweep]                      # optional axes, crossed with every run
@@ -38,6 +41,8 @@ from harness.cosim.blocks import check_user_fmu, command_fmus
 from harness.cosim.system import SystemError_
 from harness.seed import SeedError, check_seed
 from kins.resources import FMU_DIR, MACHINE_DIR, PATH_DIR, REPO, repo_relative
+from planners.paths.gcode.rs274 import RS274Error
+from planners.paths.gcode.rs274.setup import make_setup
 from planners.registry import plugin_version
 
 PATH_SUFFIXES = (".json", ".ngc")
@@ -46,7 +51,8 @@ CODE_DIRS = ("kins", "planners", "harness")
 
 
 TOP_KEYS = ("name", "description", "run", "sweep", "planner_options", "ci", "fmus", "planner_timeout_s")
-RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed")
+RUN_KEYS = ("machine", "machines", "path", "paths", "planner", "planners", "max_feed",
+            "tool_table", "var_file", "offset")
 SWEEP_KEYS = ("seeds", "presets", "variation")
 VARIATION_KEYS = ("name", "set")
 # tasks a suite may expand to: each is a co-simulation of seconds (10⁵ is days on one host);
@@ -69,10 +75,12 @@ def _line_of(text: str | None, key: str) -> str:
     return ":line ?"
 
 
-def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list, bool]]:
-    """The (machines, paths, planners, max_feed) of each [[run]] table, keys checked: what
+def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> list[tuple[list, list, list, bool, dict]]:
+    """The (machines, paths, planners, max_feed, gcode) of each [[run]] table, keys checked: what
     `pkmbench run` runs and :func:`expand` crosses with the sweep axes. ``max_feed = true`` runs
-    G-code at F_max instead of its programmed F (planner-only comparisons)."""
+    G-code at F_max instead of its programmed F (planner-only comparisons); ``gcode``: the
+    run's tool_table / var_file (Paths, relative to the suite file's folder) and offset specs,
+    {} when it has none (:func:`gcode_setup` makes them a Setup)."""
     for key in suite:
         if key not in TOP_KEYS:
             raise SuiteError(f"{src}{_line_of(text, key)}: unknown key '{key}' (valid: {', '.join(sorted(TOP_KEYS))})")
@@ -86,12 +94,48 @@ def suite_runs(suite: dict, src: str = "<suite>", text: str | None = None) -> li
         for key in run:
             if key not in RUN_KEYS:
                 raise SuiteError(f"{src}{_line_of(text, key)}: {where}: unknown key '{key}' "
-                                 f"(valid: machine(s), path(s), planner(s), max_feed)")
+                                 f"(valid: machine(s), path(s), planner(s), max_feed, tool_table, var_file, offset)")
         if not isinstance(run.get("max_feed", False), bool):
             raise SuiteError(f"{src}{_line_of(text, 'max_feed')}: {where}: max_feed must be true or false")
         out.append((_list(run, "machine", "machines", src, where), _list(run, "path", "paths", src, where),
-                    _list(run, "planner", "planners", src, where), run.get("max_feed", False)))
+                    _list(run, "planner", "planners", src, where), run.get("max_feed", False),
+                    _gcode_keys(run, src, text, where)))
     return out
+
+
+def _gcode_keys(run: dict, src: str, text: str | None, where: str) -> dict:
+    """A [[run]]'s tool_table, var_file (resolved next to the suite file) and offset, each
+    checked by reading it (a bad file or spec: SuiteError naming it)."""
+    base = Path(src).parent if src != "<suite>" else Path(".")
+    g = {}
+    for key in ("tool_table", "var_file"):
+        if key in run:
+            if not isinstance(run[key], str):
+                raise SuiteError(f"{src}{_line_of(text, key)}: {where}: {key} must be a file name")
+            f = Path(run[key])
+            g[key] = f if f.is_absolute() else base / f
+    if "offset" in run:
+        specs = [run["offset"]] if isinstance(run["offset"], str) else run["offset"]
+        if not (isinstance(specs, list) and all(isinstance(x, str) for x in specs)):
+            raise SuiteError(f"{src}{_line_of(text, 'offset')}: {where}: offset must be a list of "
+                             f"'CODE=X,Y,Z' strings")
+        g["offset"] = list(specs)
+    if g:
+        try:
+            gcode_setup(g)
+        except SuiteError as e:
+            raise SuiteError(f"{src}: {where}: {e}") from None
+    return g
+
+
+def gcode_setup(g: dict):
+    """The planners.paths.gcode.rs274 Setup of a run's gcode keys (None without them)."""
+    if not g:
+        return None
+    try:
+        return make_setup(g.get("tool_table"), g.get("var_file"), g.get("offset", ()))
+    except (RS274Error, ValueError) as e:
+        raise SuiteError(str(e)) from None
 
 
 def _list(d: dict, one: str, many: str, src: str, where: str) -> list:
@@ -146,10 +190,10 @@ def planner_timeout(value, where: str) -> float:
     return float(value)
 
 
-def task_count(suite: dict) -> int:
+def task_count(suite: dict, src: str = "<suite>") -> int:
     """How many tasks the suite's [[run]] tables and [sweep] axes cross to (before listing them)."""
     sweep = suite.get("sweep", {})
-    per_run = sum(len(m) * len(p) * len(pl) for m, p, pl, _ in suite_runs(suite))
+    per_run = sum(len(m) * len(p) * len(pl) for m, p, pl, *_ in suite_runs(suite, src))
     axes = [sweep.get("seeds", [0]), sweep.get("presets", ["none"]), sweep.get("variation", [{}])]
     n = per_run
     for a in axes:
@@ -200,7 +244,7 @@ def load_suite(file: str | Path) -> dict:
 def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
     """The tasks of a suite, in a stable order (runs × seeds × presets × variations)."""
     runs = suite_runs(suite, src)
-    n = task_count(suite)
+    n = task_count(suite, src)
     if n > MAX_TASKS:
         raise SuiteError(f"{src}: the suite expands to {n} tasks (runs × seeds × presets × variations), "
                          f"more than the {MAX_TASKS} a sweep takes; split it into several suites")
@@ -231,7 +275,7 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
             raise SuiteError(f"{src}: [[sweep.variation]] '{v['name']}': set must be a table")
     options = suite.get("planner_options", {})
     tasks, seen = [], set()
-    for machines, paths, planners, max_feed in runs:
+    for machines, paths, planners, max_feed, gcode in runs:
         for m in machines:
             mfile = resolve_machine(m, base)
             for p in paths:
@@ -244,6 +288,8 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
                                               options.get(pl, {}))
                                 if max_feed:       # only then: the other tasks' keys stay as they were
                                     t["max_feed"] = True
+                                if gcode:          # likewise; the files' contents travel with the task
+                                    t["gcode_setup"] = _gcode_contents(gcode)
                                 if "planner_timeout_s" in suite:    # the same
                                     t["planner_timeout_s"] = float(suite["planner_timeout_s"])
                                 ident = (t["machine"], t["path"], pl, seed, preset, v["name"])
@@ -252,6 +298,13 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
                                 seen.add(ident)
                                 tasks.append(t)
     return tasks
+
+
+def _gcode_contents(g: dict) -> dict:
+    out = {k: Path(g[k]).read_text() for k in ("tool_table", "var_file") if k in g}
+    if "offset" in g:
+        out["offset"] = list(g["offset"])
+    return out
 
 
 def user_fmus_info(tasks) -> dict | None:
@@ -319,6 +372,8 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     """sha256 of everything that determines a task's result."""
     ident = {k: task[k] for k in ("planner", "planner_options", "seed", "preset", "variation", "files")}
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
+    if task.get("gcode_setup"):   # only then, likewise
+        ident["gcode_setup"] = task["gcode_setup"]
     # not planner_timeout_s: only finished (ok) tasks are skipped, and their result is the same
     if task.get("fmus"):    # only then: the keys of tasks on our own chain stay as they were
         ident["fmus"] = {b: [d["file"], d["sha256"]] for b, d in task["fmus"].items()}

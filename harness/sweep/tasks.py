@@ -22,6 +22,7 @@ import numpy as np
 import planners
 from harness.cosim.record import write_command_csv, write_json
 from harness.cosim.run import run_case
+from harness.sweep.suite import gcode_setup
 from planners.paths import load_path
 from planners.verify import chord_error_mm, command_metrics
 
@@ -98,6 +99,20 @@ def task_input_files(task: dict, folder: Path) -> tuple[Path, Path]:
     return mfile, pfile
 
 
+def task_gcode_setup(task: dict, folder: Path):
+    """The Setup (tool table, var file, offsets) of a task's G-code run, its files written into
+    ``folder``; None when the task has none (harness.sweep.suite's gcode keys)."""
+    g = task.get("gcode_setup")
+    if not g:
+        return None
+    files = {}
+    for key, name in (("tool_table", "tool.tbl"), ("var_file", "params.var")):
+        if key in g:
+            files[key] = folder / name
+            files[key].write_text(g[key])
+    return gcode_setup(files | {k: v for k, v in g.items() if k == "offset"})
+
+
 def _write_command(file: Path, T: float, P: np.ndarray, Q: np.ndarray) -> None:
     write_command_csv(file, np.arange(len(P)) * T, P, Q)
 
@@ -155,7 +170,8 @@ def plan_task(task: dict, out_dir: Path) -> dict:
     """Planning only: the planner's profile, interpolated at T, and its metrics (no FMUs)."""
     machine = task_machine(task)
     _, pfile = task_input_files(task, out_dir / "inputs")
-    path = load_path(pfile)
+    setup = task_gcode_setup(task, out_dir / "inputs")
+    path = load_path(pfile, **({"setup": setup} if setup else {}))
     prof = planners.plan_in_time(task.get("planner_timeout_s"), task["planner"], path, machine,
                                  **task["planner_options"])
     P = path.point(prof.s)
@@ -183,7 +199,8 @@ def cosim_task(task: dict, out_dir: Path) -> dict:
                        jitter=None if preset == "machine" else preset,
                        planner_options={planner: dict(task.get("planner_options") or {})},
                        recordings=False, max_feed=bool(task.get("max_feed", False)),
-                       fmus=task.get("fmu_paths"), planner_timeout_s=task.get("planner_timeout_s"))
+                       fmus=task.get("fmu_paths"), planner_timeout_s=task.get("planner_timeout_s"),
+                       setup=task_gcode_setup(task, out_dir / "inputs"))
     m = summary["planners"][planner]
     if "error" in m:
         raise TaskError(m["error"])

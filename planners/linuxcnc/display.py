@@ -94,7 +94,7 @@ def run(program, start, cfg, timeout):
     c.mode(linuxcnc.MODE_MDI)
     wait(lambda: s.task_mode == linuxcnc.MODE_MDI, "MDI mode")
     # the program's positioning move, done before sampling: pkmbench's path starts there
-    c.mdi("G21 G90 G0 " + start)
+    c.mdi("G21 G90 G53 G0 " + start)      # machine coordinates: a var file may offset G54
     wait(lambda: s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos,
          "the move to the start point", 120.0)
     c.mode(linuxcnc.MODE_AUTO)
@@ -105,8 +105,12 @@ def run(program, start, cfg, timeout):
     drain()
     c.auto(linuxcnc.AUTO_RUN, 0)
     wait(lambda: s.interp_state != linuxcnc.INTERP_IDLE, "the program to start", 20.0)
-    wait(lambda: s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos,
-         "the program to end", timeout)
+    def ended():
+        if s.interp_state == linuxcnc.INTERP_PAUSED or s.paused:   # M0/M1: resumed at once, as an operator would
+            c.auto(linuxcnc.AUTO_RESUME)
+        return s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos
+
+    wait(ended, "the program to end", timeout)
     t0 = time.monotonic()
     while time.monotonic() - t0 < 0.1:   # a few more periods at rest
         drain()

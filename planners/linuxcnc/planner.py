@@ -101,7 +101,8 @@ def plan(path, machine, limits=None, *, programmed_feed: bool = True,
     programmed_feed = programmed_feed and feed_mode(path) != "max"
     text, start, expected = program_for(path, machine, limits, programmed_feed)
     try:
-        smp = run_program(text, machine, start, expected_s=expected, keep_dir=keep_dir)
+        smp = run_program(text, machine, start, expected_s=expected, keep_dir=keep_dir,
+                          setup=getattr(path.program, "setup", None))
     except LinuxCNCError as e:
         raise PlanningError(str(e)) from None
     prof = profile_from_samples(smp, getattr(path, "source", "<path>"))

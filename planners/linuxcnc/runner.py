@@ -86,15 +86,17 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def write_config(d: FsPath, machine, program: FsPath, start, timeout_s: float) -> FsPath:
-    """Generate the INI and HAL files of a sim run of ``machine`` in ``d``; the INI's path."""
+def write_config(d: FsPath, machine, program: FsPath, start, timeout_s: float, setup=None) -> FsPath:
+    """Generate the INI and HAL files of a sim run of ``machine`` in ``d``; the INI's path.
+    ``setup``: the program's tool table and parameters (planners.paths.gcode.rs274.setup.Setup,
+    mm as the INI's LINEAR_UNITS) written as LinuxCNC's tool.tbl and var file."""
     if machine.family != "lineardelta":
         raise LinuxCNCError(f"linuxcnc: machine {machine.name} has {machine.family} kinematics; "
                             "the LinuxCNC runner supports lineardeltakins machines only")
     (d / "pkmbench.ini").write_text(_ini_text(d, machine, program, start, timeout_s))
     (d / "pkmbench.hal").write_text(_hal_text(machine))
-    (d / "tool.tbl").write_text("T1 P1 D0 Z0 ;\n")
-    (d / "sim.var").write_text("")
+    (d / "tool.tbl").write_text(setup.tool_table_text() if setup and setup.tools else "T1 P1 D0 Z0 ;\n")
+    (d / "sim.var").write_text(setup.var_text() if setup else "")
     shutil.copy(FsPath(__file__).with_name("display.py"), d / "display.py")
     os.chmod(d / "display.py", 0o755)
     return d / "pkmbench.ini"
@@ -237,12 +239,13 @@ def _kill(proc: subprocess.Popen) -> None:
 
 
 def run_program(program_text: str, machine, start, expected_s: float | None = None,
-                keep_dir: str | None = None) -> Samples:
+                keep_dir: str | None = None, setup=None) -> Samples:
     """Run G-code ``program_text`` on LinuxCNC for ``machine``; the tool is first moved to
     ``start`` (xyz, mm) by MDI, then the program runs in AUTO while the sampler records.
 
     ``expected_s`` (a rough duration) sizes the time-out; ``keep_dir`` keeps the generated
-    configuration and LinuxCNC's logs there (for debugging).
+    configuration and LinuxCNC's logs there (for debugging); ``setup``: the tool table and
+    var file LinuxCNC starts with (see write_config).
     """
     why = missing()
     if why:
@@ -253,7 +256,7 @@ def run_program(program_text: str, machine, start, expected_s: float | None = No
     ok = False
     try:
         (d / "program.ngc").write_text(program_text)
-        ini = write_config(d, machine, d / "program.ngc", start, timeout)
+        ini = write_config(d, machine, d / "program.ngc", start, timeout, setup)
         env = {"PATH": "/usr/local/bin:/usr/bin:/bin:/usr/sbin:/sbin", "HOME": str(d),
                "LANG": "C", "LC_ALL": "C"}
         cmd = ["linuxcnc", str(ini)]

@@ -2,8 +2,8 @@
 
 The program runs through :mod:`planners.paths.gcode.rs274`, an RS274NGC interpreter with LinuxCNC 2.9's
 semantics (expressions, parameters, O-words, work offsets, G92, tool length offsets, G28/G30,
-G53, polar @ ^, M70–M73, …; what it does not support is refused naming the construct and the
-line). Its canonical moves (machine coordinates, mm) become Line/Arc segments here;
+G53, polar @ ^, M70–M73, canned cycles, probing, …; what it does not support is refused naming
+the construct and the line). Its canonical moves (machine coordinates, mm) become Line/Arc segments here;
 zero-length moves are dropped as LinuxCNC's canon drops them. Errors are
 :class:`GCodeError` (file, line, message). See :func:`parse_gcode` for the start point.
 
@@ -47,6 +47,11 @@ class GCodeError(PathError):
         self.file, self.line, self.message = file, line, message
 
 
+class EmptyProgram(GCodeError):
+    """A program that makes no move (a subroutine library, a setup file): nothing to plan; the
+    checker reads it as nothing to check."""
+
+
 @dataclass
 class Move:
     segment: Line | Arc
@@ -75,6 +80,7 @@ class GCodeProgram:
     moves: list[Move] = field(default_factory=list)
     notes: list[tuple[int, str]] = field(default_factory=list)
     events: list = field(default_factory=list)   # rs274 CanonEvent: M codes, dwells, tool changes (line, index)
+    setup: object = None           # rs274 Setup: tool table, var file, offsets it was read with
 
     def segments(self):
         return [m.segment for m in self.moves]
@@ -113,7 +119,7 @@ READERS = ("pkmbench", "linuxcnc")
 
 def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, tools=None,
                 subroutine_path=(), block_delete: bool = False, max_loops: int | None = None,
-                reader: str = "pkmbench") -> GCodeProgram:
+                reader: str = "pkmbench", probe_surface=None, setup=None) -> GCodeProgram:
     """Read G-code text into moves (lines/arcs in mm, machine coordinates, each with its line).
 
     The text runs through the RS274NGC interpreter (:mod:`planners.paths.gcode.rs274`, LinuxCNC's semantics);
@@ -126,13 +132,21 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     - else the program starts from ``home`` (the machine's position), as LinuxCNC would.
 
     Zero-length moves are dropped (a note; an M code on their line still counts: ``events``).
+    A program with no move at all raises :class:`EmptyProgram`. ``probe_surface``: what G38.x
+    probes touch (a height in machine mm, or a function f(x, y) → z; see rs274's Interpreter).
     ``reader="linuxcnc"``: LinuxCNC's own interpreter reads the file ``source`` instead
     (planners.paths.gcode.rs274.linuxcnc_reader; ``text`` is not used, nor tools, subroutine path, block delete).
+    ``setup``: the machine's tool table, var file and work offsets at the start
+    (planners.paths.gcode.rs274.setup.Setup; kept on the program for the ``linuxcnc`` planner).
     """
-    opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete)
+    opts = dict(tools=tools, subroutine_path=subroutine_path, block_delete=block_delete, probe_surface=probe_surface,
+                setup=setup)
     if max_loops is not None:
         opts["max_loops"] = max_loops
     if reader == "linuxcnc":
+        if setup:
+            raise GCodeError(source, 0, "--reader linuxcnc does not take a tool table, var file or offset; "
+                                        "use the built-in reader (it is checked against LinuxCNC's with them)")
         try:
             cp, positioning = linuxcnc_canon(source, start, home)
         except RS274Error as e:
@@ -143,7 +157,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         raise GCodeError(source, 0, f"unknown G-code reader {reader!r}; valid: {', '.join(READERS)}")
     # G64 Q: runs of short moves joined into lines, as LinuxCNC's canon joins them
     canon, canon_events = join_moves(cp.moves, cp.events, _STATELESS_M, cp.flushes)
-    prog = GCodeProgram(source, None)
+    prog = GCodeProgram(source, None, setup=setup or None)
     prog.notes += cp.notes
     first = 0
     if positioning and canon:
@@ -159,9 +173,10 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
     if not prog.moves and positioning and canon:
         _only_move_from_home(prog, canon[0], home)
     if not prog.moves:
-        raise GCodeError(source, 0, "empty path: the program has no feed or rapid moves")
+        raise EmptyProgram(source, 0, "nothing to plan: the program makes no move (a subroutine library "
+                                      "or a setup file?)")
     for e in prog.events:
-        syncs = e.kind in ("dwell", "tool") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
+        syncs = e.kind in ("dwell", "tool", "probe") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
         if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop is None:
             _stop(prog.moves[e.index - 1], "sync")
     if prog.moves[-1].stop is None:

@@ -15,14 +15,12 @@ G_GROUP = {0: 1, 10: 1, 20: 1, 30: 1, 800: 1,
            170: 2, 180: 2, 190: 2, 900: 3, 910: 3, 901: 4, 911: 4, 930: 5, 940: 5, 950: 5,
            200: 6, 210: 6, 400: 7, 430: 8, 431: 8, 490: 8, 980: 10, 990: 10,
            540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12, 591: 12, 592: 12, 593: 12,
-           610: 13, 611: 13, 640: 13, 970: 14, 80: 15}
+           610: 13, 611: 13, 640: 13, 970: 14, 80: 15,
+           730: 1, 740: 1, 810: 1, 820: 1, 830: 1, 840: 1, 850: 1, 860: 1, 870: 1, 880: 1, 890: 1,
+           382: 1, 383: 1, 384: 1, 385: 1}
 UNSUPPORTED_G = {
     50: "G5 (cubic spline)", 51: "G5.1 (quadratic spline)", 52: "G5.2 (NURBS)", 70: "G7 (lathe diameter mode)",
-    330: "G33 (spindle-synchronised motion)", 331: "G33.1 (rigid tapping)", 382: "G38.2 (probing)",
-    383: "G38.3 (probing)", 384: "G38.4 (probing)", 385: "G38.5 (probing)", 730: "G73 (canned cycle)",
-    740: "G74 (canned cycle)", 760: "G76 (threading cycle)", 810: "G81 (canned cycle)", 820: "G82 (canned cycle)",
-    830: "G83 (canned cycle)", 840: "G84 (canned cycle)", 850: "G85 (canned cycle)", 860: "G86 (canned cycle)",
-    870: "G87 (canned cycle)", 880: "G88 (canned cycle)", 890: "G89 (canned cycle)",
+    330: "G33 (spindle-synchronised motion)", 331: "G33.1 (rigid tapping)", 760: "G76 (threading cycle)",
     410: "G41 (cutter radius compensation)", 420: "G42 (cutter radius compensation)",
     411: "G41.1 (cutter radius compensation)", 421: "G42.1 (cutter radius compensation)",
     432: "G43.2 (additional tool length offset)", 171: "G17.1 (UV plane)", 181: "G18.1 (WU plane)",
@@ -107,9 +105,17 @@ def check_axis_words(w) -> None:
             raise LineError(f"{letter.upper()} axis word: rotary/extra axes are not supported (X, Y, Z only)")
 
 
-def check_other_codes(w, g0, groups, mg, arc_done: bool) -> None:
-    """interp_check.cc's check_other_codes: a word no code on the line uses is an error."""
+# the words a canned cycle or probe uses beyond the axes (interp_check.cc check_other_codes)
+_MOTION_WORDS = {730: "rlq", 830: "rlq", 810: "rl", 850: "rl", 820: "rlp", 860: "rlp", 880: "rlp", 890: "rlp",
+                 740: "rlp", 840: "rlp", 870: "rlijk"}
+
+
+def check_other_codes(w, g0, groups, mg, arc_done: bool, motion=None) -> None:
+    """interp_check.cc's check_other_codes: a word no code on the line uses is an error
+    (``motion``: the motion the line ran, LinuxCNC's motion_to_be)."""
     used = set("xyzfstgmn@^")
+    if motion in _MOTION_WORDS:
+        used |= set(_MOTION_WORDS[motion])
     if g0 == 40:
         used.add("p")
     if g0 == 100:

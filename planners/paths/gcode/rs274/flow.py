@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from planners.paths.gcode.rs274.errors import LineError
 
-MAX_CALL_DEPTH = 50
+# interp_internal.hh INTERP_SUB_ROUTINE_LEVELS: the main program is level 0, a call that would
+# reach level 10 is "Too many subroutine levels" (interp_o_word.cc execute_call)
+MAX_CALL_DEPTH = 10
 
 
 class Frame:
@@ -49,7 +51,8 @@ class Flow:
         if len(args) > 30:
             raise LineError("more than 30 subroutine arguments")
         if len(self.frames) >= MAX_CALL_DEPTH:
-            raise LineError(f"subroutine calls nested deeper than {MAX_CALL_DEPTH}")
+            raise LineError(f"Too many subroutine levels: O<{label}> call would nest {MAX_CALL_DEPTH} "
+                            f"deep (LinuxCNC allows {MAX_CALL_DEPTH - 1})")
         f, at = self.find_sub(label, fr, pc + 1)
         new = Frame(f, at + 1, label, pc + 1)
         new.saved_numbered = self.params.save_locals()

@@ -1,10 +1,12 @@
 """The RS274NGC interpreter: blocks → canonical moves, following LinuxCNC 2.9's rs274ngc.
 
-Per block, the order of execution is rs274ngc's execute_block/convert_* order: O-word control,
-parameter settings (after the whole line is read, so ``#1=2 #2=#1`` sees the old #1), F, S, T,
-M6/M61, M3-5, M7-9, M70-73, other M codes, G4, plane, units, cutter compensation (G40 only),
-tool length offset, coordinate system, path control, distance modes, retract mode, the
-non-modal G10/G28/G30/G92/G53, motion, then M0/M1/M2/M30/M60.
+Per block, the order of execution is rs274ngc's execute_block/convert_* order (LinuxCNC's
+documented table): O-word control, parameter settings (after the whole line is read, so
+``#1=2 #2=#1`` sees the old #1), the comment ((MSG,…), (ABORT,…)), F (in the units before the
+line's G20/G21), S, T, M6/M61, M3-5, M70-73, M7-9, other M codes, G4, plane, units, cutter
+compensation (G40 only), tool length offset, coordinate system, path control, distance modes,
+retract mode, the non-modal G10/G28/G30/G92/G53, motion (canned cycles: cycles.py), then
+M0/M1/M2/M30/M60.
 
 This module holds that order (``execute`` and its steps), the parameters and the run loop; the
 word and code checks are in codes.py, offsets and coordinate systems in offsets.py, motion and
@@ -19,6 +21,7 @@ from planners.paths.gcode.rs274 import expr as X
 from planners.paths.gcode.rs274.canon import CanonEvent, CanonMove, CanonProgram
 from planners.paths.gcode.rs274.codes import (AXES, MM_PER_INCH, check_axis_words, check_other_codes, g_groups, m_groups,
                                   read_words)
+from planners.paths.gcode.rs274.cycles import CYCLES, Cycles
 from planners.paths.gcode.rs274.errors import LineError, RS274Error
 from planners.paths.gcode.rs274.flow import Flow, Frame
 from planners.paths.gcode.rs274.modal import Modal
@@ -30,18 +33,22 @@ from planners.paths.gcode.rs274.params import Parameters
 DEFAULT_MAX_LOOPS = 1_000_000
 
 
-class Interpreter(Offsets, Motion, Flow):
+class Interpreter(Offsets, Motion, Flow, Cycles):
     """Run one program. ``start``: the machine position before it (mm); ``tools``: tool number
     → {"Z": length offset mm, …}; ``subroutine_path``: folders searched for ``name.ngc`` when
-    ``O<name> call`` names no subroutine of the file; ``block_delete``: skip '/' lines."""
+    ``O<name> call`` names no subroutine of the file; ``block_delete``: skip '/' lines;
+    ``probe_surface``: what a G38.x probe touches (motion.py: a height z = c in machine mm, or
+    a function f(x, y) → z; the probe is in contact at or below it), None: nothing; ``setup``: a
+    tool table, var file and offsets the machine holds at the start (setup.py)."""
 
     def __init__(self, start=(0.0, 0.0, 0.0), tools=None, subroutine_path=(), block_delete=False,
-                 max_loops: int = DEFAULT_MAX_LOOPS):
+                 max_loops: int = DEFAULT_MAX_LOOPS, probe_surface=None, setup=None):
         self.pos = [float(v) for v in start]      # machine position (mm)
         self.tools = tools or {}
         self.sub_path = [FsPath(p) for p in subroutine_path]
         self.block_delete = block_delete
         self.max_loops = max_loops
+        self.probe_surface = probe_surface
         self.params = Parameters()
         self.m = Modal()
         self.g5x = [0.0, 0.0, 0.0]
@@ -54,6 +61,8 @@ class Interpreter(Offsets, Motion, Flow):
         self.value = 0.0
         self.value_returned = 0.0
         self._files: dict[str, SourceFile] = {}
+        if setup:
+            setup.apply(self)
 
     # ------------------------------------------------------------------ parameters
     def read_param(self, n: float) -> float:
@@ -167,6 +176,10 @@ class Interpreter(Offsets, Motion, Flow):
             if fr.pc >= len(src.blocks):
                 if len(self.frames) > 1:
                     raise RS274Error(src.name, fr.call_line, f"O<{fr.label}>: the file ends inside the subroutine")
+                if src.unclosed_percent:
+                    # interp_read.cc read_text: the end of the file before M2/M30 or a closing '%'
+                    raise RS274Error(src.name, len(src.blocks) + 1, "File ended with no percent sign: the "
+                                     "program opens with '%' and has no closing '%' (nor M2/M30 before the end)")
                 break
             pc = fr.pc
             fr.pc += 1
@@ -199,11 +212,9 @@ class Interpreter(Offsets, Motion, Flow):
         # codes of the line still set this object (as the interpreter always did; issue 18
         # keeps behaviour)
         m = self.m
-        if b.comment is not None:
-            c = b.comment.strip()
-            if c[:4].lower() in ("msg,", "debu", "prin"):
-                self.event("message", c)
         if not b.words and not b.assigns:
+            if b.comment is not None:
+                self.comment(b.comment, fr)
             return
         w, gs, ms = read_words(b.words, self.evaluate, fr)
         if b.assigns:
@@ -214,14 +225,76 @@ class Interpreter(Offsets, Motion, Flow):
         if b.assigns:
             for t, v in vals:
                 self.assign(t, v, fr)
+        # rs274ngc_pre.cc execute: the line's parameter settings, then execute_block: its
+        # comment first
+        if b.comment is not None:
+            self.comment(b.comment, fr)
         self._feed_speed_tool(w, groups)
         self._m_codes(mg, w, fr)
         g0 = groups.get(0)
         self._g_modes(m, g0, groups, w)
-        self._g_motion(m, g0, groups, w)
-        check_other_codes(w, g0, groups, mg, self._arc_done)
+        ran = self._g_motion(m, g0, groups, w)
+        check_other_codes(w, g0, groups, mg, self._arc_done, ran)
         if 4 in mg:
             self._program_stop(mg[4])
+
+    def comment(self, text: str, fr: Frame) -> None:
+        """interp_convert.cc's convert_comment, first in a block: (MSG,…) is a message,
+        (DEBUG,…) one with its parameters expanded (while #5599 > 0), (PRINT,…) is printed by
+        LinuxCNC (here a message too, so a report shows it), (ABORT,…) stops the program with
+        its expanded text as the error."""
+        c = text.lstrip()
+        low = c[:6].lower()
+        if low.startswith("msg,"):
+            self.event("message", c[4:])
+        elif low.startswith("debug,"):
+            if self.params.num[5599] > 0:
+                self.event("message", self.expand_comment(c[6:], fr))
+        elif low.startswith("print,"):
+            self.event("message", self.expand_comment(c[6:], fr))
+        elif low.startswith("abort,"):
+            raise LineError(f"(ABORT) {self.expand_comment(c[6:], fr)}")
+
+    def expand_comment(self, text: str, fr: Frame) -> str:
+        """interp_convert.cc's convert_param_comment: #n and #<name> replaced by their values
+        in the format last set by %d (integer), %f (4 decimals) or %.Nf (default %lf: 6
+        decimals); an unknown parameter reads ######."""
+        out, fmt, i = [], "%f", 0
+        while i < len(text):
+            c = text[i]
+            if c == "%" and text[i + 1:i + 2] == "d":
+                fmt, i = "%.0f", i + 2
+            elif c == "%" and text[i + 1:i + 2] == "f":
+                fmt, i = "%.4f", i + 2
+            elif c == "%" and text[i + 1:i + 2] == ".":
+                if text[i + 2:i + 3].isdigit() and text[i + 3:i + 4] == "f":
+                    fmt, i = f"%.{text[i + 2]}f", i + 4
+                else:                     # not a format: LinuxCNC keeps the '.', not the '%'
+                    out.append(".")
+                    i += 2
+            elif c == "#" and text[i + 1:i + 2].isdigit():
+                j = i + 1
+                while j < len(text) and text[j].isdigit():
+                    j += 1
+                try:
+                    out.append(fmt % _plain(self.read_param(float(text[i + 1:j]))))
+                except LineError:         # out of range
+                    out.append("######")
+                i = j
+            elif c == "#" and text[i + 1:i + 2] == "<":
+                j = text.find(">", i + 2)
+                if j < 0:
+                    raise LineError("named parameter not terminated in a comment")
+                name = "".join(text[i + 2:j].split()).lower()
+                try:
+                    out.append(fmt % _plain(self.read_named(name, fr)))
+                except LineError:
+                    out.append("######")
+                i = j + 1
+            else:
+                out.append(c)
+                i += 1
+        return "".join(out)
 
     def _execute_fast(self, fast) -> None:
         """The common CAM line (constant X/Y/Z/I/J/K/R/F words, at most a G0-G3): same
@@ -239,7 +312,13 @@ class Interpreter(Offsets, Motion, Flow):
         mm = m.motion
         axes = [a for a in AXES if a in w]
         self._arc_done = False
-        if motion is not None or axes:
+        if mm in CYCLES:
+            if axes:                              # the cycle again at these axis words
+                self.cycle(mm, mm, w)
+                check_other_codes(w, None, {}, {}, False, mm)
+                return
+        elif motion is not None or axes:
+            self.cycle_il = None                  # convert_motion: a motion other than a cycle
             if mm is None or mm == 800:
                 if axes:
                     raise LineError("axis words with no motion mode in force (G0/G1/G2/G3)")
@@ -250,9 +329,11 @@ class Interpreter(Offsets, Motion, Flow):
                 raise LineError(f"{letter.upper()} word with no code on the line that uses it")
 
     def _feed_speed_tool(self, w, groups) -> None:
-        """F (in the units of the line: a G20/G21 on it counts), S and T."""
+        """F, S and T. F is set before the line's G20/G21 (LinuxCNC's order of execution), so
+        it is in the units in force before the line: after G21, ``G20 F6`` is 6 mm/min (the
+        canon converts F when it is set; a later unit change keeps the rate)."""
         m = self.m
-        u = MM_PER_INCH if groups.get(6, m.units * 10) == 200 else 1.0
+        u = MM_PER_INCH if m.units == 20 else 1.0
         if "f" in w:
             if w["f"] < 0:
                 raise LineError(f"negative feed rate F{w['f']:g}")
@@ -266,10 +347,11 @@ class Interpreter(Offsets, Motion, Flow):
         if "t" in w:
             if w["t"] < 0 or w["t"] != int(w["t"]):
                 raise LineError(f"T{w['t']:g}: tool numbers are integers ≥ 0")
+            self.check_tool(int(w["t"]), f"T{int(w['t'])}")
             m.selected_tool = int(w["t"])
 
     def _m_codes(self, mg, w, fr: Frame) -> None:
-        """M6/M61 (tool change), M3-5 (spindle), M7-9 (coolant), M70-73 (modal state), then
+        """M6/M61 (tool change), M3-5 (spindle), M70-73 (modal state), M7-9 (coolant), then
         the events of the M codes other than the program stops."""
         m = self.m
         if 6 in mg:
@@ -279,14 +361,16 @@ class Interpreter(Offsets, Motion, Flow):
             else:                                     # M61 Q: set the tool number, no change
                 if "q" not in w or w["q"] < 0:
                     raise LineError("M61 needs Q ≥ 0 (the tool number)")
+                self.check_tool(int(w["q"]), f"M61 Q{int(w['q'])}")
                 self.tool = int(w["q"])
             self.params.set(5400, float(self.tool))
         if 7 in mg:
             m.spindle = mg[7]
+        if 10 in mg:                                  # M70-M73 before M7-M9 (LinuxCNC's order)
+            self._modal_state(mg[10], fr)
+            m = self.m
         if 8 in mg:
             m.coolant = mg[8]
-        if 10 in mg:
-            self._modal_state(mg[10], fr)
         for grp in (5, 9, 11):
             if grp in mg:
                 self.event("m", mg[grp])
@@ -342,10 +426,13 @@ class Interpreter(Offsets, Motion, Flow):
             m.absolute = groups[3] == 900
         if 4 in groups:
             m.ijk_absolute = groups[4] == 901
+        if 10 in groups:
+            m.retract = groups[10] // 10
 
-    def _g_motion(self, m, g0, groups, w) -> None:
+    def _g_motion(self, m, g0, groups, w) -> int | None:
         """The non-modal G10/G28/G30/G92 (they take the axis words), else the motion of the
-        line in the motion mode of ``m`` (G53: in machine coordinates)."""
+        line in the motion mode of ``m`` (G53: in machine coordinates). Returns the canned
+        cycle the line ran, if any (check_other_codes allows its words)."""
         motion = groups.get(1)
         self._arc_done = False
         axes = [a for a in AXES if a in w]
@@ -356,17 +443,30 @@ class Interpreter(Offsets, Motion, Flow):
             axes_used = True
         else:
             axes_used = False
+        prev = m.motion
         if motion is not None:
             m.motion = motion
+        ran = None                                # LinuxCNC's motion_to_be
         if not axes_used and (motion not in (None, 800) or axes):
             mm = m.motion
             if mm is None or mm == 800:
                 if axes:
                     raise LineError("axis words with no motion mode in force (G0/G1/G2/G3)")
+            elif not axes and mm not in (0, 10, 20, 30):
+                # interp_internal.cc enhance_block: a cycle or probe code needs an axis word
+                raise LineError(f"All axes missing with motion code G{mm / 10:g}")
+            elif mm in CYCLES:
+                if g0 == 530:
+                    raise LineError("G53 needs a G0 or G1 move")
+                ran = mm
+                self.cycle(mm, prev, w)
             else:
                 self.motion(mm, w, axes, g0 == 530)
         elif g0 == 530 and not axes_used:
             raise LineError("G53 needs a G0 or G1 move")
+        if motion is not None and motion not in CYCLES or ran is None and axes and not axes_used:
+            self.cycle_il = None                  # convert_motion: a motion other than a cycle
+        return ran
 
     def _program_stop(self, c: int) -> None:
         """M0/M1/M2/M30/M60, last on the line; M2 and M30 end the program."""
@@ -391,6 +491,11 @@ class Interpreter(Offsets, Motion, Flow):
                                         None if kind == "rapid" else m.feed, m.path, **kw))
         self.pos = list(end)
 
+
+
+def _plain(v: float) -> float:
+    """convert_param_comment prints a value within TOLERANCE_EQUAL (1e-4) of 0 as 0."""
+    return 0.0 if abs(v) < 1e-4 else v
 
 
 def _read_text(name: str) -> str:

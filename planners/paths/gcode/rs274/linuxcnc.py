@@ -5,11 +5,14 @@ LinuxCNC's ``gcode`` Python module (Debian ``linuxcnc-uspace``, the same librs27
 double precision; ``rs274`` itself prints only 4 decimals. This file runs under the
 *system* Python that has that module (``/usr/bin/python3 -m`` is not needed: it is run as a
 script and imports nothing of pkmbench), and prints one JSON object per canonical move in
-machine coordinates (mm), converted as AXIS's glcanon does: rotate X/Y by the XY rotation,
-then add the G5x, G92 and tool offsets. The interpreter calls back in inches (gcodemodule
+machine coordinates (mm), converted as LinuxCNC's canon does (emccanon.cc
+rotate_and_offset_pos): add the G92 offset, rotate X/Y by the XY rotation, then add the G5x
+and tool offsets. The interpreter calls back in inches (gcodemodule
 reports every length in inches), so lengths are multiplied by 25.4.
 
-    /usr/bin/python3 planners/paths/gcode/rs274/linuxcnc.py PROGRAM.ngc [--tool-table FILE] [--start X,Y,Z]
+    /usr/bin/python3 planners/paths/gcode/rs274/linuxcnc.py PROGRAM.ngc [--tool-table FILE] [--var-file FILE] [--start X,Y,Z]
+
+(``--tool-table`` in mm; ``--var-file`` as the module reads it, in its machine units: inches.)
       → {"kind": "rapid"|"feed"|"arc"|"dwell"|"mcode"|..., "line": N, ...} per line, then
         {"kind": "end", "result": CODE, "line": N, "error": TEXT|null}
 """
@@ -70,13 +73,13 @@ class Canon:
     def set_plane(self, p): self.plane = p
 
     def _machine(self, x, y, z):
-        x, y, z = x * IN, y * IN, z * IN
+        # emccanon.cc rotate_and_offset_pos: G92, the XY rotation, then G5x and the tool offset
+        x, y, z = x * IN + self.g92[0], y * IN + self.g92[1], z * IN + self.g92[2]
         if self.rot:
             t = math.radians(self.rot)
             c, s = math.cos(t), math.sin(t)
             x, y = x * c - y * s, x * s + y * c
-        return [x + self.g5x[0] + self.g92[0] + self.tlo[0], y + self.g5x[1] + self.g92[1] + self.tlo[1],
-                z + self.g5x[2] + self.g92[2] + self.tlo[2]]
+        return [x + self.g5x[0] + self.tlo[0], y + self.g5x[1] + self.tlo[1], z + self.g5x[2] + self.tlo[2]]
 
     # --- motion ------------------------------------------------------------------------
     def straight_traverse(self, x, y, z, *rest):
@@ -108,6 +111,9 @@ class Canon:
     def dwell(self, t):
         self.out.append({"kind": "dwell", "line": self.line, "seconds": t})
 
+    def message(self, text):
+        self.out.append({"kind": "message", "line": self.line, "text": text})
+
     def set_feed_rate(self, f):
         self.out.append({"kind": "feed_rate", "line": self.line, "mm_per_min": f * IN})
 
@@ -117,14 +123,17 @@ class Canon:
         return lambda *a: None
 
 
-def run(program, tool_table=None, start=None):
+def run(program, tool_table=None, start=None, var_file=None):
     """``start`` (x, y, z mm): the machine position before the program. The module always starts
     at 0: a G53 G0 there first (its move is the first one printed, "line" 0) and G80, the
     interpreter's initial motion mode, again."""
     import gcode
     with tempfile.TemporaryDirectory() as d:
         var = os.path.join(d, "pkmbench.var")
-        open(var, "w").close()
+        with open(var, "w") as f:       # a copy: LinuxCNC writes its parameters back to the file
+            if var_file:
+                with open(var_file) as g:
+                    f.write(g.read())
         c = Canon(_tool_table(tool_table), var)
         # G21: the machine works in mm (as an INI with LINEAR_UNITS = mm)
         init = ["G21"] + ([] if start is None else ["G53 G0 X%r Y%r Z%r" % tuple(start), "G80"])
@@ -140,12 +149,17 @@ if __name__ == "__main__":
         i = args.index("--tool-table")
         tbl = args[i + 1]
         del args[i:i + 2]
+    var_file = None
+    if "--var-file" in args:
+        i = args.index("--var-file")
+        var_file = args[i + 1]
+        del args[i:i + 2]
     start = None
     if "--start" in args:
         i = args.index("--start")
         start = [float(v) for v in args[i + 1].split(",")]
         del args[i:i + 2]
-    moves, end = run(args[0], tbl, start)
+    moves, end = run(args[0], tbl, start, var_file)
     w = sys.stdout.write
     for m in moves:
         w(json.dumps(m) + "\n")

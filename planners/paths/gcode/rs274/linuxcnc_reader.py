@@ -38,7 +38,7 @@ _EVENTS = {"START_SPINDLE_CLOCKWISE": ("m", 3), "START_SPINDLE_COUNTERCLOCKWISE"
            "PROGRAM_END": ("m", 2), "CHANGE_TOOL": ("m", 6), "SELECT_TOOL": ("tool", None),
            "SET_MOTION_OUTPUT_BIT": ("m", 62), "CLEAR_MOTION_OUTPUT_BIT": ("m", 63),
            "SET_AUX_OUTPUT_BIT": ("m", 64), "CLEAR_AUX_OUTPUT_BIT": ("m", 65),
-           "DWELL": ("dwell", None), "MESSAGE": ("message", None)}
+           "ORIENT_SPINDLE": ("m", 19), "DWELL": ("dwell", None), "MESSAGE": ("message", None)}
 
 
 def linuxcnc_canon(file, start=None, home=None, tool_table=None, timeout: float = 300) -> tuple[CanonProgram, bool]:

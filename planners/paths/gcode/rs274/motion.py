@@ -14,6 +14,7 @@ CENTER_ARC_RADIUS_TOLERANCE_MM = 2 * 0.01 * math.sqrt(2)
 CENTER_ARC_RADIUS_TOLERANCE_INCH = 2 * 0.001 * math.sqrt(2)
 SPIRAL_RELATIVE_TOLERANCE = 0.001
 TINY = 1e-12
+PROBES = (382, 383, 384, 385)
 
 
 class Motion:
@@ -66,6 +67,11 @@ class Motion:
             if g53:
                 raise LineError("polar coordinates (@ ^) with G53")
             self.polar(w, prog, endp, axes)
+        if mm in PROBES:
+            if g53:
+                raise LineError("G53 needs a G0 or G1 move")
+            self.probe(mm, endp)
+            return
         if mm in (0, 10):
             for letter in "ijkr":
                 if letter in w:
@@ -75,6 +81,46 @@ class Motion:
             self.emit("rapid" if mm == 0 else "feed", end if g53 else self.to_machine(endp))
             return
         self.arc(mm, w, u, prog, endp)
+
+    def probe(self, mm: int, endp) -> None:
+        """G38.2–G38.5 (interp_convert.cc convert_probe, then motion's control.c): a straight
+        feed towards ``endp`` (program coordinates, mm) that stops where the probe input
+        changes: G38.2/G38.3 when it makes contact, G38.4/G38.5 when it loses contact. The probe
+        touches ``probe_surface`` (in contact at or below it); with none it never makes contact,
+        as in LinuxCNC's simulation. G38.2 and G38.4 that end without a change, or start in the
+        state they seek, are LinuxCNC's errors (control.c, command.c); G38.3 and G38.5 are
+        not. The point where it stops is #5061–#5063 (program coordinates and units) and
+        #5070 = 1 if the probe changed, 0 if not (interp_internal.cc set_probe_data)."""
+        m = self.m
+        g = f"G38.{mm - 380}"
+        if not m.feed:
+            raise LineError("Cannot probe with zero feed rate")
+        prog = self.to_program(self.pos)
+        seek_clear, errors = mm in (384, 385), mm in (382, 384)
+        if errors and prog == list(endp):
+            raise LineError(f"Start point too close to probe point ({g})")
+        start, end = list(self.pos), self.to_machine(endp)
+        touching = _contact(self.probe_surface, start)
+        if touching != seek_clear and errors:
+            raise LineError("Probe is already clear when starting G38.4 or G38.5 move" if seek_clear
+                            else "Probe is already tripped when starting G38.2 or G38.3 move")
+        t = 0.0 if touching != seek_clear else _change(self.probe_surface, start, end, seek_clear)
+        self.flush()                     # emccanon.cc STRAIGHT_PROBE: flush_segments
+        if t is None:
+            if errors:
+                raise LineError(f"{g} move finished without {'breaking' if seek_clear else 'making'} contact")
+            stop = end
+        else:
+            stop = [a + t * (b - a) for a, b in zip(start, end)]
+        self.emit("feed", stop)
+        self.event("probe", int(t is not None))
+        self.out.notes.append((self.cur_line, f"{g}: " + ("no contact, ran to its end" if t is None else
+                               "stopped at contact at ({:.6g}, {:.6g}, {:.6g}) mm".format(*stop))))
+        u = self.unit()
+        at = self.to_program(stop)
+        for i in range(3):
+            self.params.set(5061 + i, at[i] / u)
+        self.params.set(5070, float(t is not None))
 
     def _g53_end(self, mm: int, w, axes, u):
         """The end of a G53 move: the axis words are machine coordinates."""
@@ -119,6 +165,45 @@ class Motion:
         turn = -turns if mm == 20 else turns
         self.emit("arc", self.to_machine(endp), center=tuple(self.to_machine(cen)), plane=m.plane, turn=turn)
         self._arc_done = True
+
+
+def _contact(surface, p) -> bool:
+    """Is the probe at machine point ``p`` touching ``surface`` (None, a height, f(x, y))?"""
+    if surface is None:
+        return False
+    top = surface(p[0], p[1]) if callable(surface) else surface
+    return p[2] <= top
+
+
+PROBE_SAMPLE_MM = 0.01        # a function surface is sampled this finely along the probe move
+PROBE_SAMPLES_MAX = 1_000_000  # … in at most this many steps (coarser on a move over 10 m)
+
+
+def _change(surface, a, b, seek_clear: bool):
+    """The fraction t ∈ (0, 1] of the move a → b where the contact with ``surface`` changes
+    (to contact, or to clear with ``seek_clear``), or None: a plane in closed form, a function
+    sampled every PROBE_SAMPLE_MM (PROBE_SAMPLES_MAX steps at most) then bisected to 1e-12 of
+    the move."""
+    if surface is None:
+        return None
+    if not callable(surface):
+        dz = b[2] - a[2]
+        if dz == 0.0:
+            return None
+        t = (surface - a[2]) / dz
+        return t if 0.0 < t <= 1.0 else None
+    n = min(PROBE_SAMPLES_MAX, max(1, int(math.ceil(math.dist(a, b) / PROBE_SAMPLE_MM))))
+    changed = lambda t: _contact(surface, [x + t * (y - x) for x, y in zip(a, b)]) != seek_clear
+    lo = 0.0
+    for k in range(1, n + 1):
+        hi = k / n
+        if changed(hi):
+            while hi - lo > 1e-12:
+                mid = 0.5 * (lo + hi)
+                lo, hi = (lo, mid) if changed(mid) else (mid, hi)
+            return hi
+        lo = hi
+    return None
 
 
 def _arc_turns(w) -> int:

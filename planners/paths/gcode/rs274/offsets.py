@@ -17,23 +17,25 @@ class Offsets:
     def unit(self) -> float:
         return MM_PER_INCH if self.m.units == 20 else 1.0
 
+    # emccanon.cc rotate_and_offset_pos: G92 first, then the XY rotation, then G5x and the tool
+    # offset (unoffset_and_unrotate_pos the reverse)
     def to_machine(self, p):
-        x, y, z = p
+        o, g, t_ = self.g5x, self.g92, self.tlo
+        x, y, z = p[0] + g[0], p[1] + g[1], p[2] + g[2]
         if self.rot:
             t = math.radians(self.rot)
             c, s = math.cos(t), math.sin(t)
             x, y = x * c - y * s, x * s + y * c
-        o, g, t_ = self.g5x, self.g92, self.tlo
-        return [x + o[0] + g[0] + t_[0], y + o[1] + g[1] + t_[1], z + o[2] + g[2] + t_[2]]
+        return [x + o[0] + t_[0], y + o[1] + t_[1], z + o[2] + t_[2]]
 
     def to_program(self, q):
         o, g, t_ = self.g5x, self.g92, self.tlo
-        x, y, z = q[0] - o[0] - g[0] - t_[0], q[1] - o[1] - g[1] - t_[1], q[2] - o[2] - g[2] - t_[2]
+        x, y, z = q[0] - o[0] - t_[0], q[1] - o[1] - t_[1], q[2] - o[2] - t_[2]
         if self.rot:
             t = math.radians(-self.rot)
             c, s = math.cos(t), math.sin(t)
             x, y = x * c - y * s, x * s + y * c
-        return [x, y, z]
+        return [x - g[0], y - g[1], z - g[2]]
 
     # ------------------------------------------------------------------ modal state
     def save_modal(self):
@@ -66,8 +68,7 @@ class Offsets:
             self.tlo = [0.0, 0.0, 0.0]
         elif g == 430:
             h = int(w["h"]) if "h" in w else self.tool
-            if self.tools and h != 0 and h not in self.tools:
-                raise LineError(f"G43 H{h}: tool {h} is not in the tool table")
+            self.check_tool(h, f"G43 H{h}")
             t = self.tools.get(h, {})
             self.tlo = [t.get("X", 0.0), t.get("Y", 0.0), t.get("Z", 0.0)]
         else:                                     # G43.1: dynamic offset from the axis words
@@ -75,6 +76,12 @@ class Offsets:
             self.tlo = [w.get(a, 0.0) * u for a in AXES]
             for a in AXES:
                 w.pop(a, None)
+
+    def check_tool(self, n: int, word: str) -> None:
+        """LinuxCNC's "Requested tool N not found in the tool table" (T, M61 Q, G43 H), when a
+        table is given; tool 0 is "no tool"."""
+        if self.tools and n != 0 and n not in self.tools:
+            raise LineError(f"{word}: tool {n} is not in the tool table")
 
     # ------------------------------------------------------------------ non-modal G codes
     def nonmodal(self, g: int, w, axes) -> None:

@@ -4,7 +4,7 @@ O number or name, as rs274ngc's control blocks do."""
 from __future__ import annotations
 
 from planners.paths.gcode.rs274.errors import LineError, RS274Error
-from planners.paths.gcode.rs274.tokens import percent_lines, tokenise
+from planners.paths.gcode.rs274.tokens import LINELEN, percent_bounds, too_long, tokenise
 
 
 class SourceFile:
@@ -15,10 +15,19 @@ class SourceFile:
     def __init__(self, name: str, text: str, main: bool = False):
         self.name = name
         self.blocks = []
+        # with its line end: LinuxCNC counts it against LINELEN
+        ends = text.splitlines(keepends=True)
         lines = text.splitlines()
-        lines = percent_lines(lines) if main else ["" if raw.strip() == "%" else raw for raw in lines]
-        for raw in lines:
+        self.unclosed_percent = False
+        if main:
+            lines, self.unclosed_percent = percent_bounds(lines)
+        else:
+            lines = ["" if raw.strip() == "%" else raw for raw in lines]
+        for raw, whole in zip(lines, ends):
             try:
+                if len(whole) >= LINELEN - 3 and too_long(whole):
+                    raise LineError(f"Command too long: a line of {len(whole.rstrip(chr(10) + chr(13)))} characters "
+                                    f"(LinuxCNC reads at most {LINELEN - 3} and the line end)")
                 self.blocks.append(tokenise(raw))
             except LineError as e:          # raised when (if) the line runs
                 self.blocks.append(e)

@@ -15,6 +15,7 @@ class Parameters:
         self.num = [0.0] * (MAX_PARAMETER + 1)
         self.named_global: dict[str, float] = {}
         self.num[5220] = 1.0                    # G54 active
+        self.num[5599] = 1.0                    # (DEBUG,…) messages on (rs274ngc_pre.cc init)
 
     def get(self, n: int) -> float:
         if not 1 <= n <= MAX_PARAMETER:

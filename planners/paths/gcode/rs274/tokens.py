@@ -51,8 +51,7 @@ def strip_comments(raw: str) -> tuple[str, str | None]:
             comment = raw[i + 1:j]
             i = j + 1
         elif c == ";":
-            comment = raw[i + 1:]
-            break
+            break                   # read_semicolon: the rest of the line, never a (MSG,…)
         elif c == ")":
             raise LineError("')' without '('")
         else:
@@ -66,16 +65,31 @@ def percent_lines(lines: list[str]) -> list[str]:
     """The lines of a main program that LinuxCNC reads (rs274ngc_pre.cc Interp::open,
     interp_read.cc read_text): when its first non-blank line is a lone '%', the program ends
     at the next lone '%' and what follows is never read; both '%' lines become blank."""
+    return percent_bounds(lines)[0]
+
+
+def percent_bounds(lines: list[str]) -> tuple[list[str], bool]:
+    """percent_lines, and whether the program opens with '%' and never closes it (LinuxCNC's
+    "File ended with no percent sign" when it runs to the end of the file)."""
     first = next((i for i, raw in enumerate(lines) if raw.strip()), None)
     if first is None or lines[first].strip() != "%":
-        return lines
+        return lines, False
     out = lines[:first] + [""]
     for raw in lines[first + 1:]:
         # read_text compares after removing trailing white space, then spaces and tabs
         if raw.rstrip().replace(" ", "").replace("\t", "") == "%":
-            return out + [""]
+            return out + [""], False
         out.append(raw)
-    return out
+    return out, True
+
+
+LINELEN = 255           # linuxcnc.h: read_text's fgets buffer; a line filling it is refused
+
+
+def too_long(raw: str) -> bool:
+    """interp_read.cc read_text: fgets reads at most LINELEN − 1 bytes, and a line (with its
+    newline) that fills them is "Command too long": 252 characters and a newline are the most."""
+    return len(raw) >= LINELEN - 1 - 2 and len(raw.encode("utf-8", "replace")) >= LINELEN - 1
 
 
 def tokenise(raw: str) -> Block | None:

@@ -7,174 +7,36 @@ velocity, acceleration and jerk limits. Each finding carries the G-code line(s) 
 from and the worst value against the limit.
 
     report = check_program("part.ngc", load_machine("kossel"))
-    print(report.text()); exit(report.exit_code)      # 0 clean, 1 findings, 2 invalid
+    print(as_text(report)); exit(report.exit_code)      # 0 clean, 1 findings, 2 invalid
 
-The text report gives a summary per kind first, then the 50 worst entries (text(limit=None):
+The text report gives a summary per kind first, then the 50 worst entries (as_text(report, None):
 every finding); report.to_json() holds every finding, "parsed" (it compiled) and "valid"
 (parsed and no error finding: exit code 0).
 """
 from __future__ import annotations
 
-import json
+
+
 import re
-from dataclasses import asdict, dataclass, field
+
+
 from pathlib import Path
 
 import numpy as np
 
 import planners
+
 from planners import verify as M
+
 from planners.paths.base import gc_paused
-from planners.paths.gcode import GCodeError, program_path, read_gcode, strip_comments
 
-EXIT_CLEAN, EXIT_FINDINGS, EXIT_INVALID = 0, 1, 2
-TEXT_LIMIT = 50          # entries of the default text report (--all: every finding)
+from planners.paths.gcode import EmptyProgram, GCodeError, program_path, read_gcode, strip_comments
 
 
-@dataclass
-class Finding:
-    kind: str              # compile | unreachable | stroke | singularity | box | joint_velocity | …
-    severity: str          # "error" | "warning"
-    lines: list[int]       # G-code line numbers (1-based file lines)
-    value: float | None    # worst value (unit below)
-    limit: float | None
-    unit: str
-    message: str
-
-
-@dataclass
-class Report:
-    program: str
-    machine: str
-    planner: str
-    findings: list[Finding] = field(default_factory=list)
-    invalid: bool = False
-    stats: dict = field(default_factory=dict)
-
-    @property
-    def exit_code(self) -> int:
-        if self.invalid:
-            return EXIT_INVALID
-        return EXIT_FINDINGS if self.errors else EXIT_CLEAN
-
-    @property
-    def errors(self) -> int:
-        return sum(f.severity == "error" for f in self.findings)
-
-    def summary(self) -> list[dict]:
-        """Per (kind, severity): count, lines, and the worst finding (value against limit)."""
-        rows: dict[tuple, dict] = {}
-        for f in self.findings:
-            b = _badness(f)           # once per finding (10⁵ of them on a long program)
-            r = rows.setdefault((f.kind, f.severity), {"kind": f.kind, "severity": f.severity, "count": 0,
-                                                       "lines": set(), "worst": f, "bad": b})
-            r["count"] += 1
-            r["lines"].update(f.lines)
-            if b > r["bad"]:
-                r["worst"], r["bad"] = f, b
-        out = []
-        for r in sorted(rows.values(), key=lambda r: (r["severity"] != "error", -_badness(r["worst"])[0], r["kind"])):
-            w = r["worst"]
-            out.append({"kind": r["kind"], "severity": r["severity"], "count": r["count"],
-                        "lines": len(r["lines"]), "worst_value": w.value, "limit": w.limit, "unit": w.unit,
-                        "worst_ratio": _ratio(w), "worst_line": w.lines[0] if w.lines else 0})
-        return out
-
-    def to_json(self) -> str:
-        # every finding, and fields that cannot be misread: "valid" means no error at all
-        d = {"program": self.program, "machine": self.machine, "planner": self.planner,
-             "parsed": not self.invalid, "valid": self.exit_code == EXIT_CLEAN,
-             "errors": self.errors, "warnings": len(self.findings) - self.errors,
-             "exit_code": self.exit_code, "stats": self.stats, "summary": self.summary(),
-             "findings": [asdict(f) for f in self.findings]}
-        return json.dumps(d, indent=2, sort_keys=True)
-
-    def text(self, limit: int | None = TEXT_LIMIT) -> str:
-        """Summary per kind, then the findings worst first: consecutive lines of one kind merged
-        into a range and at most ``limit`` entries (None: every finding, one per line)."""
-        head = f"{self.program}: {self.machine}, planner {self.planner}" + _PLANNER_NOTES.get(self.planner, "")
-        if self.invalid:
-            return head + "\n" + "\n".join(f"  {self.program}:{f.lines[0] if f.lines else 0}: error: {f.message}"
-                                           for f in self.findings if f.kind == "compile")
-        if not self.findings:
-            return head + f"\n  clean: {self.stats.get('moves', 0)} moves, {self.stats.get('samples', 0)} samples checked"
-        n_lines = len({ln for f in self.findings for ln in f.lines})
-        out = [head, f"  {self.errors} error(s), {len(self.findings) - self.errors} warning(s) "
-                     f"on {n_lines} line(s)"]
-        for r in self.summary():
-            worst = ("" if r["worst_value"] is None or r["limit"] is None else
-                     f", worst {abs(r['worst_value']):.6g} {r['unit']} against {r['limit']:g} {r['unit']}"
-                     + (f" (ratio {r['worst_ratio']:.3f})" if r["worst_ratio"] is not None else ""))
-            out.append(f"    {r['kind']:<22} {r['severity']:<7} {r['count']:>7} on {r['lines']} line(s)"
-                       + worst + (f" at line {r['worst_line']}" if r["worst_line"] else ""))
-        entries = _runs(self.findings) if limit is not None else [[f] for f in self.findings]
-        entries.sort(key=lambda run: (tuple(-x for x in max(_badness(f) for f in run)), _first_line(run[0]), run[0].kind))
-        shown = entries if limit is None else entries[:limit]
-        out.append("  worst first:" if limit is None or len(entries) <= limit else
-                   f"  worst first ({len(shown)} of {len(entries)} entries):")
-        for run in shown:
-            out.append("  " + _entry(self.program, run))
-        if len(shown) < len(entries):
-            rest = sum(len(r) for r in entries[len(shown):])
-            out.append(f"  … {rest} more finding(s) in {len(entries) - len(shown)} more entries: "
-                       "--all prints every one (--json too)")
-        return "\n".join(out)
-
-
-
-# what the default planners stand for (issue 21: check reports what LinuxCNC would do)
-_PLANNER_NOTES = {"trapezoid": " (LinuxCNC 2.9's tp: the programmed F, its blends and stops; "
-                               "--planner linuxcnc runs the real one)",
-                  "linuxcnc": " (the real LinuxCNC 2.9, run headless)"}
-
-
-def _badness(f: Finding) -> tuple[float, float]:
-    """Ratio of the worst value to its limit (1 when the finding has no such ratio), then the
-    value itself (a box excess in mm has a limit of 0: no ratio, but a larger one is worse)."""
-    r = _ratio(f)
-    return (1.0 if r is None else r, 0.0 if f.value is None else abs(f.value))
-
-
-def _ratio(f: Finding) -> float | None:
-    if f.value is None or not f.limit:
-        return None
-    return abs(f.value) / abs(f.limit)
-
-
-def _first_line(f: Finding) -> int:
-    return f.lines[0] if f.lines else 0
-
-
-def _runs(findings: list[Finding]) -> list[list[Finding]]:
-    """Findings of one kind and severity on consecutive lines, grouped (file order)."""
-    runs: list[list[Finding]] = []
-    last: dict[tuple, list[Finding]] = {}
-    for f in sorted(findings, key=lambda f: (f.kind, f.severity, _first_line(f))):
-        key = (f.kind, f.severity)
-        run = last.get(key)
-        if run is not None and f.lines and run[-1].lines and _first_line(f) - _first_line(run[-1]) == 1:
-            run.append(f)
-        else:
-            run = [f]
-            runs.append(run)
-            last[key] = run
-    return runs
-
-
-def _entry(program: str, run: list[Finding]) -> str:
-    worst = max(run, key=_badness)
-    if len(run) == 1:
-        return f"{program}:{_first_line(worst)}: {worst.severity}: {worst.message}"
-    return (f"{program}:{_first_line(run[0])}-{_first_line(run[-1])}: {worst.severity}: {len(run)} lines, "
-            f"worst at line {_first_line(worst)}: {worst.message}")
-
-
-class CheckError(Exception):
-    """The checker itself cannot run (no such file, unknown machine or planner)."""
+from harness.check.findings import CheckError, Finding, Report
 
 
 _N_WORD = re.compile(r"^\s*[Nn]\s*(\d+)")
-
 
 def _n_number_warnings(text: str, source: str) -> list[Finding]:
     """N numbers must increase (a warning: LinuxCNC ignores them, but a reordered program is suspect)."""
@@ -195,7 +57,6 @@ def _n_number_warnings(text: str, source: str) -> list[Finding]:
         last = (n, ln)
     return out
 
-
 def _lines_of(path, s: np.ndarray) -> np.ndarray:
     """G-code line of each arc length; blend arcs (no line of their own) take the line before."""
     lines = path.line_at(s)
@@ -207,7 +68,6 @@ def _lines_of(path, s: np.ndarray) -> np.ndarray:
                 filled[i] = filled[i - 1]
         lines = filled[path.segment_index(s)]
     return lines
-
 
 def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, limit: float, unit: str,
            what: str, joints: np.ndarray | None = None, feed=None) -> list[Finding]:
@@ -242,7 +102,6 @@ def _group(kind: str, mask: np.ndarray, values: np.ndarray, lines: np.ndarray, l
                            f"{name} {abs(v):.6g}{over}{abs(v) / limit:.3f}, {c} sample(s)){where}"))
     return out
 
-
 def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
     """The largest feed at which each line's velocity stays within ``limit``: a joint or
     Cartesian velocity is the feed times a factor of the geometry (|q′(s)|), so limit / the
@@ -260,32 +119,29 @@ def _keep_feed(values, lines, speed, limit: float, lns: list) -> list[float]:
         np.maximum.at(gmax, ln[starts] + 1, np.maximum.reduceat(f, starts))  # + 1: line −1 at 0
     return [limit / gmax[x + 1] if 0 <= x + 1 < len(gmax) and gmax[x + 1] > 0 else None for x in lns]
 
-
 def _feed_note(speed: float, prog: str, keep) -> str:
     """', at 12.5 mm/s (F1200 programmed); ≤ 9.8 mm/s keeps it within': what the machine does
     on that line (``prog``: _programmed of its F) and, for a velocity, the feed that keeps the
     line within (``keep``, mm/s); acceleration and jerk depend on the planner's ramps too."""
     return f", at {speed:.4g} mm/s ({prog})" + ("" if keep is None else f"; ≤ {keep:.4g} mm/s keeps it within")
 
-
 def _programmed(feed_mm_s) -> str:
     """'F1200 programmed' (from the feed in mm/s), or 'rapid' (None)."""
     return "rapid" if feed_mm_s is None else f"F{60 * feed_mm_s:.6g} programmed"
 
-
 def check_program(file, machine, planner: str = "trapezoid", workspace_step_mm: float = 0.5, *,
-                  start=None, reader: str = "pkmbench") -> Report:
+                  start=None, reader: str = "pkmbench", setup=None) -> Report:
     """Check a program as ``planner`` runs it on ``machine`` (``start``: the machine position
     before it, see planners.paths.gcode.parse_gcode; default: its first positioning move or
-    the machine's home; ``reader``: the G-code interpreter, pkmbench or linuxcnc)."""
+    the machine's home; ``reader``: the G-code interpreter, pkmbench or linuxcnc; ``setup``: the
+    tool table, var file and work offsets it starts with, planners.paths.gcode.rs274.setup)."""
 
     # the cyclic GC's full passes over the 10⁵–10⁶ objects a long program makes (segments,
     # findings, planner pieces) cost ~15 % of a check; none of them needs it to be freed
     with gc_paused():
-        return _check(file, machine, planner, workspace_step_mm, start, reader)
+        return _check(file, machine, planner, workspace_step_mm, start, reader, setup)
 
-
-def _check(file, machine, planner: str, workspace_step_mm: float, start, reader: str) -> Report:
+def _check(file, machine, planner: str, workspace_step_mm: float, start, reader: str, setup=None) -> Report:
 
     file = Path(file)
     rep = Report(str(file), machine.name, planner)
@@ -296,12 +152,20 @@ def _check(file, machine, planner: str, workspace_step_mm: float, start, reader:
         raise CheckError(f"{file}: no such file")
     # 1. compile
     try:
-        prog = read_gcode(file, start, home=machine.home, reader=reader)   # a one-move program starts at home
+        prog = read_gcode(file, start, home=machine.home, reader=reader, setup=setup)   # a one-move program starts at home
+    except EmptyProgram:
+        # a subroutine library or setup file: valid, and nothing in it moves the machine
+        rep.stats["moves"] = 0
+        rep.stats["nothing_to_check"] = "the program makes no move"
+        return rep
     except GCodeError as e:
         rep.invalid = True
         rep.findings.append(Finding("compile", "error", [int(e.line)], None, None, "", e.message))
         return rep
     rep.findings += _n_number_warnings(file.read_text(errors="replace"), str(file))
+    # (MSG,…), (DEBUG,…) and (PRINT,…) of the program, as LinuxCNC would show them
+    rep.findings += [Finding("message", "info", [int(e.line)], None, None, "", str(e.value))
+                     for e in prog.events if e.kind == "message"]
     rep.stats["moves"] = len(prog.moves)
     # 2. plan the program first, then check the geometry of the path that ran: a planner that
     # re-blends the program at its speeds (trapezoid) never builds the standard blends
@@ -322,7 +186,6 @@ def _check(file, machine, planner: str, workspace_step_mm: float, start, reader:
     # 4. dynamics: the program as the planner runs it, at the servo period, through the IK
     _dynamics_findings(rep, prof, machine)
     return rep
-
 
 def _geometry_findings(rep: Report, path, machine, step_mm: float) -> bool:
     """Add a finding per G-code line and kind where the path leaves the workspace, passes its
@@ -352,7 +215,6 @@ def _geometry_findings(rep: Report, path, machine, step_mm: float) -> bool:
         rep.findings += [_workspace_finding(kind, ln, by_line[ln], P, box_excess) for ln in sorted(by_line)]
     return bad_geometry
 
-
 def _workspace_finding(kind: str, ln: int, fs: list, P: np.ndarray, box_excess: np.ndarray) -> Finding:
     """The finding of one G-code line: its worst point of the kins findings ``fs`` of one kind."""
     if kind == "box":      # kins gives no distance: the farthest point outside is the worst
@@ -372,7 +234,6 @@ def _workspace_finding(kind: str, ln: int, fs: list, P: np.ndarray, box_excess: 
         val, lim = float(box_excess[worst.index]), 0.0
         msg = f"outside the workspace box by {val:.4g} mm {where}"
     return Finding(kind, "error", [ln], val, lim, "mm", msg)
-
 
 def _dynamics_findings(rep: Report, prof, machine) -> None:
     """Joint and Cartesian velocity, acceleration and jerk of the sampled profile, read as
@@ -403,7 +264,6 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
             else:
                 rep.findings += _group(f"cartesian_{order}", mask, worst, ln, L, unit, f"Cartesian {order}",
                                        feed=feed)
-
 
 def _path_speed(P, T):
     """The path speed of each period: np.linalg.norm(np.diff(P, axis=0), axis=1) / T's operations
