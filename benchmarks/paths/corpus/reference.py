@@ -62,7 +62,7 @@ LEVELS = 3
 SLOW_FRACTION = 0.25           # a break whose speed cap is below this part of F_max is graded like a stop
 TURN_RAD = 0.1                 # level 0: a node at least every 0.1 rad of turn
 SIDE = 1e-7                    # mm: one-sided derivatives either side of a join or knot
-IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 3000, "print_level": 0,
+IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 1500, "max_cpu_time": 900.0, "print_level": 0,
          "mu_strategy": "adaptive", "linear_solver": "mumps"}
 
 
@@ -183,8 +183,11 @@ class PieceData:
         cap_node[self.brk] = np.minimum(cap_node[self.brk], cap[n:])
         qv = np.abs(Q[1][:n]).max(axis=1)
         qv[self.brk] = np.maximum(qv[self.brk], np.abs(Q[1][n:]).max(axis=1))
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             self.vmax = np.minimum(cap_node, limits.joint.v / qv) / vu
+        if not np.isfinite(self.vmax).all() and np.isnan(self.vmax).any():
+            i = int(np.flatnonzero(np.isnan(self.vmax))[0])
+            raise RuntimeError(f"s = {s[i]:.9g} mm: the joint derivatives there are not finite")
         m = joint_derivs(machine, path, self.s4[:, 2], fit_scale=True)
         self.mid = (m[1], m[2] * su, m[3] * su * su)
         self.kappa = {}                          # break node → the join's read κ per joint, scaled
@@ -323,13 +326,14 @@ def richardson(T):
     """(T*, error, order p) from the times of nested grids (each halving the cells): per triple
     the observed order p = log2(d1/d2) and T* = T₃ + d₂/(2^p − 1); the bar is the larger of the
     last correction |T* − T₃| and the change of T* from the triple before. A triple whose
-    differences change sign or grow has no order (p NaN): T* = T₃ with the bar max(|d₁|, |d₂|)."""
+    differences change sign or shrink by less than √2 (p < ½: no asymptotic range yet) has no
+    order (p NaN): T* = T₃ with the bar max(|d₁|, |d₂|)."""
     if len(T) < 3:
         return T[-1], abs(T[-1] - T[-2]) if len(T) > 1 else math.inf, math.nan
     est = []
     for t0, t1, t2 in zip(T[:-2], T[1:-1], T[2:]):
         d1, d2 = t1 - t0, t2 - t1
-        if d1 * d2 > 0 and abs(d1) > abs(d2):
+        if d1 * d2 > 0 and abs(d1) > 2 ** 0.5 * abs(d2):
             p = min(math.log2(d1 / d2), 4.0)
             est.append((t2 + d2 / (2 ** p - 1), p, abs(d2 / (2 ** p - 1))))
         else:
