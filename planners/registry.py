@@ -35,7 +35,8 @@ BUILTIN = {
     "trapezoid": ("planners.trapezoid", "plan"),
     "scurve": ("planners.scurve", "plan"),
     "scurve_joint": ("planners.scurve", "plan_joint"),
-    "pso": ("planners.pso", "plan"),
+    "pso": ("planners.pso", "plan"),                 # the particle swarm alone (Erwinski et al.)
+    "pso_socp": ("planners.pso", "plan_socp"),       # the swarm polished by the TOPP3-SOCP (memetic)
     "toppra": ("planners.optimal.toppra", "plan"),
     "optimal": ("planners.optimal", "plan"),
     "copp": ("planners.optimal.copp", "plan"),       # COPP's TOPP3-SOCP (copp-py): a second jerk-limited reference
@@ -53,6 +54,7 @@ BUILTIN_GUARANTEES = {
     "scurve": {"cartesian": ["velocity", "acceleration", "jerk", "feed"]},
     "scurve_joint": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
     "pso": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
+    "pso_socp": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
     "toppra": {"joint": ["velocity"], "cartesian": ["feed"]},
     "optimal": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
     "copp": {"joint": ["velocity", "acceleration", "jerk"], "cartesian": ["feed"]},
@@ -61,7 +63,7 @@ BUILTIN_GUARANTEES = {
 
 # The built-ins whose profile depends on their ``seed`` option (the swarm's random numbers):
 # the corpus and the reports run them over seeds and show the distribution.
-BUILTIN_STOCHASTIC = frozenset({"pso"})
+BUILTIN_STOCHASTIC = frozenset({"pso", "pso_socp"})   # their plan functions say so too (.stochastic)
 
 
 @runtime_checkable
@@ -150,8 +152,9 @@ def get(name: str):
 
 
 def describe(name: str) -> dict:
-    """{"name", "source", "version", "guarantees" (or None), "error" (if it cannot be loaded)}."""
-    out: dict = {"name": name, "version": None, "guarantees": None}
+    """{"name", "source", "version", "guarantees" (or None), "stochastic", "error" (if it cannot
+    be loaded)}."""
+    out: dict = {"name": name, "version": None, "guarantees": None, "stochastic": False}
     if name in BUILTIN:
         out["source"] = "built-in " + ":".join(BUILTIN[name])
     else:

@@ -1,6 +1,7 @@
 """optimal: the TOPP3-SOCP (planners/optimal/topp3.py) against the jerk-limited closed form on a line that
-drives the joints 1:1, its station relaxation, the choice between it and scurve_joint, order
-against toppra, errors; the IPOPT NLP (the polish and the SOCP's fallback) on its own."""
+drives the joints 1:1, its lower bound (bound.py) against the jerk-free closed form, finer
+stations where the check at T fails and an error (never another planner's profile) where
+nothing passes, order against toppra, errors; the IPOPT NLP (the polish) on its own."""
 import math
 
 import numpy as np
@@ -25,12 +26,11 @@ def nlp(path, machine, warm, **options):
     return optimal._polish(path, machine, machine.limits, warm, **options)
 
 
-def test_vertical_line_is_the_jerk_limited_closed_form_and_its_relaxation_near_it():
+def test_vertical_line_is_the_jerk_limited_closed_form_and_its_bound_the_jerk_free_one():
     """q = z + const on every joint: the minimum time is the 1-D rest-to-rest optimum, here
     L/V + 2√(V/J) (V·J ≤ A²: A is never reached; tests/test_optimal_topp3.py checks it against ruckig).
-    The SOCP is above it by the 0.1 mm grid's loss (measured 0.16 %); its station relaxation is
-    a bound of the transcription, not of the continuous problem: within 0.1 % of the optimum,
-    on either side (measured 0.06 % above)."""
+    The SOCP is above it by the 0.1 mm grid's loss.  The lower bound drops the jerk: q′ = 1,
+    q″ = 0, so it is the trapezoid's L/V + V/A (its ramps integrated in closed form)."""
     L = 30.0
     lim = KOSSEL.limits.joint
     exact = L / lim.v + 2 * math.sqrt(lim.v / lim.j)
@@ -39,7 +39,8 @@ def test_vertical_line_is_the_jerk_limited_closed_form_and_its_relaxation_near_i
     assert command_metrics(KOSSEL, vertical(L).point(p.s), p.T, p.s)["feasible"]
     assert exact - p.T <= p.execution_time_s <= exact * 1.003 + p.T
     lb = p.info["lower_bound_s"]
-    assert lb == pytest.approx(exact, rel=1e-3) and lb <= p.execution_time_s
+    jerk_free = L / lim.v + lim.v / lim.a
+    assert lb == pytest.approx(jerk_free, rel=1e-6) and lb < exact
     assert p.info["gap"] == pytest.approx(p.execution_time_s / lb - 1)
 
 
@@ -60,7 +61,7 @@ def test_nlp_on_the_vertical_line_is_the_seven_phase_closed_form_within_its_marg
     assert p.execution_time_s == pytest.approx(s.execution_time_s, rel=6e-3)
     # its node relaxation T₁·(1 − m) lies below the margin-free L/V + V/A + A/J by at most m
     free = L / lim.v + lim.v / lim.a + lim.a / lim.j
-    assert free * (1 - 0.005) * (1 - 1e-4) <= p.info["lower_bound_s"] <= free * (1 + 1e-6)
+    assert free * (1 - 0.005) * (1 - 1e-4) <= p.info["node_relaxation_s"] <= free * (1 + 1e-6)
 
 
 def test_optimal_is_not_faster_than_toppra():
@@ -215,39 +216,53 @@ def test_nlp_piece_over_the_node_budget_is_refused_naming_it():
     assert "G-code lines 3…42" in msg
 
 
-def test_many_blend_joins_are_planned_and_no_slower_than_scurve_joint():
-    """The zigzag the NLP refuses: the default (SOCP, or scurve_joint where faster) plans it
-    within the limits at T."""
+def test_many_blend_joins_are_planned_within_the_limits():
+    """The zigzag the NLP refuses: the SOCP plans it within the limits at T, its own profile
+    (scurve_joint's, faster here because its samples at T straddle the µm blend arcs whose
+    continuous limits the SOCP keeps, is never returned), above its bound."""
     path = zigzag()
     p = plan("optimal", path, KOSSEL)
     assert command_metrics(KOSSEL, path.point(p.s), p.T, p.s)["feasible"]
-    assert p.execution_time_s <= plan("scurve_joint", path, KOSSEL).execution_time_s
-    assert p.info["source"] in ("socp", "scurve_joint")
+    assert p.info["source"] == "socp" and p.planner == "optimal"
+    assert p.info["lower_bound_s"] <= p.execution_time_s
 
 
-def test_the_faster_candidate_within_the_limits_and_its_bound():
-    """_fastest_within_limits returns the faster profile within the limits at T, never one above
-    a limit; _bound keeps a bound only where it is below the returned time."""
+def test_a_profile_above_a_limit_is_solved_on_finer_stations_then_refused(monkeypatch):
+    """Where the SOCP's profile reads above a limit at T the path is solved again on stations
+    STATION_REFINEMENT times closer; where none passes, a PlanningError names the path and the
+    limit, and no other planner's profile is returned."""
     path = vertical(10.0)
-    fast = plan("scurve_joint", path, KOSSEL)
-    slow = plan("scurve_joint", path, KOSSEL, margin=0.1)
     lim = KOSSEL.limits
     double = MachineLimits(Limits(2 * lim.joint.v, 2 * lim.joint.a, 2 * lim.joint.j), lim.cartesian,
                            2 * lim.feed_max, lim.chord_error_mm)
-    over = plan("scurve_joint", path, KOSSEL, double)           # faster, above KOSSEL's own limits
-    out = optimal._fastest_within_limits([slow, over, fast], KOSSEL, path, {})
-    assert out.planner == "optimal" and out.info["source"] == "scurve_joint"
-    assert np.array_equal(out.s, fast.s)
-    with pytest.raises(PlanningError, match="neither the SOCP's nor scurve_joint's profile"):
-        optimal._fastest_within_limits([over], KOSSEL, path, {})
-    from types import SimpleNamespace
-    socp = SimpleNamespace(info={"station_relaxation_s": 1.1 * out.execution_time_s})
-    optimal._bound(out, socp)
-    assert "lower_bound_s" not in out.info and out.info["bound"].startswith("none")
-    socp.info["station_relaxation_s"] = 0.9 * out.execution_time_s
-    optimal._bound(out, socp)
-    assert out.info["lower_bound_s"] == socp.info["station_relaxation_s"]
-    assert out.info["gap"] == pytest.approx(1 / 0.9 - 1)
+    over = optimal.topp3.solve(path, KOSSEL, double, optimal.topp3.Settings("optimal"))   # above KOSSEL's
+    good = optimal.topp3.solve(path, KOSSEL, lim, optimal.topp3.Settings("optimal"))
+    grids = []
+
+    def solve(path_, machine, limits, settings, pieces=None):
+        grids.append(settings.grid_mm)
+        return over if len(grids) < 2 else good
+    monkeypatch.setattr(optimal.topp3, "solve", solve)
+    p = optimal.plan(path, KOSSEL, polish=False)
+    assert grids == [0.1, 0.1 / optimal.STATION_REFINEMENT]
+    assert p.info["source"] == "socp" and p.info["grid_mm"] == grids[-1] and np.array_equal(p.s, good.s)
+    grids.clear()
+    monkeypatch.setattr(optimal.topp3, "solve", lambda *a, **k: grids.append(a[3].grid_mm) or over)
+    with pytest.raises(PlanningError, match=r"optimal: .*no profile within the limits at T.*joint (velocity|acceleration|jerk) [0-9.]+ × its limit"):
+        optimal.plan(path, KOSSEL, polish=False)
+    assert len(grids) == optimal.REFINE_LEVELS + 1
+
+
+def test_lower_bound_below_the_optimum_on_a_curved_path():
+    """keops' bird: the bound (velocity and acceleration only, each interval's worst case) lies
+    below optimal's time and below toppra's jerk-free time, which drops only the jerk."""
+    from planners.optimal.bound import lower_bound
+    from planners.paths import resolve_path
+    keops = load_machine("keops")
+    path = resolve_path("bird")
+    lb = lower_bound(path, keops, keops.limits)
+    tp = plan("toppra", path, keops)
+    assert 0 < lb <= tp.info["continuous_time_s"]
 
 
 def test_turn_nodes_count_the_turned_angle():

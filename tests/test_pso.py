@@ -1,6 +1,7 @@
-"""pso: the feed spline's closed forms and time-scaling law, the exact time map of its samples,
-knots placed by the path's limits (not the seed), the cooperative swarm's invariants, seeded
-determinism, never slower than its seed, feasible at T, clear errors."""
+"""pso and pso_socp: the feed spline's closed forms and time-scaling law, the exact time map of
+its samples, knots placed by the path's limits (not the seed) and refined by insertion (the same
+feed), the push's and the cooperative swarm's invariants, seeded determinism, never slower than
+its seed, feasible at T, declared stochastic, clear errors."""
 import numpy as np
 import pytest
 
@@ -95,8 +96,8 @@ def test_knots_follow_the_limits_not_the_seed():
     KNOT_STEP_TU of it (to the station they are moved to): the same for any seed profile."""
     seed = plan("scurve_joint", PATH, KEOPS)
     slow = plan("trapezoid", PATH, KEOPS)
-    a = plan("pso", PATH, KEOPS, seed_profile=seed, polish=False, **FAST)
-    b = plan("pso", PATH, KEOPS, seed_profile=slow, polish=False, **FAST)
+    a = plan("pso", PATH, KEOPS, seed_profile=seed, **FAST)
+    b = plan("pso", PATH, KEOPS, seed_profile=slow, **FAST)
     assert a.info["control_points"] == b.info["control_points"]
     feed = _feed()
     t_ra = feed.station_times(np.sqrt(feed.a_ra))
@@ -136,32 +137,70 @@ def test_the_context_stays_within_the_limits_and_never_slows_down():
 
 
 def test_same_seed_same_profile_other_seed_other_swarm():
-    a = plan("pso", PATH, KEOPS, seed=3, polish=False, **FAST)
-    b = plan("pso", PATH, KEOPS, seed=3, polish=False, **FAST)
+    a = plan("pso", PATH, KEOPS, seed=3, **FAST)
+    b = plan("pso", PATH, KEOPS, seed=3, **FAST)
     assert np.array_equal(a.s, b.s) and np.array_equal(a.sddd, b.sddd)
     assert [h[1] for h in a.info["history"]] == [h[1] for h in b.info["history"]]
-    c = plan("pso", PATH, KEOPS, seed=4, polish=False, **FAST)
+    c = plan("pso", PATH, KEOPS, seed=4, **FAST)
     assert [h[1] for h in a.info["history"]] != [h[1] for h in c.info["history"]]
 
 
 def test_feasible_at_T_never_slower_than_its_seed_and_both_results_reported():
+    """pso_socp returns the fastest of its polish, its swarm and its seed, all checked at T;
+    pso is its swarm alone (no polish), within the limits at T too."""
     seed = plan("scurve_joint", PATH, KEOPS)
-    p = plan("pso", PATH, KEOPS, seed_profile=seed, **FAST)
+    p = plan("pso_socp", PATH, KEOPS, seed_profile=seed, **FAST)
     r = command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)
     assert r["feasible"] and r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
     info = p.info
-    assert p.execution_time_s <= seed.execution_time_s
+    assert p.planner == "pso_socp" and p.execution_time_s <= seed.execution_time_s
     assert p.execution_time_s == min(info["swarm_time_s"], info["polished_time_s"], info["seed_time_s"])
     assert info["returned"] == "polished" and info["swarm_time_s"] < info["start_time_s"]
-    # the swarm alone, without its polish, is feasible at T too
-    q = plan("pso", PATH, KEOPS, seed_profile=seed, polish=False, **FAST)
+    q = plan("pso", PATH, KEOPS, seed_profile=seed, **FAST)
     rq = command_metrics(KEOPS, PATH.point(q.s), q.T, q.s)
-    assert rq["feasible"] and "polished_time_s" not in q.info
+    assert q.planner == "pso" and rq["feasible"] and "polished_time_s" not in q.info
     assert q.execution_time_s == pytest.approx(min(q.info["swarm_time_s"], seed.execution_time_s))
+    assert q.info["returned"] == "swarm" and q.execution_time_s < seed.execution_time_s
+
+
+def test_both_are_declared_stochastic_and_the_others_not():
+    from planners.registry import describe, get, stochastic
+    assert stochastic("pso") and stochastic("pso_socp")
+    assert not stochastic("optimal") and not stochastic("scurve_joint")
+    assert not stochastic("no_such_planner")
+    assert describe("pso")["stochastic"] and not describe("copp")["stochastic"]
+    # the registry's table of the built-ins and their plan functions' own attribute agree
+    assert get("pso").stochastic is True and get("pso_socp").stochastic is True
+
+
+def test_the_push_keeps_the_limits_and_only_raises_the_feed():
+    """Every coefficient only grows (so w and the feed only grow: the basis is ≥ 0), every
+    station stays within its limits, and from a start scaled down to half the feed the push
+    gains back at least a third of the lost time."""
+    feed = _feed()
+    c0 = feed.start_locally(feed.fit(np.sqrt(feed.a_ra)))
+    low = c0 * 0.5 ** 1.5                              # half the feed everywhere: twice the time
+    c = feed.push(low, 3)
+    assert np.all(c >= low) and feed.reads(c)[1].max() <= 1.0
+    assert feed.time(c) < feed.time(low) - (feed.time(low) - feed.time(c0)) / 3
+    assert np.array_equal(feed.push(low, 3), c)       # deterministic
+
+
+def test_refined_knots_keep_the_old_ones_and_the_same_feed():
+    """Knot insertion: the refined spline has every old knot, about twice as many coefficients,
+    and the same w at the stations (to the least squares' round-off)."""
+    feed = _feed()
+    c = feed.start_locally(feed.fit(np.sqrt(feed.a_ra)))
+    fine, cf = feed.refined(c)
+    assert np.all(np.isin(feed.knots[4:-4], fine.knots[4:-4]))
+    assert feed.K < fine.K <= 2 * feed.K
+    w, wf = feed.bases[0] @ c, fine.bases[0] @ cf
+    np.testing.assert_allclose(wf, w, rtol=0, atol=1e-9 * w.max())
+    assert fine.time(cf) == pytest.approx(feed.time(c), rel=1e-9)
 
 
 def test_time_budget_is_reported_and_zero_iterations_return_the_start():
-    p = plan("pso", PATH, KEOPS, polish=False, time_budget_s=0.0, **FAST)
+    p = plan("pso", PATH, KEOPS, time_budget_s=0.0, **FAST)
     assert p.info["stopped_by"] == "time budget" and p.info["iterations_run"] == 0
 
 
@@ -169,4 +208,6 @@ def test_bad_options():
     with pytest.raises(PlanningError, match="particles"):
         plan("pso", PATH, KEOPS, particles=1)
     with pytest.raises(PlanningError, match="iterations"):
-        plan("pso", PATH, KEOPS, iterations=-1)
+        plan("pso_socp", PATH, KEOPS, iterations=-1)
+    with pytest.raises(TypeError):
+        plan("pso", PATH, KEOPS, polish=True)          # the swarm has no polish: pso_socp has

@@ -4,7 +4,7 @@ settings: a second, independent jerk-limited reference on the planners' constrai
 Wang, Hu, Li, Yu, Yan, Liang & Jin, Int. J. Machine Tools and Manufacture 215 (2026) 104355;
 the `copp-py` package.  The transcription, its check at T and its repairs: planners/optimal/topp3.py.
 The linearisations stop when a solve gains < 0.1 % of a piece's time, after at most 4 solves
-(topp3.Settings' defaults; more moved the result by < 0.1 % at twice the time).
+(topp3.Settings' defaults; docs/TUNING.md says what more cost).
 """
 from __future__ import annotations
 

@@ -1,22 +1,24 @@
-"""`optimal` — minimum time with joint velocity, acceleration and jerk limits.
+"""`optimal` — minimum time with joint velocity, acceleration and jerk limits: the yardstick.
 
-The jerk-limited reference on the shared constraint set (joint v, a, j; F_max; the chord-error
-feed cap; the G1-join reads).  Two transcriptions:
+The constraint set is the planners' shared one (joint v, a, j; F_max; the chord-error feed
+cap; the G1-join reads).  Two transcriptions:
 
-* the default, COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel):
-  stations ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by
-  tangents (a restriction: the time never grows from one linearisation to the next), at
-  `copp`'s settings (its profile is this one: optimal is never slower), checked at T and
-  repaired where a difference window reads above a limit.  `scurve_joint`'s profile is
-  returned instead where it is faster, or where the SOCP has no solution (info["source"]).
-  info["lower_bound_s"] is the station relaxation: the time before the repairs, with the
-  limits held at the stations only (a bound of this transcription from its local solution,
-  not a certificate of the continuous problem: IPOPT's time-domain NLP found 1.7668 s on
-  keops/bird against a station relaxation of 1.76725 s);
+* COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel): stations
+  ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by tangents (a
+  restriction: the time never grows from one linearisation to the next), at `copp`'s settings,
+  checked at T and repaired in windows where a difference reads above a limit.  Where a limit
+  still reads above 1 after the repairs the path is solved again on finer stations
+  (_socp_within_limits).  No other planner's profile is ever returned: without a profile
+  within the limits `optimal` raises a PlanningError naming the path and the limit;
 * the time-domain NLP (CasADi + IPOPT, planners/optimal/nlp.py): direct multiple shooting with
-  constant jerk on each interval, the limits at the nodes, started from that profile.  It runs
-  with ``polish=True`` and, by default, where its nodes resolve every piece (_nlp_resolves);
-  the faster of it and its start is returned.
+  constant jerk on each interval, the limits at the nodes, started from the SOCP's profile.  It
+  runs with ``polish=True`` and, by default, where its nodes resolve every piece
+  (_nlp_resolves); the faster of it and its start is returned (info["source"]: "socp" or "nlp").
+
+info["lower_bound_s"] bounds the continuous problem from below (bound.py: the velocity limit
+curve and the acceleration from and to rest, each interval at its worst case), info["gap"] is
+the profile's excess over it.  The SOCP's station relaxation (info["station_relaxation_s"]) and
+the NLP's node relaxation (info["node_relaxation_s"]) bound only their transcriptions.
 
 The NLP's solution is sampled at T exactly and checked with the independent metrics; if a
 discretisation effect pushes a joint ratio above 1 the problem is re-solved: on a grid twice
@@ -26,7 +28,7 @@ pieces where a limit read above 1: with the margin doubled on each limit read ab
 piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
 at each interval's midpoint too.  Still above after `retries`, the pieces are slowed down
 uniformly until they pass (_slowed_down).  (Why refining comes first and why margins are per
-piece and per limit: the measurements in docs/TUNING.md.)
+piece and per limit: docs/TUNING.md.)
 """
 from __future__ import annotations
 
@@ -38,26 +40,32 @@ import numpy as np
 from planners.constraints import (PathTable, PlanningError, check_limits, check_path, join_jumps, rest_pieces,
                                   table_feed_cap)
 from planners.optimal import topp3
+from planners.optimal.bound import lower_bound
 from planners.optimal.nlp import LIMIT_KINDS, IpoptFailure, _Piece
 from planners.profile import Profile
-from planners.scurve import plan_joint
 from planners.verify import command_metrics, keeps_joints_and_feed, windows_above, worst_sample
 
+# where the SOCP's profile still breaks a limit at T: solved again on stations this many times
+# closer, up to REFINE_LEVELS times
+STATION_REFINEMENT = 2
+REFINE_LEVELS = 2
+# stations ≤ this many curvature radii apart (copp's engine default is 5 × coarser): where the
+# joints turn fast between stations the check at T read above the limits, and the repairs'
+# tightening cost more time than the few stations it takes (docs/TUNING.md)
+STATION_RADII = 0.1
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
-# 0.04 mm G64 blend arc the joint derivatives turn through 90°; with 6 nodes there the jerk
-# read at T peaked 2 % above the limit between them.
+# short G64 blend arc the joint derivatives turn through 90° (docs/TUNING.md).
 MIN_PHASE_NODES = 24
 # A piece's grid is refined on a failed check up to this many nodes (more than the default
-# budget: a 90 s solve on flower at 1500 nodes from the start, against ≤ 60 s wanted)
+# budget, which bounds the solve's time)
 MAX_NODES_REFINED = 1500
-# ... when the budget had spread its nodes this many times thinner than node_period_s (kossel's
-# 3 s pieces: 5 ms; keops' flower: 2 ms, where refining cost time and still failed the check)
+# ... when the budget had spread its nodes this many times thinner than node_period_s
 THIN_GRID_FACTOR = 3.0
 # Where the path turns, a node at least every NODE_RADII curvature radii of travel (6° of turn;
 # the 24 nodes of MIN_PHASE_NODES on a 90° blend arc are 3.75° apart)
 NODE_RADII = 0.1
-# Where IPOPT fails from the warm start slowed by warm_stretch, it starts again from this
-# (rand_tilted_weights_keops: Infeasible_Problem_Detected from 1.02, solved from 1.1)
+# Where IPOPT fails from the warm start slowed by warm_stretch, it starts again from this (a
+# start further inside the constraints)
 RETRY_STRETCH = 1.1
 # an NLP solution (or its slow-down) slower than this many times its start is no candidate
 # (_faster_of keeps the start) and is not sampled at T: the samples' memory stays bounded
@@ -85,9 +93,8 @@ def _warm_start(prof, bounds, node_period_s, max_nodes, stretch=1.15, turn=None)
     """Phase sizes, interval durations and nodes from a profile (the warm start) on one piece,
     slowed down by `stretch`.  ``bounds`` = [s0, joins…, s1].  Nodes come one per
     ``node_period_s`` and, where the path turns (``turn`` = turn_nodes(…)), one more per
-    NODE_RADII curvature radii of travel: the limits hold at the nodes only, and a lobe tip of
-    radius 0.03 mm passed in a few ms fell between nodes ~28 ms apart (kossel's butterfly: the
-    joint jerk read 6.8 × its limit at T).  Over the budget the time share is thinned first."""
+    NODE_RADII curvature radii of travel: the limits hold at the nodes only, and a lobe tip
+    passed in a few ms fell between nodes spread by time alone.  Over the budget the time share is thinned first."""
     t = prof.t
     sgrid, idx = np.unique(prof.s, return_index=True)
     tb = np.interp(bounds, sgrid, t[idx])
@@ -159,79 +166,71 @@ def sample_cubic(pieces_sol, T, path, info) -> Profile:
 def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | None = None,
          margin: float = 0.005, node_period_s: float = 1e-3, max_nodes_per_piece: int = 600,
          warm_stretch: float = 1.02, retries: int = 3) -> Profile:
-    """Minimum-time jerk-limited reference: the TOPP3-SOCP (stations ≤ ``grid_mm`` apart) or
-    `scurve_joint`'s profile where that is faster, both within the limits at T; with
-    ``polish``, the IPOPT NLP from there (module docstring).  ``polish=None``
-    (the default): where the NLP's grid resolves every piece, a node per ``node_period_s``
-    within ``max_nodes_per_piece`` (_nlp_resolves)."""
+    """Minimum-time jerk-limited reference: the TOPP3-SOCP (stations ≤ ``grid_mm`` apart, finer
+    where its profile breaks a limit at T), with ``polish`` the IPOPT NLP from there (module
+    docstring); ``polish=None`` (the default): where the NLP's grid resolves every piece, a node
+    per ``node_period_s`` within ``max_nodes_per_piece`` (_nlp_resolves).  info["lower_bound_s"]:
+    a bound of the continuous problem (bound.py), info["gap"] the time's excess over it."""
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
     check_limits(limits, "optimal")
     check_path(path, "optimal")
-    candidates, notes = [], {}
-    try:
-        socp = topp3.solve(path, machine, limits, topp3.Settings("optimal", grid_mm))
-        candidates.append(socp)
-        notes["socp_s"] = socp.execution_time_s
-    except PlanningError as e:
-        socp, notes["socp"] = None, str(e)
-    try:
-        candidates.append(plan_joint(path, machine, limits))
-    except PlanningError as e:
-        notes["scurve_joint"] = str(e)
-    prof = _fastest_within_limits(candidates, machine, path, notes)
+    prof = _socp_within_limits(path, machine, limits, grid_mm)
     if polish is None:
         polish = _nlp_resolves(prof, path, node_period_s, max_nodes_per_piece)
     if polish:
         prof = _polish(path, machine, limits, prof, margin, node_period_s, max_nodes_per_piece,
                        warm_stretch, retries)
-    _bound(prof, socp)
+    bound = lower_bound(path, machine, limits)
+    prof.info["lower_bound_s"] = bound
+    prof.info["gap"] = prof.execution_time_s / bound - 1
     prof.planning_time_s = time.perf_counter() - t0
     return prof
 
 
 def _nlp_resolves(prof, path, node_period_s, max_nodes) -> bool:
     """Whether the NLP's nodes fit every rest-to-rest piece of ``prof`` at one per node_period_s
-    within max_nodes.  On such short pieces it gained on the SOCP's 0.1 mm stations (the short
-    path of tests/test_planner_claims on keops: 0.4775 s against pso's 0.47575 s); spread thinner
-    it lost (butterfly_keops: 50 s for 2.87 s against 1.93 s) and its thin grids were its failures."""
+    within max_nodes: spread thinner, its grids missed the limits between nodes and it lost to
+    its start (docs/TUNING.md)."""
     t = np.interp([a for a, _ in rest_pieces(path)] + [path.length], prof.s, prof.t)
     return bool(np.all(np.diff(t) <= max_nodes * node_period_s))
 
 
-def _fastest_within_limits(candidates, machine, path, notes) -> Profile:
-    """The fastest profile within the joint limits and F_max at T, as `optimal`'s, its origin in
-    info["source"]: the SOCP's, or `scurve_joint`'s where that is faster (kossel's short G64
-    blends: the SOCP adds the worst read of a join's q″ jump to the continuous jerk, the s-curve
-    checks the read at T) or the SOCP has no solution."""
-    ok = []
-    for p in candidates:
-        r = command_metrics(machine, path.point(p.s), p.T, p.s)
-        if keeps_joints_and_feed(r):
-            ok.append(p)
-    if not ok:
-        why = "".join(f"; {k}: {notes[k]}" for k in ("socp", "scurve_joint") if k in notes)
-        raise PlanningError(f"optimal: neither the SOCP's nor scurve_joint's profile is within the limits at T{why}")
-    best = min(ok, key=lambda p: p.execution_time_s)
-    source = "socp" if best.planner == "optimal" else best.planner
-    return dataclasses.replace(best, planner="optimal", info=dict(best.info, source=source, **notes))
+def _within(machine, path, prof, limits) -> tuple[bool, str]:
+    """(within the joint limits and F_max at T, what reads worst where it is not)."""
+    r = command_metrics(machine, path.point(prof.s), prof.T, prof.s)
+    if keeps_joints_and_feed(r):
+        return True, ""
+    feed = r["cartesian_peak_ratio"].get("feed", 0.0)
+    if not r["feasible"]:
+        order, i, ratio = worst_sample(machine.ik(path.point(prof.s)), prof.T, limits.joint)
+        return False, f"joint {order} {ratio:.6g} × its limit at s = {prof.s[i]:.6g} mm"
+    return False, f"feed {feed:.6g} × F_max"
 
 
-def _bound(prof, socp) -> None:
-    """info["lower_bound_s"] and info["gap"]: the SOCP's station relaxation (or the NLP's node
-    relaxation, the lower), where it is one: where a profile of another transcription is faster
-    than it, it bounds nothing and info["bound"] says so."""
-    b = [x for x in (socp.info["station_relaxation_s"] if socp is not None else None,
-                     prof.info.get("lower_bound_s") if prof.info.get("source") == "nlp" else None) if x]
-    if not b:
-        prof.info.pop("lower_bound_s", None)
-        return
-    if min(b) > prof.execution_time_s:
-        prof.info.pop("lower_bound_s", None)
-        prof.info["bound"] = f"none: the station relaxation {min(b):.6g} s is above this {prof.info['source']} profile"
-        return
-    prof.info["lower_bound_s"] = min(b)
-    prof.info["gap"] = prof.execution_time_s / min(b) - 1
+def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
+    """The TOPP3-SOCP's profile, checked at T.  Where the engine's repairs (tightened windows,
+    then stretches) still leave a limit above 1, the path is solved again on stations
+    STATION_REFINEMENT times closer (also in curvature radii), up to REFINE_LEVELS times: the
+    limits hold at the stations, so finer stations leave less to read between them.  Never
+    another planner's profile: without a profile within the limits a PlanningError names the
+    path and the limit."""
+    why = []
+    for level in range(REFINE_LEVELS + 1):
+        f = STATION_REFINEMENT ** level
+        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f)
+        try:
+            prof = topp3.solve(path, machine, limits, settings)
+        except PlanningError as e:
+            why.append(f"stations ≤ {settings.grid_mm:g} mm: {e}")
+            continue
+        ok, worst = _within(machine, path, prof, limits)
+        if ok:
+            prof.info.update(source="socp", grid_mm=settings.grid_mm)
+            return prof
+        why.append(f"stations ≤ {settings.grid_mm:g} mm: {worst}")
+    raise PlanningError(f"optimal: {getattr(path, 'source', 'the path')}: no profile within the limits at T; "
+                        + "; ".join(why))
 
 
 def _polish(path, machine, limits, warm, margin=0.005, node_period_s=1e-3, max_nodes_per_piece=600,
@@ -310,7 +309,7 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
         # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine comes before a
         # larger margin, which costs time everywhere.  Warm-started from the feasible seed again:
         # from this solution (on the limits at the old nodes, off them between) IPOPT took
-        # > 4 min on test_part's first piece at 1200 nodes, from the seed 29 s
+        # many times longer
         thin = [float(np.mean(st[1])) >= THIN_GRID_FACTOR * node_period_s
                 and budgets[i] < MAX_NODES_REFINED for i, st in enumerate(starts)]
         if any(thin):
@@ -321,14 +320,13 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
         else:
             _widen_margins(machine, path, prof, pcs, limits, problems, budgets, max_nodes)
         starts = nxt
-    prof.info["lower_bound_s"] = bound
-    prof.info["gap"] = prof.execution_time_s / bound - 1
+    prof.info["node_relaxation_s"] = bound
     return prof
 
 
 def _check_duration(sols, too_slow, what) -> None:
     """A solution slower than ``too_slow`` is not sampled at T (a wild NLP solution slowed down
-    by its worst read took 2.4·10⁵ s on contour_keops: 7 GB of samples); the start is kept."""
+    by its worst read asked for gigabytes of samples); the start is kept."""
     d = sum(float(np.sum(x[0])) for x in sols)
     if not d <= too_slow:
         raise PlanningError(f"optimal: the NLP's {what} takes {d:.6g} s, more than {TOO_SLOW:g} × its start's "
@@ -360,9 +358,8 @@ def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slo
 
 def _check_node_budget(path, joins, pcs) -> None:
     """Node budget (issue 17): every phase between G1 joins needs MIN_PHASE_NODES, so a piece
-    of many short blended chords outgrew any budget (a 44 s piece of a CAM-like kossel
-    program: 830 phases, 20 000 nodes) and IPOPT ran for hours: refused before the warm start
-    (the seed) is planned."""
+    of many short blended chords outgrew any budget and IPOPT ran for hours: refused before
+    the warm start is planned."""
     for g, (s0, s1) in enumerate(pcs):
         phases = 1 + sum(1 for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6)
         if phases * MIN_PHASE_NODES > MAX_NODES_REFINED:
@@ -403,8 +400,7 @@ def _limit_error(machine, path, prof, limits, r, statuses) -> PlanningError:
 def _widen_margins(machine, path, prof, pcs, limits, problems, budgets, max_nodes_per_piece) -> None:
     """Only the limits read above 1, only in the pieces where they were: a doubled margin,
     and an a or j bounded between the nodes too where the grid was not refined (a refined
-    grid is dense; test_part's refined pieces read above 1 at a blend join, where the
-    midpoints do not help, and with them IPOPT took > 5 min)."""
+    grid is dense, and at a blend join the midpoints do not help and slowed IPOPT down)."""
     broken = broken_limits(machine, path, prof, pcs, limits) or {
         (g, kind) for g in range(len(pcs)) for kind in LIMIT_KINDS}
     for g, kind in broken:

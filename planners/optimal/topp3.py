@@ -22,19 +22,18 @@ station) |jerk| + κṡ² ≤ J with κ = JUMP_READ_FACTOR·Δq″/T, for the on
 either side: κa = √a·κ√a, and −κ√a is replaced by its tangent at a_lin (√a is concave, so the
 tangent row is the stricter).
 
-Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s, keops'
-a, b and jerk lie 10⁵ apart and Clarabel returned a profile far from the optimum (bird 2.45 s,
-scaled 1.50 s before the joins' rows).
+Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s the
+magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile far from the
+optimum (docs/TUNING.md).
 
 Stations: ≤ grid_mm apart, every segment end and G1 join on the grid, refined at curvature
 peaks; q′, q″, q‴ at each station from the IK's stencil (constraints.joint_derivs), not
 interpolated.  The limits hold at the stations.  Between them (a(s) is quadratic there and
-bulges over a bound held at both ends: keops/bird read the joint acceleration 1.004 × its
-limit) the check at T can read above them: the profile is sampled at T and checked; where a
+bulges over a bound held at both ends) the check at T can read above them: the profile is sampled at T and checked; where a
 difference window reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at
 the stations under the window and one either side, and only a window of stations around
-those is solved again, its ends held at the last solution's a and b (a whole piece's solve
-is ~40 interior-point iterations of ~60 ms at 7000 stations, a window's a fraction of it),
+those is solved again, its ends held at the last solution's a and b (a window's solve is a
+fraction of a whole piece's),
 up to MAX_REPAIRS rounds; pieces still above a limit then are stretched uniformly in time.
 A profile still above a limit after that is returned as it is (info["above_at_T"] counts
 its windows): the harness's check reports it.
@@ -55,14 +54,14 @@ from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
 # stations ≤ STATION_RADII curvature radii apart (the jerk between stations at lobe tips and
 # blend arcs read above the limit where they were sparser), no closer than STATION_MIN_MM
-# (Clarabel stopped on insufficient progress at 2·10⁻⁵ mm)
+# (closer, Clarabel stopped on insufficient progress)
 STATION_RADII = 0.5
 STATION_MIN_MM = 1e-3
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
 # read, doubled each round (windows next to a G1 join read above again by less each time);
 # then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit (a stretch
-# moves every later piece's samples at T, so a piece not stretched yet can read above next;
-# a 600 s kossel program with 200 pieces still read 1.0005 × its jerk limit after 8)
+# moves every later piece's samples at T, so a piece not stretched yet can read above next:
+# long programs of many pieces need many)
 MAX_REPAIRS = 8
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 24
@@ -83,18 +82,17 @@ WINDOW_GROWTH = 2
 class Settings:
     """How the engine runs: ``name`` (the planner, in messages and on the Profile), stations
     ≤ ``grid_mm`` apart, linearisations until a solve gains < ``lin_tol`` of the piece's time,
-    at most ``max_linearisations`` solves (COPP's: more moved the result by < 0.1 % at twice
-    the time; to 1e-5 it gained nothing on the corpus paths measured and made `optimal` slower
-    than `copp` on 6 of 32 after the repairs, cam_blend_kossel by 1.8 %).  ``kkt_refinement``:
-    Clarabel refines each solve of its KKT system iteratively (copp-py's default, kept for
-    every planner on the engine): without, a solve is ~40 % faster to the same time, but the
-    profiles moved 10–50 × more under other numpy SIMD than the reproducibility contract allows
-    (docs/TUNING.md)."""
+    at most ``max_linearisations`` solves (COPP's; docs/TUNING.md says what more cost and
+    gained).  ``kkt_refinement``: Clarabel refines each solve of its KKT system iteratively
+    (copp-py's default, kept for every planner on the engine): without, the profiles move
+    under other numpy SIMD paths more than the reproducibility contract allows (docs/TUNING.md).
+    ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
     max_linearisations: int = 4
     kkt_refinement: bool = True
+    station_radii: float = STATION_RADII
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -105,9 +103,9 @@ class Settings:
         return opts
 
 
-def _grid(path, table, joins, s0, s1, grid_mm):
+def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII):
     """planners.constraints.station_grid with every segment end and G1 join of the piece on it,
-    then cells split to ≤ STATION_RADII curvature radii (at their ends), none below
+    then cells split to ≤ ``radii`` curvature radii (at their ends), none below
     STATION_MIN_MM."""
     inner = [sj for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6]
     edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
@@ -116,7 +114,7 @@ def _grid(path, table, joins, s0, s1, grid_mm):
     for _ in range(6):
         _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
         h = np.diff(grid)
-        need, parts = curvature_splits(h, np.linalg.norm(np.cross(P1, P2), axis=1), STATION_RADII,
+        need, parts = curvature_splits(h, np.linalg.norm(np.cross(P1, P2), axis=1), radii,
                                        STATION_MIN_MM, 16)
         if len(need) == 0:
             break
@@ -146,7 +144,7 @@ class Piece:
         self.options = settings.clarabel()
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
-        self.grid = _grid(path, table, joins, s0, s1, settings.grid_mm)
+        self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)
@@ -286,12 +284,12 @@ class Piece:
 
     def _socp(self, rob, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=1):
         """TOPP3-SOCP's profile over stations lo … lo + len(a_lin) − 1; where Clarabel stops on
-        insufficient progress (pocket_kossel: feeds 10⁻³ of F_max at 4 µm blend arcs next to
-        ones at F_max), its last iterate, which the check at T judges like any other."""
+        insufficient progress (feeds orders of magnitude apart at µm blend arcs next to fast
+        stretches), its last iterate, which the check at T judges like any other."""
         prob = copp.solver.topp3_socp.Problem(rob.constraints, a_lin, idx_s_start=lo, a_boundary=a_ends,
                                               b_boundary=b_ends, num_stationary_max=stationary)
         # one solve that accepts insufficient progress (a rejected one, then a second that
-        # accepts it, doubled pocket_keops' time)
+        # accepts it, cost twice the time: docs/TUNING.md)
         res = copp.solver.topp3_socp.solve_expert(prob, self.options)
         if res.profile is None:
             raise copp.CoppError(f"topp3_socp stopped with Clarabel status {res.solver_status}")
@@ -311,8 +309,8 @@ class Piece:
 
 def _stops_at_rest(prof):
     """The profile with s̈ = 0 where it stops inside the piece (a ≤ STOP_A of its largest a):
-    where ṡ touches 0, s̈ is 0, and the solver's round-off there (b = −6·10⁻⁸ at a = 3·10⁻¹⁰ on a
-    blend join of kossel's test_part) made copp's time map NaN."""
+    where ṡ touches 0, s̈ is 0, and the solver's round-off there (b slightly below 0 at a ≈ 0 on
+    a blend join) made copp's time map NaN."""
     a, b = prof.a, prof.b
     stop = a <= STOP_A * a.max(initial=0.0)
     stop[0] = stop[-1] = False

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from scipy.interpolate import BSpline
 from scipy import sparse
-from scipy.sparse.linalg import lsqr
+from scipy.sparse.linalg import lsqr, spsolve
 
 from planners.verify import FEASIBLE_TOL
 
@@ -38,6 +38,8 @@ MIN_SPAN_STATIONS = 3
 START_ROUNDS = 60
 TINY = 1e-12
 CHUNK = 1024              # stations a pass of reads() (its temporaries stay in cache)
+# the relative raises a push tries on each coefficient, largest first
+PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
 
 
 def interval_time(dx, sd0, sd1):
@@ -51,16 +53,17 @@ class FeedSpline:
     """The spline's knots and basis on one topp3.Piece's stations, and the reads of any set of
     coefficient columns there (joint v, a, j, the feed cap, the G1 joins' rows)."""
 
-    def __init__(self, piece, margin: float):
-        self.piece = piece
+    def __init__(self, piece, margin: float, inner=None, a_ra=None):
+        self.piece, self.margin = piece, margin
         self.x = piece.grid - piece.s0
         self.dx = np.diff(self.x)
         self.L = float(self.x[-1])
-        self.a_ra = np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0)
-        t_ra = self.station_times(np.sqrt(self.a_ra))
-        m = max(MIN_SPANS, int(math.ceil(t_ra[-1] / KNOT_STEP_TU)))
-        want = np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, self.x)
-        self.knots = np.concatenate([[0.0] * 4, self._on_stations(want), [self.L] * 4])
+        self.a_ra = np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0) if a_ra is None else a_ra
+        self.t_ra = self.station_times(np.sqrt(self.a_ra))
+        if inner is None:
+            m = max(MIN_SPANS, int(math.ceil(self.t_ra[-1] / KNOT_STEP_TU)))
+            inner = self._on_stations(np.interp(np.linspace(0.0, self.t_ra[-1], m + 1)[1:-1], self.t_ra, self.x))
+        self.knots = np.concatenate([[0.0] * 4, inner, [self.L] * 4])
         self.K = len(self.knots) - 4
         self.bases = self._bases()
         self.chunks = [(lo, min(lo + CHUNK, len(self.x))) for lo in range(0, len(self.x), CHUNK)]
@@ -90,6 +93,25 @@ class FeedSpline:
             out.append(i)
             last = i
         return self.x[out]
+
+    def refined(self, c):
+        """(a FeedSpline with a knot added halfway in TOPP2-RA's time between each two, where a
+        station lies ≥ MIN_SPAN_STATIONS from both, its coefficients for the same w): the old
+        knots stay, so the same spline is in the new space (knot insertion, Boehm, Computer-Aided
+        Design 12(4), 1980), found by least squares at the stations.  Its factors are this one's."""
+        old = self.knots[3:self.K + 1]                    # 0, the inner knots, L
+        idx = np.searchsorted(self.x, old)
+        t_mid = (self.t_ra[idx[:-1]] + self.t_ra[idx[1:]]) / 2
+        mid = np.searchsorted(self.t_ra, t_mid)
+        keep = (mid - idx[:-1] >= MIN_SPAN_STATIONS) & (idx[1:] - mid >= MIN_SPAN_STATIONS)
+        inner = np.sort(np.concatenate([old[1:-1], self.x[mid[keep]]]))
+        fine = FeedSpline(self.piece, self.margin, inner, self.a_ra)
+        fine.factor = self.factor.copy()
+        fine._limits()
+        w = self.bases[0] @ np.asarray(c, float)
+        B = fine.bases[0].tocsc()[:, 1:-1]
+        inside = spsolve((B.T @ B).tocsc(), B.T @ w)
+        return fine, np.concatenate([[0.0], np.maximum(inside, TINY), [0.0]])
 
     def station_times(self, sd):
         """Scaled time at each station of a feed sd (0 at both ends)."""
@@ -198,6 +220,43 @@ class FeedSpline:
             lam = np.array([need[lo:hi + 1].max(initial=0.0) for lo, hi in zip(self.sup_lo, self.sup_hi)])
             c = c / np.maximum(lam, 1.0) ** 1.5 / np.where(lam > 1.0, 1.0 + 1e-3, 1.0)
         return c if self.reads(c)[1].max() <= 1.0 else None
+
+    def push(self, c, sweeps: int = 1, groups=(1, 2, 4)):
+        """c with its free coefficients raised, g neighbours at a time for each g of ``groups``, by
+        the largest of PUSH_STEPS that keeps the stations under their support within the limits
+        (none where none does): w grows with every coefficient (the basis is ≥ 0), so a raise
+        never costs time.  Neighbours are raised alike, or by a ramp rising or falling across
+        them (the jerk at a group's edge limits a raise alike where the feed climbs or falls
+        there).  Groups g + 3 apart have supports that share at most a knot, where the other's
+        w, w′, w″ are 0: a pass raises every (g + 3)-th group at once.  Deterministic."""
+        c = np.array(c, float)
+        for _ in range(sweeps):
+            for g in groups:
+                shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else [])
+                up = np.concatenate([1.0 + np.outer(PUSH_STEPS, sh) for sh in shapes])    # (columns, g)
+                period = g + 3
+                for r in range(period):
+                    firsts = np.arange(1 + r, self.K - 1, period)
+                    if not len(firsts):
+                        continue
+                    at = firsts[:, None] + np.arange(g)[None, :]          # (groups, g)
+                    inside = at <= self.K - 2
+                    C = np.repeat(c[:, None], len(up), axis=1)
+                    for k in range(g):
+                        rows = at[inside[:, k], k]
+                        C[rows] *= up[None, :, k]
+                    last = np.minimum(firsts + g - 1, self.K - 2)
+                    need = np.vstack([self.reads(C)[1], np.zeros((1, len(up)))])
+                    lo, hi = self.sup_lo[firsts], self.sup_hi[last]
+                    worst = np.maximum.reduceat(need, np.ravel(np.column_stack([lo, hi + 1])), axis=0)[::2]
+                    # per group the feasible column that raises its coefficients most in sum
+                    gain = np.where(worst <= 1.0, (up - 1).sum(axis=1)[None, :], -1.0)
+                    best = np.argmax(gain, axis=1)
+                    move = gain[np.arange(len(firsts)), best] > 0
+                    for k in range(g):
+                        sel = move & inside[:, k]
+                        c[at[sel, k]] *= up[best[sel], k]
+        return c
 
     def scaled_within(self, c):
         """c scaled as a whole (a uniform time stretch) until every station is within its limits."""

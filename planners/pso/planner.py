@@ -1,7 +1,9 @@
-"""`pso` — feed profile optimised by particle swarm (Erwinski, Szczepanski, Tarczewski,
-IOP Conf. Ser. MSE 1140, 2021: a B-spline feed searched by PSO; extended to a delta's joints as
-planned in Erwinski et al., NU·ROBOTI·FTS 2022, shared/SOURCES.md §A), memetic: a local
-convex polish after the swarm.
+"""`pso` — the feed optimised by particle swarm, as the KEOPS papers plan it: the s-curve FLF
+profile as the initial guess, turned into a B-spline feed, adjusted by PSO within the joint
+limits (Erwinski, Szczepanski, Tarczewski, IOP Conf. Ser. MSE 1140, 2021, for planar machines;
+extended to a delta's joints as planned in Erwinski et al., NU·ROBOTI·FTS 2022, shared/SOURCES.md
+§A).  No convex solver touches its profile.  `pso_socp` is the memetic hybrid: the same swarm,
+then the TOPP3-SOCP polish.
 
 Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations): joint v, a, j
 limits, F_max and the chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at
@@ -10,28 +12,38 @@ T added to the continuous jerk.
 Parametrisation (feed.py): per rest-to-rest piece w = ṡ^{3/2} as a cubic B-spline over arc
 length, its knots placed by the limits (equal steps of the jerk-free optimum's time), so the
 swarm's dimension follows the path and its limits, never a seed profile's segments or switch
-times, and nothing is chosen per path.
+times, and nothing is chosen per path.  The search runs on these knots, then on knots twice as
+dense (REFINEMENTS times): knot insertion keeps the feed, so each level starts where the last
+ended, and the coarse levels move the feed broadly where the fine ones would need many steps.
+
+Start: the `scurve_joint` seed's feed fitted by the spline, made feasible by scaling each
+coefficient by the stretch its support needs (feed.start_locally).
 
 Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
-the stations the block moves; the context (every block's best) stays within the limits at the
-stations.  It starts from the better of two fits made feasible by local scaling: the jerk-free
-optimum's feed (TOPP2-RA) and the `scurve_joint` seed's.  Where its samples at T read above a
-limit, the limit is held lower at the stations there and the swarm goes on (_search).
+the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
+block's best) stays within the limits at the stations (Deb's feasibility rule); after each
+iteration the context is pushed to the limits (feed.push: each coefficient, or a few
+neighbours, raised by the largest step that keeps their stations within the limits: a repair
+operator in the sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed
+lies).  Where its samples at T read above a limit, the limit is held lower at the stations
+there and the swarm goes on (_search).
 
-Polish: the TOPP3-SOCP (topp3.py), linearised on each piece around the larger of the swarm's
-and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2 solves; a first
-solve within lin_tol of that reference's time ends them), then checked and repaired at T like
-`optimal`'s.  ``polish=False`` leaves it out.  The swarm's, the polished and the seed's times
-are in info (``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
+Polish (`pso_socp` only): the TOPP3-SOCP (topp3.py), linearised on each piece around the larger
+of the swarm's and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2
+solves; a first solve within lin_tol of that reference's time ends them), then checked and
+repaired at T like `optimal`'s.  The swarm's, the polished and the seed's times are in info
+(``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
 
-Returned: the fastest of the polished profile, the swarm's and the seed, each checked at T
-(joint limits and F_max), so `pso` is never slower than its seed (info["returned"]).  The
-swarm's own profile is sampled from the exact time map of its spline (span.py) and stretched
-per piece by what its samples at T read above a limit.
+Returned: the fastest of the swarm's profile, the seed (the swarm's initial guess) and, for
+`pso_socp`, the polished profile, each checked at T (joint limits and F_max), so neither is
+slower than its seed (info["returned"]).  The swarm's own profile is sampled from the exact
+time map of its spline (span.py) and stretched per piece by what its samples at T read above a
+limit.
 
-Deterministic: ``seed`` drives every random number, the iteration count ends the search (an
-optional wall-clock ``time_budget_s`` would make the result depend on the machine: off by
-default, reported in info["stopped_by"] when it ends the search).
+Deterministic: ``seed`` drives every random number (`plan.stochastic`: the corpus runs both
+over seeds), the iteration count ends the search (an optional wall-clock ``time_budget_s``
+would make the result depend on the machine: off by default, reported in info["stopped_by"]
+when it ends the search).
 """
 from __future__ import annotations
 
@@ -49,8 +61,13 @@ from planners.pso.swarm import BlockSwarm
 from planners.scurve import plan_joint
 from planners.verify import command_metrics, keeps_joints_and_feed, stretch_need
 
-__all__ = ["plan"]
+__all__ = ["plan", "plan_socp"]
 
+# stations ≤ this many curvature radii apart for the swarm: its spline, held to the limits at
+# the stations, read above them between coarser ones at lobe tips
+SWARM_STATION_RADII = 0.1
+# the swarm's knots are made twice as dense this many times, ``iterations`` on each
+REFINEMENTS = 2
 SWARM_REPAIRS = 4          # rounds of tightening where the swarm's samples at T read above a limit
 REPAIR_ITERATIONS = 10     # swarm iterations after each
 # a repair whose context takes this many times the last one's time stops the repairs: the
@@ -58,45 +75,63 @@ REPAIR_ITERATIONS = 10     # swarm iterations after each
 COLLAPSE = 2.0
 
 
-def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 40,
-         margin: float = 0.002, spread: float = 0.05, polish: bool = True, grid_mm: float = 0.1,
-         polish_linearisations: int = 2, time_budget_s: float | None = None, seed_profile=None) -> Profile:
-    """PSO-optimised feed (module docstring): ``particles`` per block swarm, ``iterations`` of
-    every swarm, limits held at the stations to 1 − ``margin`` during the search; the polish
-    (``polish``) at most ``polish_linearisations`` SOCP solves a piece before its repairs."""
+def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 20,
+         margin: float = 0.002, spread: float = 0.05, grid_mm: float = 0.1,
+         time_budget_s: float | None = None, seed_profile=None) -> Profile:
+    """`pso`: the swarm alone (module docstring): ``particles`` per block swarm, ``iterations`` of
+    every swarm, limits held at the stations to 1 − ``margin`` during the search."""
+    return _plan("pso", path, machine, limits, seed=seed, particles=particles, iterations=iterations,
+                 margin=margin, spread=spread, grid_mm=grid_mm, time_budget_s=time_budget_s,
+                 seed_profile=seed_profile, polish=False, polish_linearisations=0)
+
+
+def plan_socp(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 20,
+              margin: float = 0.002, spread: float = 0.05, grid_mm: float = 0.1,
+              polish_linearisations: int = 2, time_budget_s: float | None = None, seed_profile=None) -> Profile:
+    """`pso_socp`: the swarm, then the TOPP3-SOCP polish (at most ``polish_linearisations`` SOCP
+    solves a piece before its repairs) linearised around the swarm's and the seed's feed."""
+    return _plan("pso_socp", path, machine, limits, seed=seed, particles=particles, iterations=iterations,
+                 margin=margin, spread=spread, grid_mm=grid_mm, time_budget_s=time_budget_s,
+                 seed_profile=seed_profile, polish=True, polish_linearisations=polish_linearisations)
+
+
+# the corpus and the suites run a stochastic planner over seeds (planners.registry.stochastic)
+plan.stochastic = True
+plan_socp.stochastic = True
+
+
+def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, spread, grid_mm,
+          time_budget_s, seed_profile, polish, polish_linearisations) -> Profile:
 
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
-    check_limits(limits, "pso")
-    check_path(path, "pso")
+    check_limits(limits, name)
+    check_path(path, name)
     if particles < 2 or iterations < 0:
-        raise PlanningError(f"pso: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
+        raise PlanningError(f"{name}: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
-    settings = topp3.Settings("pso", grid_mm, max_linearisations=polish_linearisations)
+    settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1), station_radii=SWARM_STATION_RADII)
     pieces = topp3.pieces_of(path, machine, limits, settings)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
-    feeds, starts, started_from = [], [], []
+    feeds, starts = [], []
     for p in pieces:
+        # the papers' start: the s-curve seed's feed as a spline, made feasible locally (or else
+        # by a uniform stretch)
         feed = FeedSpline(p, margin)
-        # each fit made feasible locally, or else by a uniform stretch
-        cands = {}
-        for name, sd in (("topp2_ra", np.sqrt(feed.a_ra)), ("seed", _seed_feed(seed_prof, p))):
-            c = feed.fit(sd)
-            cands[name] = _first_not_none(feed.start_locally(c), feed.scaled_within(c))
-        name = min(cands, key=lambda k: feed.time(cands[k]) if feed.within(cands[k]) else np.inf)
+        c = feed.fit(_seed_feed(seed_prof, p))
+        c = _first_not_none(feed.start_locally(c), feed.scaled_within(c))
         feeds.append(feed)
-        starts.append(cands[name] if feed.within(cands[name]) else None)
-        started_from.append(name)
+        starts.append(c if feed.within(c) else None)
     no_start = [p.where() for p, c in zip(pieces, starts) if c is None]
-    swarm_prof, spans, progress, repairs = (None, None, _Progress(t0, None, time_budget_s), []) if no_start else \
+    swarm_prof, spans, progress, repairs, feeds = (None, None, _Progress(t0, None, time_budget_s), [], feeds) if no_start else \
         _search(feeds, starts, rng, particles, spread, iterations, time_budget_s, t0, T, path, machine, limits,
                 10 * seed_prof.execution_time_s)
     history = progress.history
     info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
             "stopped_by": progress.stopped_by, "control_points": [f.K for f in feeds],
-            "started_from": started_from, "start_time_s": None if no_start else progress.history[0][1] * pieces[0].tu,
+"start_time_s": None if no_start else progress.history[0][1] * pieces[0].tu,
             "seed_time_s": float(seed_prof.execution_time_s), "swarm_repairs": repairs,
             **({"swarm": f"no start within the limits on {', '.join(no_start)}"} if no_start else {}),
             "history": [[h[0], h[1] * pieces[0].tu] for h in history[:: max(1, len(history) // 50)] + history[-1:]
@@ -121,15 +156,15 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
             info["polish"] = str(e)
     candidates.append(("seed", seed_prof))
     ok = []
-    for name, prof in candidates:
+    for which, prof in candidates:
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
         if keeps_joints_and_feed(r):
-            ok.append((prof.execution_time_s, name, prof))
+            ok.append((prof.execution_time_s, which, prof))
     if not ok:
-        raise PlanningError("pso: neither the swarm's, the polished nor the seed's profile is within the limits at T"
+        raise PlanningError(f"{name}: neither the swarm's" + (", the polished" if polish else "") + " nor the seed's profile is within the limits at T"
                             + "".join(f"; {k}: {info[k]}" for k in ("swarm", "polish") if k in info))
-    _, name, best = min(ok, key=lambda x: x[:2])
-    prof = dataclasses.replace(best, planner="pso", info=dict(best.info, **info, returned=name))
+    _, which, best = min(ok, key=lambda x: x[:2])
+    prof = dataclasses.replace(best, planner=name, info=dict(best.info, **info, returned=which))
     prof.planning_time_s = time.perf_counter() - t0
     return prof
 
@@ -141,7 +176,13 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
     swarms = [BlockSwarm(f, c, rng, particles, spread) for f, c in zip(feeds, starts)]
     progress = _Progress(t0, _total(swarms), budget)
     progress.run(swarms, iterations)
-    tu = feeds[0].piece.tu
+    # then on knots twice as dense, from the same feed (knot insertion keeps it), REFINEMENTS times
+    for _ in range(REFINEMENTS):
+        finer = [sw.feed.refined(sw.c) for sw in swarms]
+        swarms = [BlockSwarm(f, _first_not_none(f.start_locally(c), f.scaled_within(c)), rng, particles, spread)
+                  for f, c in finer]
+        progress.run(swarms, iterations)
+    feeds = [sw.feed for sw in swarms]
     # the swarm's limits hold at the stations; where its samples at T read above one, the
     # limit is held lower at the stations there and the swarm goes on from its context made
     # feasible again (as topp3 repairs its SOCP).  The swarm's profile: the faster of the one
@@ -173,7 +214,7 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
         progress.run(swarms, REPAIR_ITERATIONS)
     found = [(prof, sp) for prof, sp in found if prof is not None]
     prof, spans = min(found, key=lambda x: x[0].execution_time_s) if found else (None, spans)
-    return prof, spans, progress, repairs
+    return prof, spans, progress, repairs, feeds
 
 
 class _Progress:

@@ -13,8 +13,9 @@ neighbouring coefficients are also improved together.
 
 A particle is the logarithm of the coefficients (the feed is positive, and steps are
 relative).  A block's objective on its stations: the time there if every station is within the
-limits, else a constant above any time plus the worst need (feasibility first, Deb's rule), so
-the context stays feasible."""
+limits, else a constant above any time plus the worst need (feasibility first: Deb, Comput.
+Methods Appl. Mech. Eng. 186, 2000), so the context stays feasible.  After each iteration the
+context is pushed to the limits (feed.FeedSpline.push), which the particles then search around."""
 from __future__ import annotations
 
 import numpy as np
@@ -29,8 +30,8 @@ class BlockSwarm:
     """The swarm of one piece, around the feasible coefficients ``c`` (feed.FeedSpline);
     ``rng`` draws every random number, in a fixed order."""
 
-    def __init__(self, feed, c, rng, particles: int, spread: float):
-        self.feed, self.rng, self.P = feed, rng, particles
+    def __init__(self, feed, c, rng, particles: int, spread: float, push: int = 1):
+        self.feed, self.rng, self.P, self.push = feed, rng, particles, push
         self.c = np.array(c, float)
         self.free = np.arange(1, feed.K - 1)
         base = np.log(self.c[self.free])
@@ -91,4 +92,6 @@ class BlockSwarm:
         r1, r2 = self.rng.random(self.X.shape), self.rng.random(self.X.shape)
         self.V = np.clip(W * self.V + C1 * r1 * (self.Pb - self.X) + C2 * r2 * (g - self.X), -VMAX, VMAX)
         self.X = self.X + self.V
+        if self.push:
+            self.c = self.feed.push(self.c, self.push)
         self.iteration += 1

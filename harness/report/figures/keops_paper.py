@@ -74,7 +74,7 @@ def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
 
 def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     """The swarm and its polish against the jerk-limited optimum: the feed of scurve_joint (pso's
-    seed), pso's swarm alone (polish=False), pso and optimal over arc length, all within the
+    seed), pso (the swarm alone, key pso_swarm), pso_socp (key pso) and optimal over arc length, all within the
     joint limits. Returns the execution times and, per stretch between corners and G1 joins,
     how the swarm alone compares with the optimum (the numbers REPORT.md quotes)."""
 
@@ -84,8 +84,8 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     s = np.linspace(0.0, path.length, int(path.length / 0.25) + 1)
     cols, result, profs = {"s_mm": s}, {}, {}
     fig, ax = plt.subplots(figsize=(10, 3.6))
-    for name, planner, options in (("scurve_joint", "scurve_joint", {}), ("pso_swarm", "pso", {"polish": False}),
-                                   ("pso", "pso", {}), ("optimal", "optimal", {})):
+    for name, planner, options in (("scurve_joint", "scurve_joint", {}), ("pso_swarm", "pso", {}),
+                                   ("pso", "pso_socp", {}), ("optimal", "optimal", {})):
         prof = planners.plan(planner, path, m, **options)
         profs[name] = prof
         result[name] = prof.execution_time_s
