@@ -28,6 +28,10 @@ HOMES = {
     "KINK_RATIO": "planners.trapezoid.rules",
     "effective_min_radius": "planners.trapezoid.rules",
     "BUILTIN_GUARANTEES": "planners.registry",         # what a planner keeps
+    "guarantees": "planners.registry",
+    "BUILTIN_STOCHASTIC": "planners.registry",         # which planners are run over seeds
+    "stochastic": "planners.registry",
+    "run_ratios": "harness.perfprofile",               # Dolan–Moré (and test_corpus::test_one_performance_profile)
     "prepare_geometry": "planners.paths.post",         # the CAM post step
     "host_info": "harness.provenance",                 # what produced a result
     "git_commit": "harness.provenance",
