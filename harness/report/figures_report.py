@@ -40,7 +40,7 @@ def report(r: dict) -> str:
         "flat_joint": _vaj(kc["scurve"]["joint"]),
         "feed_times": ", ".join(f"{k} {v:.4f}" for k, v in fo["execution_time_s"].items()),
         "n_joins": len(fo["joins_mm"]),
-        "pso_time": f"{fo['execution_time_s']['pso']:.4f}", "opt_time": f"{fo['execution_time_s']['optimal']:.4f}",
+        "pso_time": f"{fo['execution_time_s']['pso_socp']:.4f}", "opt_time": f"{fo['execution_time_s']['optimal']:.4f}",
         "excess_lo": f"{fo['stretch_excess_pct'][0]:.1f}", "excess_hi": f"{fo['stretch_excess_pct'][1]:.1f}",
         "gap_lo": f"{fo['peak_shortfall_pct'][0]:.1f}", "gap_hi": f"{fo['peak_shortfall_pct'][1]:.1f}",
         "top_pso": f"{fo['top_peak']['pso_mm_s']:.0f}", "top_opt": f"{fo['top_peak']['optimal_mm_s']:.0f}",

@@ -74,7 +74,7 @@ def figures(out: Path, path_name: str = "bird", pso: bool = True) -> dict:
 
 def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     """The swarm and its polish against the jerk-limited optimum: the feed of scurve_joint (pso's
-    seed), pso (the swarm alone, key pso_swarm), pso_socp (key pso) and optimal over arc length, all within the
+    seed), pso (the swarm alone), pso_socp (the swarm polished) and optimal over arc length, all within the
     joint limits. Returns the execution times and, per stretch between corners and G1 joins,
     how the swarm alone compares with the optimum (the numbers REPORT.md quotes)."""
 
@@ -84,8 +84,8 @@ def feed_over_arc_length(out: Path, path_name: str = "bird") -> dict:
     s = np.linspace(0.0, path.length, int(path.length / 0.25) + 1)
     cols, result, profs = {"s_mm": s}, {}, {}
     fig, ax = plt.subplots(figsize=(10, 3.6))
-    for name, planner, options in (("scurve_joint", "scurve_joint", {}), ("pso_swarm", "pso", {}),
-                                   ("pso", "pso_socp", {}), ("optimal", "optimal", {})):
+    for name, planner, options in (("scurve_joint", "scurve_joint", {}), ("pso", "pso", {}),
+                                   ("pso_socp", "pso_socp", {}), ("optimal", "optimal", {})):
         prof = planners.plan(planner, path, m, **options)
         profs[name] = prof
         result[name] = prof.execution_time_s
@@ -112,12 +112,12 @@ def _stretches(path, m, profs, s, cols) -> dict:
 
     excess, gap, peaks = [], [], []
     for a, b in zip(bounds[:-1], bounds[1:]):
-        dt = {n: float(time_at(profs[n], b) - time_at(profs[n], a)) for n in ("pso_swarm", "optimal")}
+        dt = {n: float(time_at(profs[n], b) - time_at(profs[n], a)) for n in ("pso", "optimal")}
         inside = (s > a) & (s < b)
         if dt["optimal"] <= 0 or not inside.any():
             continue
-        excess.append(100 * (dt["pso_swarm"] - dt["optimal"]) / dt["optimal"])
-        fp, fo = cols["pso_swarm_feed_mm_s"][inside].max(), cols["optimal_feed_mm_s"][inside].max()
+        excess.append(100 * (dt["pso"] - dt["optimal"]) / dt["optimal"])
+        fp, fo = cols["pso_feed_mm_s"][inside].max(), cols["optimal_feed_mm_s"][inside].max()
         gap.append(100 * (fo - fp) / fo)
         peaks.append((float(fo), float(fp), float(s[inside][np.argmax(cols["optimal_feed_mm_s"][inside])])))
     top = max(peaks)
