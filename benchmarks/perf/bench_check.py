@@ -36,7 +36,7 @@ PLANNERS = ("trapezoid", "scurve")
 # the child: check one program, print its wall time and counts as one JSON line
 _CHILD = """
 import json, sys, time
-from harness.check import check_program
+from harness.check import as_text, check_program
 from kins import load_machine
 m = load_machine("kossel")
 t0 = time.perf_counter()
