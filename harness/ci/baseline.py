@@ -54,10 +54,11 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     # … and for the same reason the time their samples spend above a Cartesian limit: a sample
     # near one flips (0.967 → 0.969 s of Cartesian jerk on repro_part from the SOCP, +0.21 %)
     ("*/optimal*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 1e-2}),
-    # pso's swarm compares times whose last bits move with the SIMD path: on repro_part it took
-    # another path to the same 4.142 s, its joint peaks 3.3e-6 and its Cartesian jerk violation
-    # time 6.7 % apart (on keops/bird and kossel/bird_kossel: within the rules above)
-    ("*/pso*:joint_peak_ratio.*", {"abs": 5e-5}),
+    # pso's swarm compares times whose last bits move with the SIMD path, so under other SIMD it
+    # can take another path: the swarm alone (pso, issue 32) on repro_part 4.187 → 4.199 s
+    # (+0.29 %), its joint acceleration peak 0.7493 → 0.7460 (−0.44 %); the hybrid (pso_socp)
+    # had 3.3e-6 and 6.7 % of Cartesian jerk violation time (docs/REPRODUCIBILITY.md)
+    ("*/pso*:joint_peak_ratio.*", {"abs": 5e-3}),
     ("*/pso*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 0.7}),
     ("*peak_ratio.*", {"abs": 1e-6}),
     ("*violation_time_s.*", {"abs": 1e-6}),
