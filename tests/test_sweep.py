@@ -182,7 +182,8 @@ def test_report_tables_ratio_failures_and_plots(tmp_path, capsys):
     assert "## keops / line" in md
     quintic = next(line for line in md.splitlines() if line.startswith("| quintic |"))
     cells = [c.strip() for c in quintic.strip("|").split("|")]
-    assert cells[2] == "0.375" and cells[3] == "1.000" and cells[4] == "yes"     # ÷ itself = 1
+    assert cells[2] == "0.375" and cells[3] == "1.000" and cells[5] == "yes"     # ÷ itself = 1
+    assert cells[4] == "—"                        # ÷ T_ref: not a corpus path, no reference
     assert "FAILED: TaskError" in md and "bogus" in md
     assert (tmp_path / "s/report/group00.png").stat().st_size > 1000
     assert "<table class='comparison'>" in (tmp_path / "s/report/report.html").read_text()
