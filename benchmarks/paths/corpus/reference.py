@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
+from scipy.signal import peak_prominences
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent.parent
@@ -61,20 +62,33 @@ BASE_NODES = 600
 LEVELS = 3
 SLOW_FRACTION = 0.25           # a break whose speed cap is below this part of F_max is graded like a stop
 TURN_RAD = 0.1                 # level 0: a node at least every 0.1 rad of turn
+PEAK_PROMINENCE = 1e-9         # a curvature peak's prominence over κ below this is rounding
+V_FLOOR = 1e-9                 # speeds ≥ this (units A²/J): the time's 1/v stays finite
 SIDE = 1e-7                    # mm: one-sided derivatives either side of a join or knot
 IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 1500, "max_cpu_time": 900.0, "print_level": 0,
-         "mu_strategy": "adaptive", "linear_solver": "mumps"}
+         "mu_strategy": "adaptive", "linear_solver": "mumps", "bound_relax_factor": 0.0}
 
+# a refinement starts at the coarse optimum: kept where it is (IPOPT's default pushes of 1e-2
+# off the bounds and μ = 0.1 moved a near-stop's speed 10-fold; level 2 of a pocket_kossel
+# piece took 274 s with them, 26 s without)
+IPOPT_WARM = {"warm_start_init_point": "yes", "mu_init": 1e-6, "warm_start_bound_push": 1e-9,
+              "warm_start_bound_frac": 1e-9, "warm_start_slack_bound_push": 1e-9,
+              "warm_start_slack_bound_frac": 1e-9, "warm_start_mult_bound_push": 1e-9}
 
 # --- the grid ---------------------------------------------------------------------------
 def curvature_peaks(path, s0, s1, step=0.02):
-    """Arc lengths of the strict local maxima of κ in (s0, s1) (sampled every ≤ step mm)."""
+    """Arc lengths of the strict local maxima of κ in (s0, s1) (sampled every ≤ step mm) that
+    stand out of the rounding: an arc's or a helix's constant κ, evaluated, has a strict
+    maximum every few samples (2357 on helix_kossel, each a break of ≥ 3 cells), with a
+    prominence of 1e-16·κ; a NURBS lobe's is ≥ 4e-5·κ on the corpus."""
     n = int(min(400_000, max(64, math.ceil((s1 - s0) / step) + 1)))
     s = np.linspace(s0, s1, n)[1:-1]
     if len(s) < 3:
         return np.zeros(0)
     k = path.curvature(s)
     i = np.nonzero((k[1:-1] > k[:-2]) & (k[1:-1] > k[2:]) & (k[1:-1] > 1e-3))[0] + 1
+    if len(i):
+        i = i[peak_prominences(k, i)[0] > PEAK_PROMINENCE * k[i]]
     return s[i]
 
 
@@ -261,23 +275,28 @@ def solve_piece(D: PieceData, warm=None):
                 jerk = v[i] * (q3[k] * b[i] + 3 * q2[k] * a[i] + q1[k] * c[cell])
                 add(ca.vertcat(jerk + kap[k] * b[i], -jerk + kap[k] * b[i]), -np.inf, 1.0)
     vmax = np.minimum(D.vmax, 1e6)
-    lbx = np.concatenate([np.zeros(n), np.full(n, -np.inf), np.zeros(n - 1)])
+    # the time is Σ Δ/v: a speed at its bound 0 (IPOPT moves a bound its slack crowds by ~1e-8)
+    # made it −∞ (pocket_kossel); the floor lies far below every optimum's (asserted below)
+    lbx = np.concatenate([np.full(n, V_FLOOR), np.full(n, -np.inf), np.full(n - 1, V_FLOOR)])
+    lbx[[2 * n, 3 * n - 2]] = 0.0              # the end cells' midpoints: not in the time
     ubx = np.concatenate([vmax, np.full(n, np.inf), np.full(n - 1, np.inf)])
+    lbx[:n] = np.minimum(lbx[:n], vmax)
     for i in (0, n - 1):                       # rest: ṡ = s̈ = 0 at both ends
-        ubx[i] = 0.0
+        lbx[i] = ubx[i] = 0.0
         lbx[n + i] = ubx[n + i] = 0.0
     if warm is None:
-        v0 = initial_guess(x, vmax)
+        v0 = initial_guess(D, x, vmax)
         a0 = np.gradient(0.5 * v0 ** 2, x)
         a0[[0, -1]] = 0.0
     else:
         v0, a0 = warm
     v0 = np.clip(v0, 0, vmax)
-    cc = np.diff(a0) / dx
-    w0 = np.sqrt(np.maximum(0.5 * (v0[1:] ** 2 + v0[:-1] ** 2) - cc * dx * dx / 4, 0.0))
-    x0 = np.concatenate([v0, a0, w0])
+    # the midpoints' speeds as their equality constraint gives them
+    w0 = np.sqrt(np.maximum(v0[:-1] ** 2 + 2 * (a0[:-1] * W["v0"] + a0[1:] * W["v1"]), 0.0))
+    x0 = np.clip(np.concatenate([v0, a0, w0]), lbx, ubx)   # a 0 where Δ/ṡ is summed: grad_f Inf
     nlp = {"x": ca.vertcat(v, a, w), "f": T, "g": ca.vertcat(*g)}
-    solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt": IPOPT, "print_time": False})
+    opts = IPOPT if warm is None else {**IPOPT, **IPOPT_WARM}
+    solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt": opts, "print_time": False})
     res = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lb), ubg=np.concatenate(ub))
     st = solver.stats()
     sol = np.asarray(res["x"]).ravel()
@@ -309,19 +328,47 @@ def node_times(D, v, w):
     return np.concatenate([[0.0], np.cumsum(dt)])
 
 
-def initial_guess(x, vmax):
-    """A slow start for IPOPT: a fifth of the speed cap, reached and left along t ∝ s^(1/3)."""
-    d = np.minimum(x - x[0], x[-1] - x)
-    cap = 0.2 * np.minimum(vmax, 1.0)
-    ramp = np.minimum(1.0, np.cbrt(d / max(1e-9, min(1.0, 0.25 * (x[-1] - x[0]))))) ** 2
-    return cap * ramp
+def initial_guess(D, x, vmax, share=0.5):
+    """A start for IPOPT built from the limits (scaled, A = J = 1): per node the speed that
+    spends ``share`` of a joint's acceleration on q″ṡ² alone, of its jerk on q‴ṡ³ alone (at
+    the node and at the cells' midpoints) and of a join's read on κṡ², under vmax; then the
+    forward and backward passes of a path acceleration ``share``/|q′| (the rest ends left along
+    the jerk-limited ṡ^(3/2) ∝ s). Not feasible at the passes' switches, but within a small
+    factor of it: the slow start it replaced put 0.2·F_max through a µm blend arc, and IPOPT spent
+    its iterations (221 on a pocket_kossel piece, restorations, 10¹⁰ regularisation) getting out."""
+    q1, q2, q3 = (np.abs(q).max(axis=1) for q in D.right)
+    m3 = np.abs(D.mid[2]).max(axis=1)
+    with np.errstate(divide="ignore"):
+        cap = np.minimum.reduce([vmax, np.sqrt(share / q2), np.cbrt(share / q3),
+                                 np.cbrt(share / np.concatenate([m3, [0.0]])),
+                                 np.cbrt(share / np.concatenate([[0.0], m3]))])
+        for i, kap in D.kappa.items():
+            cap[i] = min(cap[i], math.sqrt(share / np.abs(kap).max()))
+        acc = share / q1
+    v = cap.copy()
+    v[0] = v[-1] = 0.0
+    dx = np.diff(x)
+    for order in (range(1, len(x)), range(len(x) - 2, -1, -1)):
+        for i in order:
+            j = i - 1 if order.step == 1 else i + 1
+            d = dx[min(i, j)]
+            v[i] = min(v[i], math.sqrt(v[j] ** 2 + 2 * acc[j] * d),
+                       (v[j] ** 1.5 + 2.12 * math.sqrt(acc[j]) * d) ** (2 / 3))
+    return v
 
 
-def refine_warm(v, a, n_fine):
-    """The coarse solution on the nested grid twice as fine (the midpoints by averages)."""
-    vf, af = np.empty(n_fine), np.empty(n_fine)
+def refine_warm(s, v, a, w, s_fine):
+    """The coarse solution (nodes s, speeds v, w at the cells' σ-midpoints) on the nested grid
+    twice as fine, as the coarse NLP's own profile: a new node is a coarse cell's σ-midpoint,
+    where ṡ is that cell's w and s̈ the mean (s̈ linear in σ); in the two end cells ṡ ∝ d^(2/3),
+    s̈ ∝ d^(1/3) from the rest (the averages it replaced started a refinement 347 off feasible
+    at a near-stop and IPOPT took 180 iterations, 1.8 s each, to recover)."""
+    vf, af = np.empty(len(s_fine)), np.empty(len(s_fine))
     vf[0::2], af[0::2] = v, a
-    vf[1::2], af[1::2] = 0.5 * (v[1:] + v[:-1]), 0.5 * (a[1:] + a[:-1])
+    vf[1::2], af[1::2] = w, 0.5 * (a[1:] + a[:-1])
+    for i, j, e in ((1, 1, 0), (-2, -2, -1)):
+        r = abs(s_fine[i] - s_fine[e]) / abs(s[j] - s[e])
+        vf[i], af[i] = v[j] * r ** (2 / 3), a[j] * np.cbrt(r)
     return vf, af
 
 
@@ -384,11 +431,13 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
         for k, ((s0, s1), mp) in enumerate(zip(pieces, maps)):
             s, brk = mp.nodes(level)
             D = PieceData(path, machine, limits, s, brk, joins, tu, mp.nodes(level + 2)[0])
-            w = None if warm[k] is None else refine_warm(*warm[k], len(s))
+            w = None if warm[k] is None else refine_warm(*warm[k], s)
             Tk, v, a, wm, it, status = solve_piece(D, w)
             if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
                 raise RuntimeError(f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}: IPOPT {status}")
-            warm[k] = (v, a)
+            if v[1:-1].min() < 2 * V_FLOOR:
+                raise RuntimeError(f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}: a speed at its floor")
+            warm[k] = (s, v, a, wm)
             total += Tk
             iters += it
             nodes += len(s)
