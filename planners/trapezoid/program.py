@@ -115,7 +115,7 @@ def run_program(prog, lim: Q.Limits):
     cum = np.concatenate([[0.0], np.cumsum(L)])
     ramps = [tc.finalvel if tc.term == Q.TANGENT and not tc.rapid else None for tc in tcs]
     s, sd, excess, trace = simulate(L, vt, acc, vf, lim.T, float(cum[-1]), blends, stops, ramps)
-    geometry, s, sd, tc_start = blended_geometry([pieces(tc) for tc in tcs], np.array(s), np.array(sd), trace, cum)
+    geometry, s, sd, tc_start = blended_geometry([pieces(tc) for tc in tcs], s, sd, trace, cum)
     info = {"queue_segments": len(tcs), "blend_arcs": sum(tc.kind == "blend" for tc in tcs),
             "consumed_lines": sum(tc.kind == "blend" and tc.line_length > 0 for tc in tcs),
             "parabolic_blends": len(blends), "exact_stops": len(stops) - len(run_ends),
