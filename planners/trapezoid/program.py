@@ -143,9 +143,11 @@ def blended_geometry(segs_of, s, sd, trace, cum):
     hi = np.where(k1 >= 0, rx[np.maximum(k1, 0)], 0.0)
     into = {blend[k][0] + 1 for k in blend}
     out_of = {blend[k][0] for k in blend}
-    a = [lo[i] if i in into else 0.0 for i in range(n)]
-    b = [hi[i] if i in out_of else cum[i + 1] - cum[i] for i in range(n)]
-    geometry, start, s_new, sd_new = [], np.zeros(n + 1), s.copy(), sd.copy()
+    # Python floats in the per-segment loop (numpy scalars cost several times more an operation)
+    lo_, hi_, cum_ = lo.tolist(), hi.tolist(), cum.tolist()
+    a = [lo_[i] if i in into else 0.0 for i in range(n)]
+    b = [hi_[i] if i in out_of else cum_[i + 1] - cum_[i] for i in range(n)]
+    geometry, start, s_new, sd_new = [], [], s.copy(), sd.copy()
     length = 0.0
     # the trace's periods blend by blend: (period k, x, x2, v, v2) columns of each blend's rows
     ks = sorted(blend)
@@ -153,7 +155,7 @@ def blended_geometry(segs_of, s, sd, trace, cum):
     of = np.array([blend[k][0] for k in ks], int)
     cuts = np.searchsorted(of, np.arange(n + 1))
     for i in range(n):
-        start[i] = length
+        start.append(length)
         part = cut(segs_of[i], a[i], b[i])
         geometry += part
         length += sum(g.length for g in part)
@@ -167,7 +169,7 @@ def blended_geometry(segs_of, s, sd, trace, cum):
             length, last, s_new[k] = _steps(geometry, last, P, length, segs_of[i][-1].line)
             sd_new[k] = _norms(v[:, None] * T1 + v2[:, None] * T2)
             length, _ = _step(geometry, last, point(segs_of[i + 1], a[i + 1])[0], length, segs_of[i][-1].line)
-    start[n] = length
+    start = np.array(start + [length])
     # within its segment's kept part (a piece under TINY was dropped from it)
     ir = idx[reg]
     s_new[reg] = np.minimum(start[ir] + (s[reg] - cum[ir]) - np.array(a)[ir], start[ir + 1])
