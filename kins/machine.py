@@ -156,8 +156,9 @@ class Kinematics:
 
     def _condition_above(self, P, ok) -> np.ndarray:
         """condition_number(P) at the points ``ok`` where it may exceed cond_max, 0 elsewhere:
-        cond = σ₁/σ₃ = σ₁²σ₂/|det J| ≤ ‖J‖_F³/|det J|, so the SVD (~3 µs a point) is only run
-        where that bound is not clearly below cond_max (a check samples a path every 0.5 mm)."""
+        cond = σ₁/σ₃ = σ₁²σ₂/|det J| ≤ ‖J‖_F³/|det J|, so the SVD, the costly part of a check
+        of a long path, only runs where that bound is not clearly below cond_max (docs/TUNING.md,
+        issue 33)."""
         c = np.zeros(len(P))
         at = np.nonzero(ok)[0]
         if not len(at):

@@ -26,7 +26,7 @@ class PathError(ValueError):
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a × b of two 3-vectors (np.cross costs ~15 µs a call; paths build one per segment)."""
-    # on Python floats: the same IEEE operations as on numpy's scalars, at a third of the cost
+    # on Python floats: the same IEEE operations as on numpy's scalars, which cost more each
     a0, a1, a2 = a.tolist() if type(a) is np.ndarray else a
     b0, b1, b2 = b.tolist() if type(b) is np.ndarray else b
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])

@@ -269,7 +269,7 @@ class SegmentPath(Path):
         self._lens = lens
         assert len(self._k) == n
         # each table's x, y, z columns as contiguous rows: _derivs gathers a column per axis,
-        # and take() from a contiguous row is ~2× faster than indexing the (n, 3) table
+        # and take() from a contiguous row is faster than indexing the (n, 3) table
         self._columns = tuple(np.ascontiguousarray(tab.T) for tab in (self._origin, self._a, self._b, self._hn, self._dir))
 
     @classmethod

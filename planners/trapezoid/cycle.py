@@ -58,7 +58,7 @@ def simulate(L, vmax, amax, vf, T: float, length: float, blends=None, stops=(), 
         t_left = T
         if ramps is not None and active != i:
             active, ramp = i, _ramps(ramps[i], Li - x, v, vmi)
-        # a run of periods at the cruise speed or at full acceleration (~90 % of a CAM
+        # a run of periods at the cruise speed or at full acceleration (most of a CAM
         # program's periods) in one numpy pass: each period's test as the loop below makes it
         if try_run and not blending and not ramp and a > 0 and vmi > 0 and (acc == 0.0 and v == vmi or acc == a):
             m = min(_run_estimate(acc == a, Li - x, v, vmi, vf2, a, T), MAX_CYCLES - k - 1)
@@ -143,7 +143,8 @@ def simulate(L, vmax, amax, vf, T: float, length: float, blends=None, stops=(), 
     raise PlanningError(f"trapezoid: no arrival after {MAX_CYCLES} cycles (a limit too small?)")
 
 
-# Periods below which a run stays in the loop: a numpy pass costs ~20 µs, a loop period ~0.8 µs
+# Periods below which a run stays in the loop (a numpy pass costs as much as a few dozen loop
+# periods; docs/TUNING.md, issue 33)
 MIN_RUN = 16
 MAX_RUN = 1 << 15           # periods per numpy pass: its arrays stay in cache
 
