@@ -442,7 +442,8 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
             lo, hi = sub[rows, k], sub[rows, k + 1]
         d = d[cand]
         cand = np.arange(len(cand))
-    pairs = np.column_stack([lo - 1e-7, hi + 1e-7]).ravel()
+    # one-sided values 1e-7 mm either side, within the path (a jump found in its last cell)
+    pairs = np.clip(np.column_stack([lo - 1e-7, hi + 1e-7]).ravel(), 0.0, path.length)
     cart = cartesian_derivs(path, pairs)
     D = (joint_derivs(machine, path, pairs, cart=cart, fit_scale=table.fit_scale)
          if machine is not None else cart)

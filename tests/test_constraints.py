@@ -5,9 +5,12 @@ import math
 import numpy as np
 import pytest
 
+from kins import load_machine
 from kins.machine import Limits, MachineLimits
-from planners.constraints import check_limits, curvature_splits, station_grid
+from kins.resources import REPO
+from planners.constraints import PathTable, check_limits, curvature_splits, second_derivative_jumps, station_grid
 from planners.errors import PlanningError
+from planners.paths import resolve_path
 
 
 def test_station_grid_puts_every_edge_on_it_within_the_step_and_resolves_short_segments():
@@ -37,3 +40,13 @@ def test_check_limits_refuses_a_limit_that_is_not_a_positive_number_naming_it(ba
     lim = MachineLimits(joint=Limits(v=1.0, a=bad, j=1.0), cartesian=ok, feed_max=1.0, chord_error_mm=0.001)
     with pytest.raises(PlanningError, match=r"test: joint limit a = .* must be a finite number > 0"):
         check_limits(lim, "test")
+
+
+def test_a_second_derivative_jump_in_the_last_cell_is_read_within_the_path():
+    """The epitrochoid's cusp tip at its end: P″ changes fastest in the table's last cell, whose
+    one-sided reads 1e-7 mm beyond it lay outside the path (a PathError from every planner on
+    the path); read within it, the end is no join."""
+    machine = load_machine("keops")
+    path = resolve_path(str(REPO / "benchmarks/paths/corpus/cusp_epitrochoid_keops.json"), home=machine.home)
+    jumps = second_derivative_jumps(path, PathTable(path, machine), machine)
+    assert all(0.0 < s < path.length for s, _ in jumps)

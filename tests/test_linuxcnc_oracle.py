@@ -304,3 +304,56 @@ def test_linuxcnc_runs_a_program_placed_by_var_file_tool_table_and_offset(tmp_pa
     assert np.linalg.norm(P[0] - prog.start) < 1e-6 and np.linalg.norm(P[-1] - ends[-1]) < 1e-6
     # the M0 stop: both rest there (LinuxCNC a few task cycles to resume)
     assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.02
+
+
+def _rests(p, min_s=0.0):
+    """The stretches at rest between the first and the last motion of a profile, seconds."""
+    still = np.r_[False, p.sd[1:-1] == 0.0, False]
+    edges = np.flatnonzero(np.diff(still.astype(int)))
+    return [(b - a) * p.T for a, b in zip(edges[::2], edges[1::2]) if (b - a) * p.T > min_s]
+
+
+@needs_linuxcnc
+def test_trapezoid_waits_for_the_io_task_at_a_tool_change(tmp_path, kossel):
+    # M6 to another tool: EMC_TOOL_START_CHANGE meets the free-running 0.1 s io cycle at a random
+    # phase, EMC_TOOL_LOAD waits a cycle, the tool-change handshake one more (ioControl.cc
+    # read_tool_inputs): LinuxCNC rests 0.2–0.3 s plus a few task cycles, trapezoid the mean 0.25 s.
+    # T2 comes during the G0: its EMC_TOOL_PREPARE (io only) is done before the G0 ends. (Right
+    # after a stop, or after a G1 that emccanon.cc see_segment holds back, the next move would
+    # wait for it: 2 io cycles more, not modelled)
+    from planners.paths.gcode import read_gcode
+    from planners.paths.gcode.rs274.setup import make_setup
+    (tmp_path / "t.tbl").write_text("T1 P1 Z0 D1 ;\nT2 P2 Z0 D2 ;\n")
+    f = tmp_path / "m6.ngc"
+    f.write_text("G21 G90 G17 G64\nG0 X-10 Y0 Z-250\nT1\nG1 X0 F1200\nM6\nG0 X10\nT2\nG1 X20\nM6\nG1 X30\nM2\n")
+    path = program_path(read_gcode(f, setup=make_setup(tmp_path / "t.tbl", None, [])))
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert tz.info["queue_waits_s"] == {0: pytest.approx(0.25), 2: pytest.approx(0.25)}
+    rests = _rests(lc, 0.05)
+    assert len(rests) == 2 and all(0.2 <= r <= 0.3 + 0.015 for r in rests), rests
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.1 + 0.03
+
+
+@needs_linuxcnc
+def test_an_m0_stop_is_the_operators_time_not_the_planners(tmp_path, kossel):
+    # three M0 stops, two in a row: the runner resumes each at once and leaves the pause (from
+    # between the display's two polls around it to the resume) out; what stays is LinuxCNC's
+    # own handling (the stop waits for motion, the resume for a task cycle): a few ms each
+    text = "G21 G90 G17 G61\nG0 X0 Y0 Z-250\nG1 X5 F600\nM0\nG1 Y5\nM0\nM0\nG1 X0\nM2\n"
+    path = gcode_path(tmp_path, "m0.ngc", text)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert 0.0 < lc.info["operator_pause_s"] < 0.2
+    assert tz.info["queue_waits_s"] == {}
+    assert 0.0 <= lc.execution_time_s - tz.execution_time_s <= 3 * 0.012
+
+
+@needs_linuxcnc
+def test_trapezoid_matches_linuxcnc_where_a_dwell_comes_before_a_rapid(tmp_path, kossel):
+    # G1, G4 P0, G0: the queue drains at the dwell, so LinuxCNC never marks the G1 a rapid/feed
+    # stop (tp.c handleModeChange sees only what is queued): it runs at G64's half acceleration.
+    # trapezoid stopped it at the full acceleration before: 20 ms short (−0.095 s on
+    # D1MiniGSR_front.ngc's passes)
+    text = "G21 G90 G17 G64\nG0 X-10 Y0 Z-250\nG1 X0 F600\nG4 P0\nG0 X10\nM2\n"
+    path = gcode_path(tmp_path, "dwell_rapid.ngc", text)
+    lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.005

@@ -244,7 +244,7 @@ def test_a_profile_above_a_limit_is_solved_on_finer_stations_then_refused(monkey
         return over if len(grids) < 2 else good
     monkeypatch.setattr(optimal.topp3, "solve", solve)
     p = optimal.plan(path, KOSSEL, polish=False)
-    assert grids == [0.1, 0.1 / optimal.STATION_REFINEMENT]
+    assert grids == [optimal.GRID_MM, optimal.GRID_MM / optimal.STATION_REFINEMENT]
     assert p.info["source"] == "socp" and p.info["grid_mm"] == grids[-1] and np.array_equal(p.s, good.s)
     grids.clear()
     monkeypatch.setattr(optimal.topp3, "solve", lambda *a, **k: grids.append(a[3].grid_mm) or over)

@@ -301,3 +301,48 @@ def test_points_are_point_bit_for_bit():
     for x, p, u in zip(xs.tolist(), P, U):
         p0, u0 = point(segs, x)
         assert p.tobytes() == np.asarray(p0, float).tobytes() and u.tobytes() == np.asarray(u0, float).tobytes()
+
+
+def test_a_sync_drains_the_queue_before_a_rapid_feed_change():
+    # G1, G4 P0, G0: the dwell waits for the queue to drain (emctaskmain.cc: EMC_TRAJ_DELAY waits
+    # for motion), so the G1 is the last segment queued while it runs and keeps G64's PARABOLIC
+    # term: half the acceleration, both ways (tc.c tcGetOverallMaxAccel). tp.c handleModeChange
+    # would make it STOP only if the G0 were queued behind it (tcqLast): it never is. Before,
+    # the G1 ran at the full 500 mm/s² (D1MiniGSR_front.ngc: 6 ms lost per pass in LinuxCNC).
+    text = "G21 G90 G64\nG0 X0 Y0 Z-250\nG1 X10 F600\nG4 P0\nG0 X20\nM2\n"
+    p = program_path(parse_gcode(text))
+    assert [m.stop for m in p.program.moves] == ["sync", "end"]
+    runs, _ = Q.build(p.program.moves, KOSSEL)
+    assert [[tc.term for tc in r] for r in runs] == [[Q.PARABOLIC], [Q.PARABOLIC]]
+    pr = plan("trapezoid", p, load_machine("kossel"))
+    # 10 mm at 10 mm/s with a/2 = 250 both ways, then 10 mm at 20 mm/s with 250 both ways; the
+    # dwell's rest is the period the G1 ends in
+    t = (10 / 10 + 10 / 250) + (10 / 20 + 20 / 250)
+    assert abs(pr.execution_time_s - t) <= 3 * pr.T
+
+
+def _tool_program(tmp_path, text):
+    from planners.paths.gcode import read_gcode
+    from planners.paths.gcode.rs274.setup import make_setup
+    (tmp_path / "t.tbl").write_text("T1 P1 Z0 D1 ;\nT2 P2 Z0 D2 ;\n")
+    f = tmp_path / "tool.ngc"
+    f.write_text(text)
+    return program_path(read_gcode(f, setup=make_setup(tmp_path / "t.tbl", None, [])))
+
+
+def test_a_tool_change_waits_two_and_a_half_io_cycles(tmp_path):
+    # M6 is two io commands (interp_convert.cc convert_tool_change: START_CHANGE, then
+    # emccanon.cc CHANGE_TOOL's EMC_TOOL_LOAD); the first meets the free-running io cycle at a
+    # random phase (mean ½ cycle), the second waits a cycle (taskclass.cc sendCommand), and a new
+    # tool keeps io busy one cycle more (ioControl.cc read_tool_inputs): 2.5 × 0.1 s. The same
+    # tool again: no handshake (EMC_TOOL_LOAD), 1.5 cycles. Tool 1 → 2: 2.5 cycles; coolant
+    # on the same stop continues the chain (M8: one more command). A T's EMC_TOOL_PREPARE waits
+    # for io only, not motion: it goes out while the 0.5 s move before still runs, done by its end
+    from planners.trapezoid.program import move_waits
+    text = ("G21 G90 G64\nG0 X0 Y0 Z-250\nT1\nG1 X5 F600\nM6\nG1 X10\nT1 M6\nG1 X15\nT2 M6\n"
+            "G1 X20\nT1\nM6 M8\nG1 X25\nM2\n")
+    p = _tool_program(tmp_path, text)
+    assert move_waits(p.program) == {0: pytest.approx(0.25), 1: pytest.approx(0.15), 2: pytest.approx(0.25),
+                                     3: pytest.approx(0.35)}
+    pr = plan("trapezoid", p, load_machine("kossel"))
+    assert np.count_nonzero(pr.sd[1:-1] == 0.0) * pr.T == pytest.approx(1.0 + 4 * pr.T, abs=pr.T / 2)

@@ -8,6 +8,11 @@ is planned by `trapezoid` with the programmed feed. Prints a Markdown table — 
 velocity peak ratio Δ % (both from planners.verify on each planner's own geometry) — and
 writes results/oracle/linuxcnc_oracle.json. ``--repeat N`` runs LinuxCNC N times per program
 and reports the spread of its execution time (the determinism of the `linuxcnc` planner).
+
+A program with io commands between its moves (coolant, tool change) waits for LinuxCNC's io
+task, whose cycle (0.1 s) runs free of the program: the wait depends on the phase the program
+meets, run to run. `trapezoid` rests the mean; such a program runs ``--io-phases N`` times
+(default 10), the k-th started k/N of an io cycle later, and LinuxCNC's time is the mean.
 """
 from __future__ import annotations
 
@@ -15,6 +20,8 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
@@ -26,6 +33,7 @@ from kins import load_machine  # noqa: E402
 from planners import plan  # noqa: E402
 from planners.paths import resolve_path  # noqa: E402
 from planners.paths.gcode.rs274.setup import make_setup  # noqa: E402
+from planners.trapezoid.program import IO_COMMANDS, IO_CYCLE_S  # noqa: E402
 
 # program → machine (the delta's program is written for linuxcnc_delta's workspace)
 PROGRAMS = {
@@ -71,8 +79,8 @@ PLACED = {
 TOOLS = REPO / "benchmarks/paths/programs/collection.tbl"
 
 
-def measure(name, planner, path, machine):
-    pr = plan(planner, path, machine)
+def measure(name, planner, path, machine, **options):
+    pr = plan(planner, path, machine, **options)
     m = command_metrics(machine, pr.path.point(pr.s), pr.T, pr.s)
     return pr, m
 
@@ -81,6 +89,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="", help="comma-separated program names")
     ap.add_argument("--repeat", type=int, default=1, help="LinuxCNC runs per program")
+    ap.add_argument("--io-phases", type=int, default=10,
+                    help="LinuxCNC runs, over one io cycle, of a program with io waits between moves")
     ap.add_argument("--out", default=str(REPO / "results/oracle/linuxcnc_oracle.json"))
     args = ap.parse_args(argv)
     names = [n for n in args.only.split(",") if n] or list(PROGRAMS) + list(PLACED)
@@ -97,19 +107,27 @@ def main(argv=None) -> int:
         else:
             (mname, file), setup = PROGRAMS[name], None
         machine = load_machine(mname)
-        path = resolve_path(str(file), **({"setup": setup} if setup else {}))
-        runs = [measure(name, "linuxcnc", path, machine) for _ in range(max(1, args.repeat))]
+        # a placed CAM program starts where the machine is (its first move need not give X, Y
+        # and Z), as `pkmbench plan` reads it: from the machine's home
+        path = resolve_path(str(file), **({"setup": setup, "home": machine.home} if setup else {}))
+        moves = path.program.moves
+        io_waits = any(e.kind == "m" and e.value in IO_COMMANDS and 0 < e.index < len(moves)
+                       for e in path.program.events)
+        n = max(1, args.io_phases) if io_waits else max(1, args.repeat)
+        delays = [k * IO_CYCLE_S / n if io_waits else 0.0 for k in range(n)]
+        runs = [measure(name, "linuxcnc", path, machine, start_delay_s=d) for d in delays]
         lc, mlc = runs[0]
         tz, mtz = measure(name, "trapezoid", path, machine)
-        t_l, t_t = lc.execution_time_s, tz.execution_time_s
+        t_l, t_t = float(np.mean([r[0].execution_time_s for r in runs])), tz.execution_time_s
         v_l, v_t = mlc["joint_peak_ratio"]["velocity"], mtz["joint_peak_ratio"]["velocity"]
         row = {"program": name, "machine": mname, "linuxcnc_s": t_l, "trapezoid_s": t_t,
                "dt_pct": 100 * (t_t - t_l) / t_l, "joint_v_linuxcnc": v_l, "joint_v_trapezoid": v_t,
                "dv_pct": 100 * (v_t - v_l) / v_l,
-               "linuxcnc_runs_s": [r[0].execution_time_s for r in runs]}
+               "linuxcnc_runs_s": [r[0].execution_time_s for r in runs], "start_delays_s": delays,
+               "operator_pause_s": [r[0].info["operator_pause_s"] for r in runs]}
         rows.append(row)
         print(f"| {name} | {mname} | {t_l:.3f} | {t_t:.3f} | {row['dt_pct']:+.2f} | {v_l:.4f} | {v_t:.4f} "
-              f"| {row['dv_pct']:+.2f} |" + (f" runs: {row['linuxcnc_runs_s']}" if args.repeat > 1 else ""),
+              f"| {row['dv_pct']:+.2f} |" + (f" runs: {row['linuxcnc_runs_s']}" if len(runs) > 1 else ""),
               flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

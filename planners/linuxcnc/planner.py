@@ -88,8 +88,10 @@ def profile_from_samples(smp: Samples, source: str) -> Profile:
 
 
 def plan(path, machine, limits=None, *, programmed_feed: bool = True,
-         keep_dir: str | None = None) -> Profile:
-    """Run ``path`` on the real LinuxCNC 2.9 for ``machine``; its command as a profile."""
+         keep_dir: str | None = None, start_delay_s: float = 0.0) -> Profile:
+    """Run ``path`` on the real LinuxCNC 2.9 for ``machine``; its command as a profile.
+    ``start_delay_s``: wait that long before the AUTO run (runner.run_program). An M0/M1 pause
+    is the operator's time and is left out of the profile (``info["operator_pause_s"]``)."""
     limits = limits or machine.limits
     check_limits(limits, "linuxcnc")
     if getattr(machine, "family", None) != "lineardelta":
@@ -102,7 +104,7 @@ def plan(path, machine, limits=None, *, programmed_feed: bool = True,
     text, start, expected = program_for(path, machine, limits, programmed_feed)
     try:
         smp = run_program(text, machine, start, expected_s=expected, keep_dir=keep_dir,
-                          setup=getattr(path.program, "setup", None))
+                          setup=getattr(path.program, "setup", None), start_delay_s=start_delay_s)
     except LinuxCNCError as e:
         raise PlanningError(str(e)) from None
     prof = profile_from_samples(smp, getattr(path, "source", "<path>"))
@@ -113,5 +115,6 @@ def plan(path, machine, limits=None, *, programmed_feed: bool = True,
     J = smp.joints[k0 + 2:k1 + 1]
     kin_dev = float(np.abs(Q[:len(J)] - J).max()) if len(J) else 0.0
     prof.info.update({"programmed_feed": bool(programmed_feed), "linuxcnc": "2.9 (tp, planner type 0)",
-                      "samples": int(k1 - k0 + 1), "joint_vs_ik_deviation_mm": kin_dev})
+                      "samples": int(k1 - k0 + 1), "joint_vs_ik_deviation_mm": kin_dev,
+                      "operator_pause_s": smp.paused_s, "start_delay_s": float(start_delay_s)})
     return prof

@@ -71,6 +71,7 @@ class Samples:
     vel: np.ndarray           # motion.current-vel, mm/s
     line: np.ndarray          # motion.program-line
     motion_type: np.ndarray   # motion.motion-type (1 traverse, 2 feed, 3 arc)
+    paused_s: float = 0.0     # M0/M1 pauses left out (the operator's time): their rows are not here
 
     def moving_span(self, tol: float = 1e-9) -> tuple[int, int]:
         """(k0, k1): rows k0 (at rest, last before any motion) .. k1 (first at the final
@@ -86,14 +87,15 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def write_config(d: FsPath, machine, program: FsPath, start, timeout_s: float, setup=None) -> FsPath:
+def write_config(d: FsPath, machine, program: FsPath, start, timeout_s: float, setup=None,
+                 start_delay_s: float = 0.0) -> FsPath:
     """Generate the INI and HAL files of a sim run of ``machine`` in ``d``; the INI's path.
     ``setup``: the program's tool table and parameters (planners.paths.gcode.rs274.setup.Setup,
     mm as the INI's LINEAR_UNITS) written as LinuxCNC's tool.tbl and var file."""
     if machine.family != "lineardelta":
         raise LinuxCNCError(f"linuxcnc: machine {machine.name} has {machine.family} kinematics; "
                             "the LinuxCNC runner supports lineardeltakins machines only")
-    (d / "pkmbench.ini").write_text(_ini_text(d, machine, program, start, timeout_s))
+    (d / "pkmbench.ini").write_text(_ini_text(d, machine, program, start, timeout_s, start_delay_s))
     (d / "pkmbench.hal").write_text(_hal_text(machine))
     (d / "tool.tbl").write_text(setup.tool_table_text() if setup and setup.tools else "T1 P1 D0 Z0 ;\n")
     (d / "sim.var").write_text(setup.var_text() if setup else "")
@@ -134,7 +136,7 @@ MAX_LIMIT = {_fmt(machine.workspace_max[k])}
     return joints, axes
 
 
-def _ini_text(d: FsPath, machine, program: FsPath, start, timeout_s: float) -> str:
+def _ini_text(d: FsPath, machine, program: FsPath, start, timeout_s: float, start_delay_s: float = 0.0) -> str:
     """The INI: LinuxCNC's sections with lineardeltakins and the servo period, and the
     [PKMBENCH] section display.py reads (program, start point, sampler, time-out)."""
     T_ns = int(round(machine.servo_period_s * 1e9))
@@ -190,6 +192,7 @@ PROGRAM = {program}
 START = {start_words}
 SAMPLER_CFG = {SAMPLER_CFG}
 TIMEOUT_S = {_fmt(timeout_s)}
+START_DELAY_S = {_fmt(start_delay_s)}
 """
 
 
@@ -239,13 +242,15 @@ def _kill(proc: subprocess.Popen) -> None:
 
 
 def run_program(program_text: str, machine, start, expected_s: float | None = None,
-                keep_dir: str | None = None, setup=None) -> Samples:
+                keep_dir: str | None = None, setup=None, start_delay_s: float = 0.0) -> Samples:
     """Run G-code ``program_text`` on LinuxCNC for ``machine``; the tool is first moved to
     ``start`` (xyz, mm) by MDI, then the program runs in AUTO while the sampler records.
 
     ``expected_s`` (a rough duration) sizes the time-out; ``keep_dir`` keeps the generated
     configuration and LinuxCNC's logs there (for debugging); ``setup``: the tool table and
-    var file LinuxCNC starts with (see write_config).
+    var file LinuxCNC starts with (see write_config); ``start_delay_s``: wait that long before
+    AUTO run (the io task's free-running cycle then meets the program at another phase).
+    The rows of an M0/M1 pause (display.py: from when it began to the resume) are left out.
     """
     why = missing()
     if why:
@@ -256,7 +261,7 @@ def run_program(program_text: str, machine, start, expected_s: float | None = No
     ok = False
     try:
         (d / "program.ngc").write_text(program_text)
-        ini = write_config(d, machine, d / "program.ngc", start, timeout, setup)
+        ini = write_config(d, machine, d / "program.ngc", start, timeout, setup, start_delay_s)
         env = {"PATH": "/usr/local/bin:/usr/bin:/bin:/usr/sbin:/sbin", "HOME": str(d),
                "LANG": "C", "LC_ALL": "C"}
         cmd = ["linuxcnc", str(ini)]
@@ -290,7 +295,7 @@ def run_program(program_text: str, machine, start, expected_s: float | None = No
             tail = (d / "linuxcnc.log").read_text(errors="replace").strip().splitlines()[-3:]
             raise LinuxCNCError(f"linuxcnc exited with status {proc.returncode} and no samples: "
                                 f"{' | '.join(tail)} (log in {_keep(d, keep_dir, force=True)})")
-        samples = _read_samples(d / "samples.txt", machine.servo_period_s)
+        samples = _read_samples(d / "samples.txt", machine.servo_period_s, d / "samples.txt.pauses")
         ok = True
         return samples
     finally:
@@ -312,7 +317,7 @@ def _keep(d: FsPath, keep_dir: str | None, force: bool = False) -> str:
     return ""
 
 
-def _read_samples(file: FsPath, T: float) -> Samples:
+def _read_samples(file: FsPath, T: float, pauses: FsPath | None = None) -> Samples:
     data = np.loadtxt(file, ndmin=2)
     if len(data) < 2:
         raise LinuxCNCError(f"linuxcnc: only {len(data)} sample(s) recorded")
@@ -320,8 +325,17 @@ def _read_samples(file: FsPath, T: float) -> Samples:
     gaps = np.nonzero(np.diff(n) != 1)[0]
     if len(gaps):
         raise LinuxCNCError(f"linuxcnc: sampler rows not consecutive after sample {int(n[gaps[0]])}")
+    # an M0/M1 pause lasts as long as the operator: its rows (at rest) are left out
+    drop = np.zeros(len(data), bool)
+    if pauses is not None and pauses.is_file():
+        for a, b in (map(int, ln.split()) for ln in pauses.read_text().splitlines() if ln.strip()):
+            rows = (n >= a) & (n <= b)
+            if rows.any() and np.abs(data[rows, 4:7] - data[rows, 4:7][0]).max() > 0.0:
+                raise LinuxCNCError(f"linuxcnc: the tool moved during the pause at samples {a}..{b}")
+            drop |= rows
+    data = data[~drop]
     return Samples(T, data[:, 1:4], data[:, 4:7], data[:, 7], data[:, 8].astype(int),
-                   data[:, 9].astype(int))
+                   data[:, 9].astype(int), float(drop.sum()) * T)
 
 
 def finite_or(x, default):

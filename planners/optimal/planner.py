@@ -4,9 +4,9 @@ The constraint set is the planners' shared one (joint v, a, j; F_max; the chord-
 cap; the G1-join reads).  Two transcriptions:
 
 * COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel): stations
-  ≤ 0.1 mm apart and refined at curvature peaks, the jerk limit linearised by tangents (a
-  restriction: the time never grows from one linearisation to the next), at `copp`'s settings,
-  checked at T and repaired in windows where a difference reads above a limit.  Where a limit
+  ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s), the jerk limit
+  linearised by tangents (a restriction: the time never grows from one linearisation to the
+  next), checked at T and repaired in windows where a difference reads above a limit.  Where a limit
   still reads above 1 after the repairs the path is solved again on finer stations
   (_socp_within_limits).  No other planner's profile is ever returned: without a profile
   within the limits `optimal` raises a PlanningError naming the path and the limit;
@@ -49,10 +49,12 @@ from planners.verify import command_metrics, keeps_joints_and_feed, windows_abov
 # closer, up to REFINE_LEVELS times
 STATION_REFINEMENT = 2
 REFINE_LEVELS = 2
-# stations ≤ this many curvature radii apart (copp's engine default is 5 × coarser): where the
-# joints turn fast between stations the check at T read above the limits, and the repairs'
-# tightening cost more time than the few stations it takes (docs/TUNING.md)
-STATION_RADII = 0.1
+# stations ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (copp's engine: 0.1 mm and 0.5 radii).
+# TOPP3's b is linear in s between stations, a restriction whose time excess shrinks about in
+# proportion to the spacing: at 0.1 mm / 0.1 radii the stations alone kept optimal 0.2–0.46 % above
+# the converged reference on keops's paths, at half that spacing ≤ 0.2 % (docs/TUNING.md)
+GRID_MM = 0.05
+STATION_RADII = 0.05
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # short G64 blend arc the joint derivatives turn through 90° (docs/TUNING.md).
 MIN_PHASE_NODES = 24
@@ -163,7 +165,7 @@ def sample_cubic(pieces_sol, T, path, info) -> Profile:
     return prof
 
 
-def plan(path, machine, limits=None, *, grid_mm: float = 0.1, polish: bool | None = None,
+def plan(path, machine, limits=None, *, grid_mm: float = GRID_MM, polish: bool | None = None,
          margin: float = 0.005, node_period_s: float = 1e-3, max_nodes_per_piece: int = 600,
          warm_stretch: float = 1.02, retries: int = 3) -> Profile:
     """Minimum-time jerk-limited reference: the TOPP3-SOCP (stations ≤ ``grid_mm`` apart, finer

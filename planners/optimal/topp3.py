@@ -65,6 +65,9 @@ STATION_MIN_MM = 1e-3
 MAX_REPAIRS = 8
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 24
+# a stretch is by the worst need and this much more: it moves every sample at T, so it cannot
+# aim at 1 exactly, but TIGHTEN_EXTRA's 1e-3 cost 0.1 % of the piece's time for reads of 1 + 1e-6
+STRETCH_EXTRA = 1e-5
 LIMIT_COLUMNS = ("velocity", "acceleration", "jerk", "feed")
 # a stop inside a piece: a ≤ STOP_A of the piece's largest a (_stops_at_rest)
 STOP_A = 1e-6
@@ -439,7 +442,7 @@ def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
             break
         for p, w in zip(pieces, worst):
             if w > 1 + FEASIBLE_TOL:
-                p.span.lam *= w * (1 + TIGHTEN_EXTRA)
+                p.span.lam *= w * (1 + STRETCH_EXTRA)
         prof = Profile.from_pieces(name, T, [p.span for p in pieces], path, info)
     prof.info["stretch"] = [round(p.span.lam, 6) for p in pieces]
     return prof

@@ -239,28 +239,47 @@ def _step(geometry: list, last, p, length: float, line):
 
 
 IO_CYCLE_S = 0.100          # [EMCIO] CYCLE_TIME of the LinuxCNC sim config (planners/linuxcnc/runner.py)
-# coolant M codes are commands to LinuxCNC's io task: M7 mist on, M8 flood on, M9 both off
-IO_COMMANDS = {7: 1, 8: 1, 9: 2}
+# M codes that are commands to LinuxCNC's io task: M7 mist on, M8 flood on, M9 both off; M6 is
+# two, EMC_TOOL_START_CHANGE and EMC_TOOL_LOAD (interp_convert.cc convert_tool_change:
+# START_CHANGE, then emccanon.cc CHANGE_TOOL)
+IO_COMMANDS = {7: 1, 8: 1, 9: 2, 6: 2}
 
 
 def move_waits(prog) -> dict:
     """{move index: seconds at rest after it} for a program's queue syncs.
 
-    A dwell waits its P. A coolant M code is a command to the io task, which looks at its
-    command buffer once per io cycle (ioControl.cc main loop, esleep(emc_io_cycle_time)) and
-    then sleeps a full cycle: the first command waits on average half a cycle (a random
-    phase: LinuxCNC's own spread run to run), each further one a whole cycle. The mean is
-    used (same inputs, same outputs). Other M codes (spindle, M62–M65 …) go to motion: no wait.
-    Nothing waits after the last move (the span measured ends there)."""
+    A dwell waits its P. An io command (coolant, tool change) waits for LinuxCNC's io task,
+    which looks at its command buffer once per io cycle (ioControl.cc main loop,
+    esleep(emc_io_cycle_time)) and then sleeps a full cycle; task sends the next one only when
+    the last is done (taskclass.cc sendCommand): the first command waits on average half a
+    cycle (a random phase: LinuxCNC's own spread run to run), each further one a whole cycle.
+    A tool change to another tool keeps io busy one cycle more: EMC_TOOL_LOAD raises
+    iocontrol.0.tool-change and reports RCS_EXEC; the looped-back tool-changed is read at the
+    top of the next cycle (read_tool_inputs), only then RCS_DONE. Same tool: no handshake
+    (the EMC_TOOL_LOAD case). So M6: 0.5 + 1 + 1 = 2.5 cycles. A T word's EMC_TOOL_PREPARE
+    waits for io only, not motion (emctaskmain.cc emcTaskCheckPreconditions): it goes out while
+    the move before still runs and is taken as done by its end (not so after a move shorter than
+    two io cycles, or one the naive-CAM join holds back). The mean is used (same inputs,
+    same outputs). Other M codes (spindle, M62–M65 …) go to motion: no wait; an M0/M1 program
+    stop lasts as long as the operator and adds nothing (the oracle's runner leaves its pause
+    out). Nothing waits after the last move (the span measured ends there)."""
     per_move: dict[int, list] = {}
     for e in prog.events:
         if 0 < e.index <= len(prog.moves):
             per_move.setdefault(e.index - 1, []).append(e)
+    # the tool in the spindle after each tool change (io starts with none: tool 0)
+    handshake, spindle = set(), 0
+    for e in prog.events:
+        if e.kind == "tool":
+            if e.value != spindle:
+                handshake.add(id(e))
+            spindle = e.value
     waits = {}
     for mi, evs in per_move.items():
         n_io = sum(IO_COMMANDS.get(e.value, 0) for e in evs if e.kind == "m")
+        n_hs = sum(id(e) in handshake for e in evs)
         dwell = sum(float(e.value) for e in evs if e.kind == "dwell")
-        w = dwell + (0.5 * IO_CYCLE_S + (n_io - 1) * IO_CYCLE_S if n_io else 0.0)
+        w = dwell + (0.5 * IO_CYCLE_S + (n_io - 1 + n_hs) * IO_CYCLE_S if n_io else 0.0)
         if w > 0 and mi < len(prog.moves) - 1:
             waits[mi] = w
     return waits

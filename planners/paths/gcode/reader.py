@@ -177,7 +177,9 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
                                       "or a setup file?)")
     for e in prog.events:
         syncs = e.kind in ("dwell", "tool", "probe") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
-        if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop is None:
+        # a sync outranks a rapid <-> feed stop: the queue drains there before the next move
+        # comes, so tp.c never sees the mode change (handleModeChange) while the move runs
+        if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop in (None, "mode"):
             _stop(prog.moves[e.index - 1], "sync")
     if prog.moves[-1].stop is None:
         _stop(prog.moves[-1], "end")
@@ -272,7 +274,7 @@ def _stop(move: Move, why: str) -> None:
     """The motion queue ends after ``move`` (a sync or the program end): under G64 LinuxCNC
     leaves its term_cond PARABOLIC, so it runs at half acceleration (tc.c
     tcGetOverallMaxAccel) and stops at its end."""
-    move.parabolic_end = move.blend_mm is not None
+    move.parabolic_end = move.path_mode[0] == "blend"
     move.stop = why
     move.blend_mm = None
 
