@@ -154,6 +154,25 @@ class Kinematics:
         c[~np.isfinite(c)] = np.inf
         return c[0] if single else c
 
+    def _condition_above(self, P, ok) -> np.ndarray:
+        """condition_number(P) at the points ``ok`` where it may exceed cond_max, 0 elsewhere:
+        cond = σ₁/σ₃ = σ₁²σ₂/|det J| ≤ ‖J‖_F³/|det J|, so the SVD, the costly part of a check
+        of a long path, only runs where that bound is not clearly below cond_max (docs/TUNING.md,
+        issue 33)."""
+        c = np.zeros(len(P))
+        at = np.nonzero(ok)[0]
+        if not len(at):
+            return c
+        J = self._jacobian(P[at])
+        with np.errstate(all="ignore"):
+            bound_ok = (J * J).sum(axis=(1, 2)) ** 1.5 <= 0.999 * self.cond_max * np.abs(np.linalg.det(J))
+            may = np.nonzero(~bound_ok)[0]
+            if len(may):
+                cm = np.linalg.cond(J[may])
+                cm[~np.isfinite(cm)] = np.inf
+                c[at[may]] = cm
+        return c
+
     def check(self, P) -> list[Finding]:
         """All workspace and singularity findings for points P (no exception)."""
         P2, _ = _as_points(P, "P")
@@ -170,7 +189,7 @@ class Kinematics:
             out.append(Finding(int(i), "stroke", int(k) + 1, float(Q[i, k]), lim,
                                f"point #{i} {_fmt(P2[i])}: joint {k + 1} at {Q[i, k]:.6g} mm is "
                                f"beyond its stroke limit {lim:g} mm by {abs(Q[i, k] - lim):.4g} mm"))
-        cond = self.condition_number(P2)
+        cond = self._condition_above(P2, reachable)
         for i in np.nonzero(reachable & (cond > self.cond_max))[0]:
             out.append(Finding(int(i), "singularity", None, float(cond[i]), self.cond_max,
                                f"point #{i} {_fmt(P2[i])}: Jacobian condition number "

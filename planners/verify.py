@@ -160,15 +160,21 @@ def difference_peaks(X, T: float, orders: int = 3) -> list:
     differences of :func:`differences` (with the rest at both ends: window i reads samples
     i-2 …, :func:`window_sample`), in blocks of samples (a 10⁶-sample profile's
     temporaries stay in cache instead of being fresh 10⁶-element arrays each)."""
-    X = at_rest(X)
-    sizes = [max(len(X) - k, 0) for k in range(1, orders + 1)]
+    X = np.asarray(X, float)
+    n_x = len(X)
+    n_rest = n_x + 2 * REST_PAD if n_x else 0           # len(at_rest(X))
+    sizes = [max(n_rest - k, 0) for k in range(1, orders + 1)]
     # the axis of each maximum as one byte (an axis number < 3): fresh memory is slow to
     # touch the first time, and 6 such arrays of 10⁶ samples were 80 MB as np.intp
     out = [(np.empty(n), np.empty(n, np.int8)) for n in sizes]
     for a in range(0, sizes[0], BLOCK):
+        # rows a … of at_rest(X), read from X itself (no padded copy of a 10⁶-sample X): X's
+        # rows a − REST_PAD …, the first and last repeated where the block reaches the rest
+        lo, hi = a - REST_PAD, min(a + BLOCK + orders, n_rest) - REST_PAD
+        rows = slice(lo, hi) if 0 <= lo and hi <= n_x else np.clip(np.arange(lo, hi), 0, n_x - 1)
         # one contiguous array per axis: numpy's reductions over the 3 columns of an (N, 3)
         # array run in inner loops of 3, several times slower than elementwise maxima
-        D = [np.ascontiguousarray(X[a:a + BLOCK + orders, c]) for c in range(X.shape[1])]
+        D = [np.ascontiguousarray(X[rows, c]) for c in range(X.shape[1])]
         for (worst, col), n in zip(out, sizes):
             D = [np.diff(d) / T for d in D]
             b = min(a + BLOCK, n)

@@ -146,6 +146,28 @@ def test_singularity_flagged_by_condition_number():
     assert any(x.kind == "singularity" and x.value > m.cond_max for x in f)
 
 
+@pytest.mark.parametrize("name", MACHINES)
+def test_check_flags_exactly_where_the_condition_number_exceeds_cond_max(name):
+    # check() runs the SVD only where ‖J‖_F³/|det J| (a bound on σ₁/σ₃) does not clear
+    # cond_max: its singularity findings are condition_number's, point for point and value for
+    # value, on points in and around the box (near the bound's limit and far from it)
+    m = load_machine(name)
+    span = m.workspace_max - m.workspace_min
+    P = np.random.default_rng(3).uniform(m.workspace_min - 0.3 * span, m.workspace_max + 0.3 * span, (40000, 3))
+    cond = m.condition_number(P)
+    _, reach = m._ik(P)
+    expected = [(int(i), float(cond[i])) for i in np.nonzero((reach >= 0).all(axis=1) & (cond > m.cond_max))[0]]
+    found = [(x.index, x.value) for x in m.check(P) if x.kind == "singularity"]
+    assert found == expected
+    # the bound holds and the SVD is left out almost everywhere in the box
+    J = m._jacobian(workspace_grid(m))
+    bound = np.sqrt((J * J).sum(axis=(1, 2))) ** 3 / np.abs(np.linalg.det(J))
+    assert (bound >= np.linalg.cond(J) * (1 - 1e-12)).all()
+    assert (bound <= 0.999 * m.cond_max).mean() > 0.6
+    if name != "keops":                 # keops has no singularity around its box
+        assert len(expected) > 100
+
+
 def test_ik_rejects_nan_and_bad_shape():
     m = load_machine("keops")
     with pytest.raises(ValueError, match="not finite"):

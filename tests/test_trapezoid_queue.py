@@ -244,6 +244,65 @@ def test_arc_bounds_are_emccanon_arc_feed_closed_forms():
     assert v == pytest.approx(math.sqrt(5000 * math.sqrt(3) / 2 * r) * math.hypot(planar, rise) / planar, rel=1e-12)
 
 
+def _cam_text(n_lines: int, cycles: bool) -> str:
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location(
+        "cam_program", Path(__file__).resolve().parents[1] / "benchmarks" / "perf" / "cam_program.py")
+    cam = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cam)
+    return cam.make_cam_program(n_lines, seed=5, cycles=cycles)
+
+
+@pytest.mark.parametrize("text", [
+    "cam",
+    # a line into a helix, a spiral, rapids, G61 exact stops and a G61.1 stop between blends
+    "G21 G90 G17 G64 P0.05\nG0 X0 Y0 Z-250\nG1 X30 F1500\nG3 X30 Y20 Z-245 I0 J10\nG2 X20 Y10 I-5 J-5\n"
+    "G0 X-20\nG61\nG1 Y-20 F900\nX0\nG61.1\nG1 X10 F3000\nG64\nY0\nX20 Y0.2\nM2\n"])
+def test_runs_of_periods_are_the_per_period_loop_bit_for_bit(monkeypatch, text):
+    # planners.trapezoid.cycle runs cruise and full-acceleration periods as numpy passes: the
+    # same floats as the loop taking every period itself (min_run beyond any run), blends,
+    # exact stops, ramps and the parabolic blends' trace included
+    from planners.trapezoid import cycle
+    from planners.trapezoid.program import queue_arrays
+    text = _cam_text(400, cycles=True) if text == "cam" else text
+    runs, _ = Q.build(parse_gcode(text).moves, KOSSEL)
+    tcs, L, vt, acc, vf, blends, stops, _ = queue_arrays(runs, KOSSEL)
+    ramps = [tc.finalvel if tc.term == Q.TANGENT and not tc.rapid else None for tc in tcs]
+    args = (L, vt, acc, vf, KOSSEL.T, float(np.sum(L)), blends, stops, ramps)
+    in_runs = []
+    for name in ("_cruise", "_accelerate"):
+        f = getattr(cycle, name)
+        monkeypatch.setattr(cycle, name, lambda *a, f=f: in_runs.append(len((r := f(*a))[0])) or r)
+    s, sd, excess, trace = cycle.simulate(*args)
+    s0, sd0, excess0, trace0 = cycle.simulate(*args, min_run=len(s) + 1)
+    assert s.tobytes() == s0.tobytes() and sd.tobytes() == sd0.tobytes()
+    assert excess == excess0 and trace == trace0
+    # what the case is there for: the CAM program's parabolic blends, the other's stops
+    assert len(trace) > 0 if text.startswith("%") else len(stops) > 3
+    assert sum(in_runs) > len(s) / 2              # most periods ran in numpy passes
+
+
+def test_points_are_point_bit_for_bit():
+    # planners.trapezoid.program.points (a blend's periods at once) against point, one arc
+    # length at a time, on a line, a circle, a helix and a spiral laid end to end, at and
+    # between their joins, before 0 and past the end
+    from planners.paths import Arc, Line
+    from planners.trapezoid.program import point, points
+    line = Line([0.0, 0.0, -250.0], [10.0, 0.0, -250.0])
+    circle = Arc([10.0, 0.0, -250.0], [10.0, 5.0, -250.0], [0, 0, 1], 2.0)
+    helix = Arc(circle.end, circle.end + np.array([-3.0, 1.0, 0.0]), [0, 0, 1], 4.0, rise=2.5)
+    spiral = Arc(helix.end, helix.end + np.array([2.0, 2.0, 0.0]), [0, 0, -1], 3.0, spiral=1.5)
+    segs = [line, circle, helix, spiral]
+    joins = np.cumsum([g.length for g in segs])
+    xs = np.concatenate([[-1e-9, 0.0], joins, joins - 1e-13, joins + 1e-13,
+                         np.random.default_rng(2).uniform(0, joins[-1] + 1.0, 300)])
+    P, U = points(segs, xs)
+    for x, p, u in zip(xs.tolist(), P, U):
+        p0, u0 = point(segs, x)
+        assert p.tobytes() == np.asarray(p0, float).tobytes() and u.tobytes() == np.asarray(u0, float).tobytes()
+
+
 def test_a_sync_drains_the_queue_before_a_rapid_feed_change():
     # G1, G4 P0, G0: the dwell waits for the queue to drain (emctaskmain.cc: EMC_TRAJ_DELAY waits
     # for motion), so the G1 is the last segment queued while it runs and keeps G64's PARABOLIC

@@ -59,6 +59,23 @@ def test_differences_count_the_rest_before_and_after_for_every_length(n):
     assert (ratios["jerk"] > 1) == moving and (viol["jerk"] > 0) == moving
 
 
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 5, "BLOCK-5", "BLOCK-2", "BLOCK+1", "2*BLOCK+3"])
+def test_difference_peaks_are_the_maxima_of_the_differences_block_by_block(n):
+    # difference_peaks reads its blocks from X itself (the rest before and after by repeated
+    # first and last rows): per window the largest |difference| over the axes of
+    # differences(X) (which pads X with its rest) and its axis, bit for bit, at any length and
+    # across the block boundaries
+    from planners.verify import BLOCK, ORDERS, difference_peaks
+    n = eval(str(n), {"BLOCK": BLOCK})
+    T = 1e-3
+    X = np.random.default_rng(n).normal(size=(n, 3)).cumsum(axis=0)
+    D = differences(X, T)
+    for order, (worst, col) in zip(ORDERS, difference_peaks(X, T)):
+        A = np.abs(D[order])
+        assert worst.tobytes() == (A.max(axis=1) if len(A) else np.zeros(0)).tobytes()
+        assert col.tolist() == (A.argmax(axis=1).tolist() if len(A) else [])
+
+
 def test_a_one_period_jump_is_infeasible():
     """A 2-sample profile jumping 14 mm in one period (a plug-in's): velocity 14 mm / T,
     infeasible; before, its acceleration and jerk read 0 and a 3-sample one read 'feasible'."""

@@ -255,7 +255,14 @@ def _dynamics_findings(rep: Report, prof, machine) -> None:
             if not mask.any():
                 continue
             k = M.ORDERS.index(order) + 1
-            last = M.window_sample(np.arange(len(worst)), len(P), k)   # each window at its last sample
+            if order != "velocity":
+                # only the windows above the limit count (the feed that keeps a velocity
+                # within reads every sample): their values alone, in their order
+                at = np.nonzero(mask)[0]
+                worst, col, mask = worst[at], col[at], np.ones(len(at), bool)
+            else:
+                at = np.arange(len(worst))
+            last = M.window_sample(at, len(P), k)   # each window at its last sample
             ln = slines[last]
             feed = (speed[np.clip(last - 1, 0, None)] if len(speed) else np.zeros(len(last)),
                     programmed, order == "velocity")

@@ -26,7 +26,10 @@ class PathError(ValueError):
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a × b of two 3-vectors (np.cross costs ~15 µs a call; paths build one per segment)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    # on Python floats: the same IEEE operations as on numpy's scalars, which cost more each
+    a0, a1, a2 = a.tolist() if type(a) is np.ndarray else a
+    b0, b1, b2 = b.tolist() if type(b) is np.ndarray else b
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def vec3(v, what: str, where: str) -> np.ndarray:
@@ -39,7 +42,8 @@ def vec3(v, what: str, where: str) -> np.ndarray:
 
 def norm3(v) -> float:
     """|v| of one 3-vector (np.linalg.norm costs ~3 µs a call)."""
-    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    x, y, z = v.tolist() if type(v) is np.ndarray else v      # Python floats, as cross3
+    return math.sqrt(x * x + y * y + z * z)
 
 
 class Path:

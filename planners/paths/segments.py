@@ -268,6 +268,9 @@ class SegmentPath(Path):
         self._spiral = np.array([g.kind == "arc" and bool(g.spiral) for g in segs])
         self._lens = lens
         assert len(self._k) == n
+        # each table's x, y, z columns as contiguous rows: _derivs gathers a column per axis,
+        # and take() from a contiguous row is faster than indexing the (n, 3) table
+        self._columns = tuple(np.ascontiguousarray(tab.T) for tab in (self._origin, self._a, self._b, self._hn, self._dir))
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<segments>") -> "SegmentPath":
@@ -301,9 +304,10 @@ class SegmentPath(Path):
         out = [np.empty((len(s), 3)) for _ in range(order + 1)]
         # one axis at a time on (N,) arrays (the same operations as on (N, 3) ones broadcast
         # against (N, 1): numpy ran those in inner loops of 3, twice the time)
+        origin, A, B, HN, D = self._columns
         for x in range(3):
-            a, b, hn, d = self._a[i, x], self._b[i, x], self._hn[i, x], self._dir[i, x]
-            out[0][:, x] = self._origin[i, x] + np.where(arc, c * a + sn * b + phi * hn, t * d)
+            a, b, hn, d = A[x].take(i), B[x].take(i), HN[x].take(i), D[x].take(i)
+            out[0][:, x] = origin[x].take(i) + np.where(arc, c * a + sn * b + phi * hn, t * d)
             if order >= 1:
                 out[1][:, x] = np.where(arc, k * (-sn * a + c * b + hn), d)
             if order >= 2:

@@ -108,7 +108,7 @@ def simulate(path: SegmentPath, vmax, amax, vf, T: float):
     (s, sd, excess) at every period."""
     s, sd, excess, _ = tp_run.simulate([g.length for g in path.segments], np.asarray(vmax).tolist(),
                                        np.asarray(amax).tolist(), np.asarray(vf).tolist(), T, path.length)
-    return np.array(s), np.array(sd), excess
+    return s, sd, excess
 
 
 def _run_program(path: SegmentPath, limits, T: float, programmed_feed: bool):

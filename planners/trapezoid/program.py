@@ -115,7 +115,7 @@ def run_program(prog, lim: Q.Limits):
     cum = np.concatenate([[0.0], np.cumsum(L)])
     ramps = [tc.finalvel if tc.term == Q.TANGENT and not tc.rapid else None for tc in tcs]
     s, sd, excess, trace = simulate(L, vt, acc, vf, lim.T, float(cum[-1]), blends, stops, ramps)
-    geometry, s, sd, tc_start = blended_geometry([pieces(tc) for tc in tcs], np.array(s), np.array(sd), trace, cum)
+    geometry, s, sd, tc_start = blended_geometry([pieces(tc) for tc in tcs], s, sd, trace, cum)
     info = {"queue_segments": len(tcs), "blend_arcs": sum(tc.kind == "blend" for tc in tcs),
             "consumed_lines": sum(tc.kind == "blend" and tc.line_length > 0 for tc in tcs),
             "parabolic_blends": len(blends), "exact_stops": len(stops) - len(run_ends),
@@ -143,35 +143,90 @@ def blended_geometry(segs_of, s, sd, trace, cum):
     hi = np.where(k1 >= 0, rx[np.maximum(k1, 0)], 0.0)
     into = {blend[k][0] + 1 for k in blend}
     out_of = {blend[k][0] for k in blend}
-    a = [lo[i] if i in into else 0.0 for i in range(n)]
-    b = [hi[i] if i in out_of else cum[i + 1] - cum[i] for i in range(n)]
-    geometry, start, s_new, sd_new = [], np.zeros(n + 1), s.copy(), sd.copy()
+    # Python floats in the per-segment loop (numpy scalars cost several times more an operation)
+    lo_, hi_, cum_ = lo.tolist(), hi.tolist(), cum.tolist()
+    a = [lo_[i] if i in into else 0.0 for i in range(n)]
+    b = [hi_[i] if i in out_of else cum_[i + 1] - cum_[i] for i in range(n)]
+    geometry, start, s_new, sd_new = [], [], s.copy(), sd.copy()
     length = 0.0
+    # the trace's periods blend by blend: (period k, x, x2, v, v2) columns of each blend's rows
     ks = sorted(blend)
-    j = 0
+    rows = np.array([(k,) + blend[k][1:] for k in ks]).reshape(-1, 5)
+    of = np.array([blend[k][0] for k in ks], int)
+    cuts = np.searchsorted(of, np.arange(n + 1))
     for i in range(n):
-        start[i] = length
+        start.append(length)
         part = cut(segs_of[i], a[i], b[i])
         geometry += part
         length += sum(g.length for g in part)
         if i in out_of:
             last = point(segs_of[i], b[i])[0]
-            while j < len(ks) and blend[ks[j]][0] == i:
-                k = ks[j]
-                _, x, x2, v, v2 = blend[k]
-                p1, t1 = point(segs_of[i], x)
-                p2, t2 = point(segs_of[i + 1], x2)
-                p = p1 + p2 - point(segs_of[i + 1], 0.0)[0]
-                length, last = _step(geometry, last, p, length, segs_of[i][-1].line)
-                s_new[k], sd_new[k] = length, norm3(v * t1 + v2 * t2)
-                j += 1
+            k, x, x2, v, v2 = rows[cuts[i]:cuts[i + 1]].T
+            k = k.astype(int)
+            P1, T1 = points(segs_of[i], x)
+            P2, T2 = points(segs_of[i + 1], x2)
+            P = P1 + P2 - point(segs_of[i + 1], 0.0)[0]
+            length, last, s_new[k] = _steps(geometry, last, P, length, segs_of[i][-1].line)
+            sd_new[k] = _norms(v[:, None] * T1 + v2[:, None] * T2)
             length, _ = _step(geometry, last, point(segs_of[i + 1], a[i + 1])[0], length, segs_of[i][-1].line)
-    start[n] = length
+    start = np.array(start + [length])
     # within its segment's kept part (a piece under TINY was dropped from it)
     ir = idx[reg]
     s_new[reg] = np.minimum(start[ir] + (s[reg] - cum[ir]) - np.array(a)[ir], start[ir + 1])
     s_new[-1] = length
     return geometry, np.minimum(s_new, length), sd_new, start
+
+
+def _steps(geometry: list, last, P: np.ndarray, length: float, line):
+    """_step to each row of P in turn: (length, last, the length after each step)."""
+    D = P - np.concatenate([last[None], P[:-1]])
+    d = _norms(D)
+    if not (d > TINY).all():          # a step dropped: the next one starts where it was
+        lengths = np.empty(len(P))
+        for r, p in enumerate(P):
+            length, last = _step(geometry, last, p, length, line)
+            lengths[r] = length
+        return length, last, lengths
+    U = D / d[:, None]
+    geometry += [Line.exact(s, e, u, line) for s, e, u in zip(np.concatenate([last[None], P[:-1]]), P, U)]
+    lengths = np.cumsum(np.r_[length, d])[1:]     # sequential sums, as length + d step by step
+    return float(lengths[-1]), P[-1], lengths
+
+
+def _norms(V: np.ndarray) -> np.ndarray:
+    """norm3 of each row of V (n, 3), its operations in its order."""
+    x, y, z = V.T
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def points(segs, xs: np.ndarray):
+    """:func:`point` at each arc length of ``xs``: (points (n, 3), unit tangents (n, 3)), the
+    same numbers (a circle's sine and cosine by math, as point's; a spiral by point itself)."""
+    P, U = np.empty((len(xs), 3)), np.empty((len(xs), 3))
+    free = np.ones(len(xs), bool)
+    s0 = 0.0
+    for g in segs:
+        on = free & (xs <= s0 + g.length) if g is not segs[-1] else free.copy()
+        free &= ~on
+        if not on.any():
+            s0 += g.length
+            continue
+        t = xs[on] - s0
+        t = np.where(0.0 > t, 0.0, t)                 # min(max(t, 0.0), g.length) as point's
+        t = np.where(g.length < t, g.length, t)
+        if g.kind == "line":
+            P[on], U[on] = g.start + t[:, None] * g.direction, g.direction
+        elif g.spiral:
+            P[on], U[on] = zip(*(point([g], x) for x in t.tolist()))
+        else:
+            phi = t / g.length * g.angle
+            c = np.array([math.cos(f) for f in phi.tolist()])[:, None]
+            sn = np.array([math.sin(f) for f in phi.tolist()])[:, None]
+            P[on] = g.center + c * g.a + sn * g.b + ((phi / g.angle) * g.rise)[:, None] * g.normal
+            d = (g.angle / g.length) * (-sn * g.a + c * g.b + (g.rise / g.angle) * g.normal)   # Arc._tangent
+            U[on] = d / _norms(d)[:, None]
+        s0 += g.length
+    return P, U
 
 
 def _step(geometry: list, last, p, length: float, line):
