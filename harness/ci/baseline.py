@@ -52,8 +52,11 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     ("*/optimal*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
     ("*/pso*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
     # … and for the same reason the time their samples spend above a Cartesian limit: a sample
-    # near one flips (0.967 → 0.969 s of Cartesian jerk on repro_part from the SOCP, +0.21 %)
-    ("*/optimal*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 1e-2}),
+    # near one flips (on repro_part, stations 0.05 mm apart: 1.018 → 0.920 s of Cartesian jerk,
+    # −9.6 %). On those stations optimal's joint peaks moved too (velocity 0.99916847 →
+    # 0.99916163, 6.8e-6) where its time did not (issue 32)
+    ("*/optimal*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 0.2}),
+    ("*/optimal*:joint_peak_ratio.*", {"abs": 5e-5}),
     # pso's swarm compares times whose last bits move with the SIMD path, so under other SIMD it
     # can take another path: the swarm alone (pso, issue 32) on repro_part 4.187 → 4.199 s
     # (+0.29 %), its joint acceleration peak 0.7493 → 0.7460 (−0.44 %); the hybrid (pso_socp)
