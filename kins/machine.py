@@ -166,11 +166,9 @@ class Kinematics:
         J = self._jacobian(P[at])
         with np.errstate(all="ignore"):
             bound_ok = (J * J).sum(axis=(1, 2)) ** 1.5 <= 0.999 * self.cond_max * np.abs(np.linalg.det(J))
-            may = np.nonzero(~bound_ok)[0]
-            if len(may):
-                cm = np.linalg.cond(J[may])
-                cm[~np.isfinite(cm)] = np.inf
-                c[at[may]] = cm
+        may = at[~bound_ok]
+        if len(may):
+            c[may] = self.condition_number(P[may])
         return c
 
     def check(self, P) -> list[Finding]:

@@ -223,8 +223,7 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     path and the limit."""
     why = []
     J = limits.joint
-    inner = dataclasses.replace(limits, joint=dataclasses.replace(J, v=J.v * (1 - CHAIN_MARGIN), a=J.a * (1 - CHAIN_MARGIN),
-                                                                 j=J.j * (1 - CHAIN_MARGIN)))
+    inner = dataclasses.replace(limits, joint=type(J)(*(x * (1 - CHAIN_MARGIN) for x in (J.v, J.a, J.j))))
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
         settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f)
