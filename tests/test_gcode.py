@@ -59,7 +59,9 @@ def test_m_codes_are_recorded_with_their_line_and_m30_ends():
     # (was: S/T/M/G40/G80 "ignored with a note"; the interpreter now records M codes as events
     # at the move index where LinuxCNC would stop for them)
     p = prog("S1000 T1 M3 G40 G80\nG1 X1 F60\nM30\nG1 X5\n")
-    assert [(e.kind, e.value, e.line, e.index) for e in p.events] == [("m", 3, 3, 0), ("m", 30, 5, 1)]
+    # S is SET_SPINDLE_SPEED, a message to motion (as rs274 prints it, before M3's)
+    assert [(e.kind, e.value, e.line, e.index) for e in p.events] == [("speed", 1000, 3, 0), ("m", 3, 3, 0),
+                                                                     ("m", 30, 5, 1)]
     assert "M30: end of program" in " ".join(n for _, n in p.notes)
     assert len(p.moves) == 1
 

@@ -342,7 +342,26 @@ def test_a_tool_change_waits_two_and_a_half_io_cycles(tmp_path):
     text = ("G21 G90 G64\nG0 X0 Y0 Z-250\nT1\nG1 X5 F600\nM6\nG1 X10\nT1 M6\nG1 X15\nT2 M6\n"
             "G1 X20\nT1\nM6 M8\nG1 X25\nM2\n")
     p = _tool_program(tmp_path, text)
-    assert move_waits(p.program) == {0: pytest.approx(0.25), 1: pytest.approx(0.15), 2: pytest.approx(0.25),
-                                     3: pytest.approx(0.35)}
+    # each stop also takes task's time: a cycle, a period, a period for M6's spindle stop
+    task = 0.001 + 2 * 0.001
+    assert move_waits(p.program, 0.001) == {0: pytest.approx(0.25 + task), 1: pytest.approx(0.15 + task),
+                                            2: pytest.approx(0.25 + task), 3: pytest.approx(0.35 + task)}
     pr = plan("trapezoid", p, load_machine("kossel"))
-    assert np.count_nonzero(pr.sd[1:-1] == 0.0) * pr.T == pytest.approx(1.0 + 4 * pr.T, abs=pr.T / 2)
+    assert np.count_nonzero(pr.sd[1:-1] == 0.0) * pr.T == pytest.approx(1.0 + 4 * task + 4 * pr.T, abs=pr.T / 2)
+
+
+def test_task_time_at_a_sync_is_a_cycle_a_period_and_a_period_per_message_to_motion(tmp_path):
+    # emctaskmain.cc: task sees the drained queue at its next cycle; every message it then hands
+    # to motion (the next move, SET_SPINDLE_SPEED, spindle on/off, a pause and its resume) waits
+    # a servo period for the echo (usrmotintf.cc usrmotWriteEmcmotCommand); a dwell's timeout is
+    # polled once a cycle (half a cycle more on average). Here the period T = 2 ms ≠ the cycle.
+    from planners.trapezoid.program import move_waits
+    text = ("G21 G90 G64\nG0 X0 Y0 Z-250\nG1 X1 F600\nG4 P0\nG1 X2\nS1000\nG1 X3\nM5\nM3 S900\n"
+            "G1 X4\n(MSG,hello)\nG1 X5\nG4 P0.5\nG1 X6\nM0\nG1 X7\nM70\nG1 X8\nM2\n")
+    p = _tool_program(tmp_path, text)
+    T, c = 0.002, 0.001
+    assert move_waits(p.program, T) == {
+        0: pytest.approx(c + T), 1: pytest.approx(c + 2 * T), 2: pytest.approx(c + 4 * T),
+        3: pytest.approx(c + T), 4: pytest.approx(0.5 + 1.5 * c + T), 5: pytest.approx(c + 3 * T)}
+    # and every one of them stops the move before it (M70 only saves the modal state)
+    assert [m.stop for m in p.program.moves[:-1]] == ["sync"] * 6 + [None]

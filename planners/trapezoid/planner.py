@@ -120,7 +120,7 @@ def _run_program(path: SegmentPath, limits, T: float, programmed_feed: bool):
     geometry, s, sd, run_end_s, info = tp_plan.run_program(prog, lim)
     planned = SegmentPath(geometry, f"{prog.source} (LinuxCNC tp queue)", program=prog)
     planned.feed_mode = path.feed_mode
-    waits = tp_plan.move_waits(prog)
+    waits = tp_plan.move_waits(prog, T)
     s, sd = tp_plan.insert_waits(s, sd, [(run_end_s[k], w) for k, w in waits.items()], T)
     # the queue's arc length and the path's sum the same lengths in another order: they part
     # by rounding (> 1e-9 mm on a 1.6·10⁵ mm program), so end exactly at the path's

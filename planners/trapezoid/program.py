@@ -14,6 +14,7 @@ import numpy as np
 
 from planners.trapezoid import queue as Q
 from planners.paths.base import norm3
+from planners.paths.gcode.reader import is_sync
 from planners.paths.segments import Arc, Line
 from planners.trapezoid.cycle import simulate
 
@@ -239,14 +240,19 @@ def _step(geometry: list, last, p, length: float, line):
 
 
 IO_CYCLE_S = 0.100          # [EMCIO] CYCLE_TIME of the LinuxCNC sim config (planners/linuxcnc/runner.py)
+TASK_CYCLE_S = 0.001        # [TASK] CYCLE_TIME of the same config
 # M codes that are commands to LinuxCNC's io task: M7 mist on, M8 flood on, M9 both off; M6 is
 # two, EMC_TOOL_START_CHANGE and EMC_TOOL_LOAD (interp_convert.cc convert_tool_change:
 # START_CHANGE, then emccanon.cc CHANGE_TOOL)
 IO_COMMANDS = {7: 1, 8: 1, 9: 2, 6: 2}
+# M codes whose commands task hands to motion: spindle on/off (M3, M4, M5), M6's spindle stop
+# (convert_tool_change: STOP_SPINDLE_TURNING), an orient (M19), and a program stop's pause and
+# its resume (M0, M1: emcTrajPause, emcTrajResume); an S word is one more (SET_SPINDLE_SPEED)
+MOTION_MESSAGES = {3: 1, 4: 1, 5: 1, 6: 1, 19: 1, 0: 2, 1: 2}
 
 
-def move_waits(prog) -> dict:
-    """{move index: seconds at rest after it} for a program's queue syncs.
+def move_waits(prog, T: float) -> dict:
+    """{move index: seconds at rest after it} for a program's queue syncs (servo period ``T``).
 
     A dwell waits its P. An io command (coolant, tool change) waits for LinuxCNC's io task,
     which looks at its command buffer once per io cycle (ioControl.cc main loop,
@@ -260,9 +266,16 @@ def move_waits(prog) -> dict:
     waits for io only, not motion (emctaskmain.cc emcTaskCheckPreconditions): it goes out while
     the move before still runs and is taken as done by its end (not so after a move shorter than
     two io cycles, or one the naive-CAM join holds back). The mean is used (same inputs,
-    same outputs). Other M codes (spindle, M62–M65 …) go to motion: no wait; an M0/M1 program
-    stop lasts as long as the operator and adds nothing (the oracle's runner leaves its pause
-    out). Nothing waits after the last move (the span measured ends there)."""
+    same outputs).
+
+    Task's own time at every sync comes on top: it sees the queue drained at its next cycle
+    (WAITING_FOR_MOTION_AND_IO), and each message it then sends to motion — the next move, a
+    spindle speed or spindle command, a pause and its resume — waits for the servo thread to take
+    it (usrmotintf.cc usrmotWriteEmcmotCommand polls for the echo): one task cycle and one servo
+    period, one servo period more per message to motion, half a task cycle more per dwell with
+    P > 0 (its timeout is polled once a task cycle: emcTaskExecute WAITING_FOR_DELAY). An M0/M1
+    program stop lasts as long as the operator and adds only its two messages (the oracle's
+    runner leaves its pause out). Nothing waits after the last move (the span measured ends there)."""
     per_move: dict[int, list] = {}
     for e in prog.events:
         if 0 < e.index <= len(prog.moves):
@@ -276,12 +289,16 @@ def move_waits(prog) -> dict:
             spindle = e.value
     waits = {}
     for mi, evs in per_move.items():
+        if mi == len(prog.moves) - 1 or not any(is_sync(e) for e in evs):
+            continue
         n_io = sum(IO_COMMANDS.get(e.value, 0) for e in evs if e.kind == "m")
         n_hs = sum(id(e) in handshake for e in evs)
-        dwell = sum(float(e.value) for e in evs if e.kind == "dwell")
-        w = dwell + (0.5 * IO_CYCLE_S + (n_io - 1 + n_hs) * IO_CYCLE_S if n_io else 0.0)
-        if w > 0 and mi < len(prog.moves) - 1:
-            waits[mi] = w
+        dwells = [float(e.value) for e in evs if e.kind == "dwell"]
+        io = 0.5 * IO_CYCLE_S + (n_io - 1 + n_hs) * IO_CYCLE_S if n_io else 0.0
+        n_motion = sum(MOTION_MESSAGES.get(e.value, 0) for e in evs if e.kind == "m") + \
+            sum(e.kind == "speed" for e in evs)
+        task = TASK_CYCLE_S + (1 + n_motion) * T + 0.5 * TASK_CYCLE_S * sum(d > 0 for d in dwells)
+        waits[mi] = sum(dwells) + io + task
     return waits
 
 

@@ -73,6 +73,13 @@ class Move:
 _STATELESS_M = {70, 71, 72, 73}
 
 
+def is_sync(e) -> bool:
+    """Whether LinuxCNC's task waits for the motion queue to drain before event ``e``
+    (emctaskmain.cc emcTaskCheckPreconditions: WAITING_FOR_MOTION_AND_IO for a dwell, a spindle
+    speed, spindle, coolant or tool message, a program stop, a probe, an operator message)."""
+    return e.kind in ("dwell", "tool", "probe", "speed", "message") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
+
+
 @dataclass
 class GCodeProgram:
     source: str
@@ -176,7 +183,7 @@ def parse_gcode(text: str, source: str = "<gcode>", start=None, home=None, *, to
         raise EmptyProgram(source, 0, "nothing to plan: the program makes no move (a subroutine library "
                                       "or a setup file?)")
     for e in prog.events:
-        syncs = e.kind in ("dwell", "tool", "probe") or (e.kind == "m" and e.value not in _STATELESS_M | {2, 30})
+        syncs = is_sync(e)
         # a sync outranks a rapid <-> feed stop: the queue drains there before the next move
         # comes, so tp.c never sees the mode change (handleModeChange) while the move runs
         if syncs and 0 < e.index <= len(prog.moves) and prog.moves[e.index - 1].stop in (None, "mode"):

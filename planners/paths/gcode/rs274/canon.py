@@ -25,7 +25,7 @@ class CanonMove:
 
 @dataclass(slots=True)
 class CanonEvent:
-    kind: str                   # "m" (M code), "dwell", "tool", "message"
+    kind: str                   # "m" (M code), "dwell", "tool", "message", "probe", "speed" (S)
     line: int
     file: str
     value: object               # the M number, the dwell in s, the tool number, the text

@@ -344,6 +344,7 @@ class Interpreter(Offsets, Motion, Flow, Cycles):
                 raise LineError(f"negative spindle speed S{w['s']:g}")
             m.speed = w["s"]
             self.flush()
+            self.event("speed", w["s"])               # SET_SPINDLE_SPEED: a message to motion
         if "t" in w:
             if w["t"] < 0 or w["t"] != int(w["t"]):
                 raise LineError(f"T{w['t']:g}: tool numbers are integers ≥ 0")

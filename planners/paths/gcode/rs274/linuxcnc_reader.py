@@ -38,7 +38,8 @@ _EVENTS = {"START_SPINDLE_CLOCKWISE": ("m", 3), "START_SPINDLE_COUNTERCLOCKWISE"
            "PROGRAM_END": ("m", 2), "CHANGE_TOOL": ("m", 6), "SELECT_TOOL": ("tool", None),
            "SET_MOTION_OUTPUT_BIT": ("m", 62), "CLEAR_MOTION_OUTPUT_BIT": ("m", 63),
            "SET_AUX_OUTPUT_BIT": ("m", 64), "CLEAR_AUX_OUTPUT_BIT": ("m", 65),
-           "ORIENT_SPINDLE": ("m", 19), "DWELL": ("dwell", None), "MESSAGE": ("message", None)}
+           "ORIENT_SPINDLE": ("m", 19), "DWELL": ("dwell", None), "MESSAGE": ("message", None),
+           "SET_SPINDLE_SPEED": ("speed", None)}
 
 
 def linuxcnc_canon(file, start=None, home=None, tool_table=None, timeout: float = 300) -> tuple[CanonProgram, bool]:
@@ -134,7 +135,7 @@ def _rs274_stream(src: str, tool_table, timeout):
                 events.pop()                  # M2/M30 stop the spindle just before: part of the end
             if name == "FLOOD_OFF" and events and events[-1][:2] == ("m", 7.5) and events[-1][2] == n:
                 events.pop()                 # M9 is MIST_OFF then FLOOD_OFF: one M9
-            value = {"dwell": lambda: float(args[0]), "tool": lambda: int(args[0]),
+            value = {"dwell": lambda: float(args[0]), "tool": lambda: int(args[0]), "speed": lambda: float(args[1]),
                      "message": lambda: m.group(2).strip().strip('"').strip()}.get(kind, lambda: value)()
             events.append((kind, value, n))
         elif name == "MIST_OFF":
