@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PROGRAMS = ROOT / "benchmarks/paths/programs"
 MANIFEST = tomllib.loads((PROGRAMS / "collection.toml").read_text())
 ENTRIES = MANIFEST["program"]
-LICENCES = {"GPL-2.0-or-later", "GPL-3.0", "Apache-2.0"}       # each allows redistribution
+LICENCES = {"GPL-2.0", "GPL-2.0-or-later", "GPL-3.0", "Apache-2.0"}       # each allows redistribution
 DIR = next((d for d in (PROGRAMS / "collection", ROOT.parent / "shared/programs/collection")
             if (d / ENTRIES[0]["file"]).is_file()), None)
 WHY = available()

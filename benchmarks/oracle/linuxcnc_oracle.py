@@ -75,6 +75,7 @@ PLACED = {
     "openvoronoi_vcarve": (COLLECTION / "openvoronoi/vcarve.ngc", "G54=-5,-2.5,-250", None),
     "pcb2gcode_drill_g81": (COLLECTION / "pcb2gcode/example_board_new_default_drill.ngc", "G54=-21,10,-250", None),
     "lcnc_tort": (LCNC / "tort.ngc", "G54=-10,-13,-250", None),
+    "gcmc_wheels": (COLLECTION / "gcmc/wheels.ngc", "G54=-43.7,-39.3,-250", None),
 }
 TOOLS = REPO / "benchmarks/paths/programs/collection.tbl"
 
