@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from harness.cli import main as cli
-from harness.sweep import (TaskTable, make_task, run_sweep, task_key, tasks_from_suite_file)
+from harness.sweep import (TaskTable, make_task, run_sweep, task_key, task_label, tasks_from_suite_file)
 from harness.sweep.suite import REPO
 
 LINE = {"type": "nurbs", "units": "mm", "degree": 1, "knots": [0, 0, 1, 1],
@@ -89,6 +89,21 @@ def test_task_key_covers_inputs_and_code(tmp_path):
     assert k != task_key(make_task(alt, tmp_path / "line.json", "quintic"), "v1")  # file content
     (tmp_path / "line.json").write_text(json.dumps(LINE | {"weights": [1, 1.0000001]}))
     assert k != task_key(make_task(mfile, tmp_path / "line.json", "quintic"), "v1")
+
+
+def test_a_max_feed_run_is_its_own_task(tmp_path):
+    # the same machine, path and planner at the programmed F and at F_max: two results, two keys,
+    # two run folders, two baseline names (the store skipped the second as done before)
+    from harness.sweep.engine import run_dir_of
+    suite = tmp_path / "feeds.toml"
+    suite.write_text('[[run]]\nmachine = "keops"\npath = "bird"\nplanner = "scurve"\n\n'
+                     '[[run]]\nmachine = "keops"\npath = "bird"\nplanner = "scurve"\nmax_feed = true\n')
+    a, b = tasks_from_suite_file(suite)
+    assert (a.get("max_feed", False), b["max_feed"]) == (False, True)
+    assert task_key(a, "v1") != task_key(b, "v1")
+    assert run_dir_of(a) != run_dir_of(b) and task_label(a) != task_label(b)
+    # a programmed-feed task keeps its key: the stores and baselines of before stay valid
+    assert "max_feed" not in a
 
 
 def test_variation_changes_the_machine_and_bad_variation_is_a_clear_failure(tmp_path):

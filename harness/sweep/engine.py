@@ -186,7 +186,8 @@ class Progress:
 def run_dir_of(task: dict) -> str:
     safe = lambda s: "".join(c if c.isalnum() or c in "-_." else "_" for c in str(s))  # noqa: E731
     return "/".join(["runs", safe(task["machine"]), safe(task["path"]), safe(task["preset"]),
-                     safe(task["variation"]["name"]), f"seed{task['seed']}", safe(task["planner"])])
+                     safe(task["variation"]["name"]), f"seed{task['seed']}",
+                     safe(task["planner"]) + ("-max_feed" if task.get("max_feed") else "")])
 
 
 def _task_fn_files(spec: str) -> list[Path]:

@@ -292,7 +292,7 @@ def expand(suite: dict, src: str = "<suite>", base: Path = REPO) -> list[dict]:
                                     t["gcode_setup"] = _gcode_contents(gcode)
                                 if "planner_timeout_s" in suite:    # the same
                                     t["planner_timeout_s"] = float(suite["planner_timeout_s"])
-                                ident = (t["machine"], t["path"], pl, seed, preset, v["name"])
+                                ident = (t["machine"], t["path"], pl, seed, preset, v["name"], max_feed)
                                 if ident in seen:
                                     continue           # the same task listed twice runs once
                                 seen.add(ident)
@@ -374,6 +374,8 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
     ident |= {"machine": task["machine"], "path": task["path"], "code": version, "task_fn": task_fn}
     if task.get("gcode_setup"):   # only then, likewise
         ident["gcode_setup"] = task["gcode_setup"]
+    if task.get("max_feed"):      # likewise: the feed at the machine's F_max, not the programmed F
+        ident["max_feed"] = True
     # not planner_timeout_s: only finished (ok) tasks are skipped, and their result is the same
     if task.get("fmus"):    # only then: the keys of tasks on our own chain stay as they were
         ident["fmus"] = {b: [d["file"], d["sha256"]] for b, d in task["fmus"].items()}
@@ -386,4 +388,4 @@ def task_key(task: dict, version: str, task_fn: str = "") -> str:
 def task_label(task: dict) -> str:
     """Human name of a task, also the entry name in CI baselines."""
     return (f"{task['machine']}/{task['path']}/{task['planner']}/seed{task['seed']}/"
-            f"{task['preset']}/{task['variation']['name']}")
+            f"{task['preset']}/{task['variation']['name']}" + ("/max_feed" if task.get("max_feed") else ""))
