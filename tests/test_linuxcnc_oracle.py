@@ -349,7 +349,9 @@ def test_an_m0_stop_is_the_operators_time_not_the_planners(tmp_path, kossel):
     lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
     assert 0.0 < lc.info["operator_pause_s"] < 0.2
     assert tz.info["queue_waits_s"] == {0: pytest.approx(0.004), 1: pytest.approx(0.006)}
-    assert abs(lc.execution_time_s - tz.execution_time_s) <= 3 * 0.002
+    # LinuxCNC 1.580–1.583 s (three runs), trapezoid 1.570 s (1.560 s without task's time); the
+    # runner finds each pause between two polls (±2.5 ms a stop)
+    assert abs(lc.execution_time_s - tz.execution_time_s) <= 3 * 0.005
 
 
 @needs_linuxcnc
@@ -371,11 +373,12 @@ def test_trapezoid_takes_task_time_at_every_queue_sync_as_linuxcnc(tmp_path, kos
     # a task cycle and a servo period at each, a period more per message to motion (an S is
     # one, M5 + M3 S three: usrmotWriteEmcmotCommand waits for the servo thread's echo):
     # 16 × 2 ms + 4 × 1 ms + 4 × 3 ms = 48 ms, which trapezoid without task's time misses, and
-    # the S and MSG stops besides. The spread: the phase of task's cycle at each stop
+    # the S and MSG stops besides. The spread: the phase of task's cycle at each stop (±0.5 ms),
+    # its mean 0.1–0.17 ms above the model's (60-sync programs), more on a loaded host (6 ms seen)
     body = "G1 X5\n(MSG,m)\nG1 X-5\nG4 P0\nG1 X5\nS1000\nG1 X-5\nM5\nM3 S1000\n"
     text = "G21 G90 G17 G64\nG0 X-5 Y0 Z-250\nG1 X-5 F1200\nM3 S500\n" + 4 * body + "G1 X5\nM2\n"
     path = gcode_path(tmp_path, "syncs.ngc", text)
     lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
     assert len(_rests(tz)) == len(_rests(lc)) == 16
     assert sum(tz.info["queue_waits_s"].values()) == pytest.approx(16 * 0.002 + 16 * 0.001, abs=1e-12)
-    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.005
+    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.010

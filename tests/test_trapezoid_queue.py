@@ -365,3 +365,15 @@ def test_task_time_at_a_sync_is_a_cycle_a_period_and_a_period_per_message_to_mot
         3: pytest.approx(c + T), 4: pytest.approx(0.5 + 1.5 * c + T), 5: pytest.approx(c + 3 * T)}
     # and every one of them stops the move before it (M70 only saves the modal state)
     assert [m.stop for m in p.program.moves[:-1]] == ["sync"] * 6 + [None]
+
+
+def test_an_output_set_with_motion_is_no_sync_one_set_now_is(tmp_path):
+    # M62/M63 ride with the next move (EMC_MOTION_SET_DOUT, now = 0: emcTaskCheckPreconditions
+    # DONE); M64/M65 set the pin now and wait for motion, one message to motion. Against the real
+    # LinuxCNC (60 of each between 10 mm moves at F1200): M62/M63 32.981 s, trapezoid 32.980;
+    # M64/M65 35.579 s, trapezoid 35.560
+    from planners.trapezoid.program import move_waits
+    text = "G21 G90 G64\nG0 X0 Y0 Z-250\nG1 X1 F600\nM62 P0\nG1 X2\nM63 P0\nG1 X3\nM64 P0\nG1 X4\nM65 P0\nG1 X5\nM2\n"
+    p = _tool_program(tmp_path, text)
+    assert [m.stop for m in p.program.moves[:-1]] == [None, None, "sync", "sync"]
+    assert move_waits(p.program, 0.001) == {2: pytest.approx(0.003), 3: pytest.approx(0.003)}

@@ -246,9 +246,10 @@ TASK_CYCLE_S = 0.001        # [TASK] CYCLE_TIME of the same config
 # START_CHANGE, then emccanon.cc CHANGE_TOOL)
 IO_COMMANDS = {7: 1, 8: 1, 9: 2, 6: 2}
 # M codes whose commands task hands to motion: spindle on/off (M3, M4, M5), M6's spindle stop
-# (convert_tool_change: STOP_SPINDLE_TURNING), an orient (M19), and a program stop's pause and
-# its resume (M0, M1: emcTrajPause, emcTrajResume); an S word is one more (SET_SPINDLE_SPEED)
-MOTION_MESSAGES = {3: 1, 4: 1, 5: 1, 6: 1, 19: 1, 0: 2, 1: 2}
+# (convert_tool_change: STOP_SPINDLE_TURNING), an orient (M19), an output set now (M64, M65:
+# EMC_MOTION_SET_DOUT) and a program stop's pause and its resume (M0, M1: emcTrajPause,
+# emcTrajResume); an S word is one more (SET_SPINDLE_SPEED)
+MOTION_MESSAGES = {3: 1, 4: 1, 5: 1, 6: 1, 19: 1, 64: 1, 65: 1, 0: 2, 1: 2}
 
 
 def move_waits(prog, T: float) -> dict:
