@@ -8,8 +8,9 @@ What LinuxCNC would do with the toolpath, cycle by cycle (``src/emc/tp/`` of Lin
   whichever ``tpChooseBestBlend`` finds fastest; every segment lasts at least a servo period
   (``tcClampVelocityByLength``); the look-ahead is tp.c's, 50 segments deep; a parabolic
   blend moves two segments at once; a tangent segment shorter than 10 ms ramps evenly to its
-  final speed (``tpCalculateRampAccel``); an exact stop costs the rest of its period. Queue syncs: motion rests after the move for a dwell's P
-  and for the mean wait of LinuxCNC's io task at coolant M codes (tp_plan.move_waits).
+  final speed (``tpCalculateRampAccel``); an exact stop costs the rest of its period. Queue syncs:
+  motion rests after the move for a dwell's P, the mean wait of LinuxCNC's io task at coolant M
+  codes and tool changes, and task's own cycles and messages to motion (tp_plan.move_waits).
   The programmed F caps each move (``--max-feed`` runs at F_max).
 * A NURBS is first cut into G1 lines within the chord tolerance (as a CAM post does;
   :func:`planners.paths.lines.cut_into_lines`) and its corners blended under
