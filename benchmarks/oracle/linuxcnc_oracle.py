@@ -33,7 +33,8 @@ from kins import load_machine  # noqa: E402
 from planners import plan  # noqa: E402
 from planners.paths import resolve_path  # noqa: E402
 from planners.paths.gcode.rs274.setup import make_setup  # noqa: E402
-from planners.trapezoid.program import IO_COMMANDS, IO_CYCLE_S  # noqa: E402
+from planners.linuxcnc import IO_CYCLE_S  # noqa: E402
+from planners.trapezoid.program import IO_COMMANDS  # noqa: E402
 
 # program → machine (the delta's program is written for linuxcnc_delta's workspace)
 PROGRAMS = {

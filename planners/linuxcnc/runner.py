@@ -136,6 +136,12 @@ MAX_LIMIT = {_fmt(machine.workspace_max[k])}
     return joints, axes
 
 
+# the task and io cycles of the generated configuration; trapezoid's model of LinuxCNC's waits at
+# queue syncs reads them here (planners.trapezoid.program.move_waits)
+TASK_CYCLE_S = 0.001
+IO_CYCLE_S = 0.100
+
+
 def _ini_text(d: FsPath, machine, program: FsPath, start, timeout_s: float, start_delay_s: float = 0.0) -> str:
     """The INI: LinuxCNC's sections with lineardeltakins and the servo period, and the
     [PKMBENCH] section display.py reads (program, start point, sampler, time-out)."""
@@ -154,7 +160,7 @@ DISPLAY = {d / 'display.py'}
 
 [TASK]
 TASK = milltask
-CYCLE_TIME = 0.001
+CYCLE_TIME = {_fmt(TASK_CYCLE_S)}
 
 [RS274NGC]
 PARAMETER_FILE = sim.var
@@ -183,7 +189,7 @@ JOINTS = 3
 {chr(10).join(axes)}
 [EMCIO]
 EMCIO = io
-CYCLE_TIME = 0.100
+CYCLE_TIME = {_fmt(IO_CYCLE_S)}
 TOOL_TABLE = tool.tbl
 
 [PKMBENCH]

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from planners.trapezoid import queue as Q
+from planners.linuxcnc import IO_CYCLE_S, TASK_CYCLE_S  # the sim config's cycles
 from planners.paths.base import norm3
 from planners.paths.gcode.reader import is_sync
 from planners.paths.segments import Arc, Line
@@ -239,8 +240,6 @@ def _step(geometry: list, last, p, length: float, line):
     return length + d, p
 
 
-IO_CYCLE_S = 0.100          # [EMCIO] CYCLE_TIME of the LinuxCNC sim config (planners/linuxcnc/runner.py)
-TASK_CYCLE_S = 0.001        # [TASK] CYCLE_TIME of the same config
 # M codes that are commands to LinuxCNC's io task: M7 mist on, M8 flood on, M9 both off; M6 is
 # two, EMC_TOOL_START_CHANGE and EMC_TOOL_LOAD (interp_convert.cc convert_tool_change:
 # START_CHANGE, then emccanon.cc CHANGE_TOOL)

@@ -73,9 +73,10 @@ class Move:
 _STATELESS_M = {70, 71, 72, 73}
 
 
-# M62/M63 set an output with the next move (emccanon.cc SET_MOTION_OUTPUT_BIT: EMC_MOTION_SET_DOUT,
-# now = 0), which task sends without waiting for motion; M64/M65 set it now and wait
-_WITH_MOTION_M = {62, 63}
+# M codes task does not wait for motion at: the stateless ones, the program end, and M62/M63,
+# which set an output with the next move (emccanon.cc SET_MOTION_OUTPUT_BIT: EMC_MOTION_SET_DOUT,
+# now = 0); M64/M65 set it now and wait
+_NO_SYNC_M = _STATELESS_M | {2, 30, 62, 63}
 
 
 def is_sync(e) -> bool:
@@ -84,7 +85,7 @@ def is_sync(e) -> bool:
     speed, spindle, coolant or tool message, a program stop, a probe, an operator message;
     WAITING_FOR_MOTION for an output set now)."""
     return e.kind in ("dwell", "tool", "probe", "speed", "message") or \
-        (e.kind == "m" and e.value not in _STATELESS_M | _WITH_MOTION_M | {2, 30})
+        (e.kind == "m" and e.value not in _NO_SYNC_M)
 
 
 @dataclass
