@@ -57,6 +57,8 @@ from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 # (closer, Clarabel stopped on insufficient progress)
 STATION_RADII = 0.5
 STATION_MIN_MM = 1e-3
+# knot stations (Settings.knot_stations) this far either side of the knot: one-sided derivatives
+KNOT_SIDE_MM = 1e-7
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
 # read, doubled each round (windows next to a G1 join read above again by less each time);
 # then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit (a stretch
@@ -89,13 +91,15 @@ class Settings:
     gained).  ``kkt_refinement``: Clarabel refines each solve of its KKT system iteratively
     (copp-py's default, kept for every planner on the engine): without, the profiles move
     under other numpy SIMD paths more than the reproducibility contract allows (docs/TUNING.md).
-    ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default)."""
+    ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default).
+    ``knot_stations``: a station a hair either side of every interior NURBS knot (grid_of)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
     max_linearisations: int = 4
     kkt_refinement: bool = True
     station_radii: float = STATION_RADII
+    knot_stations: bool = False
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -106,14 +110,22 @@ class Settings:
         return opts
 
 
-def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII):
+def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=False):
     """planners.constraints.station_grid with every segment end and G1 join of the piece on it,
     then cells split to ≤ ``radii`` curvature radii (at their ends), none below
-    STATION_MIN_MM."""
+    STATION_MIN_MM.  ``knots``: also a station KNOT_SIDE_MM either side of every interior NURBS
+    knot, where P‴ jumps: a rational NURBS's q‴ can jump there to 1.8 × J·ṡ⁻³ and fall back
+    within 0.05 mm, between stations 0.1 mm apart (rational_keops)."""
     inner = [sj for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6]
     edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
                                       inner, [s0, s1]]))
     grid = station_grid(edges, grid_mm, s0, s1)
+    U = getattr(path, "knots", None)
+    if knots and U is not None and hasattr(path, "s_of_u"):
+        sk = np.asarray(path.s_of_u(np.unique(np.asarray(U, float))[1:-1]), float)
+        sk = np.concatenate([sk - KNOT_SIDE_MM, sk + KNOT_SIDE_MM])
+        sk = sk[(sk > s0 + 1e-6) & (sk < s1 - 1e-6)]
+        grid = np.unique(np.concatenate([grid, sk]))
     for _ in range(6):
         _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
         h = np.diff(grid)
@@ -147,7 +159,8 @@ class Piece:
         self.options = settings.clarabel()
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
-        self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii)
+        self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii,
+                            settings.knot_stations)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)

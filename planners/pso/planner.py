@@ -67,7 +67,7 @@ __all__ = ["plan", "plan_socp"]
 # the stations, read above them between coarser ones at lobe tips
 SWARM_STATION_RADII = 0.1
 # the swarm's knots are made twice as dense this many times, ``iterations`` on each
-REFINEMENTS = 2
+REFINEMENTS = 3
 SWARM_REPAIRS = 4          # rounds of tightening where the swarm's samples at T read above a limit
 REPAIR_ITERATIONS = 10     # swarm iterations after each
 # a repair whose context takes this many times the last one's time stops the repairs: the
@@ -111,7 +111,8 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
         raise PlanningError(f"{name}: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
-    settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1), station_radii=SWARM_STATION_RADII)
+    settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1),
+                               station_radii=SWARM_STATION_RADII, knot_stations=True)
     pieces = topp3.pieces_of(path, machine, limits, settings)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
@@ -204,10 +205,16 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
             for f in feeds:
                 if f.piece.s0 <= hi and f.piece.s1 >= lo:
                     f.tighten(col, lo, hi, ratio, topp3.TIGHTEN_EXTRA * 2 ** rnd)
-        again = [sw.feed.start_locally(sw.c) for sw in swarms]
-        if any(c is None for c in again) or \
-                sum(sw.feed.time(c) for sw, c in zip(swarms, again)) > COLLAPSE * _total(swarms):
-            break       # no context within the tightened limits, or one that collapsed somewhere
+        # the context within the tightened limits again: scaled locally, or where that slows a
+        # stretch down more than it had to (the slowed zone's ramp read above before it, round
+        # after round), as a whole; the swarm's pushes then raise it back where it may be
+        again = []
+        for sw in swarms:
+            c = sw.feed.start_locally(sw.c)
+            uniform = sw.feed.scaled_within(sw.c)
+            again.append(uniform if c is None or sw.feed.time(c) > sw.feed.time(uniform) else c)
+        if sum(sw.feed.time(c) for sw, c in zip(swarms, again)) > COLLAPSE * _total(swarms):
+            break       # a context that collapsed somewhere
         repairs.append(len(above))
         for sw, c in zip(swarms, again):
             sw.c = c
