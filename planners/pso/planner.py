@@ -5,9 +5,10 @@ extended to a delta's joints as planned in Erwinski et al., NU·ROBOTI·FTS 2022
 §A).  No convex solver touches its profile.  `pso_socp` is the memetic hybrid: the same swarm,
 then the TOPP3-SOCP polish.
 
-Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations): joint v, a, j
-limits, F_max and the chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at
-T added to the continuous jerk.
+Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations, here also a
+hair either side of every NURBS knot, where q‴ may jump): joint v, a, j limits, F_max and the
+chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at T added to the
+continuous jerk.
 
 Parametrisation (feed.py): per rest-to-rest piece w = ṡ^{3/2} as a cubic B-spline over arc
 length, its knots placed by the limits (equal steps of the jerk-free optimum's time), so the
@@ -26,7 +27,8 @@ iteration the context is pushed to the limits (feed.push: each coefficient, or a
 neighbours, raised by the largest step that keeps their stations within the limits: a repair
 operator in the sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed
 lies).  Where its samples at T read above a limit, the limit is held lower at the stations
-there and the swarm goes on (_search).
+there, the context is brought within it again (scaled locally, or as a whole where that is
+faster) and the swarm goes on (_search).
 
 Polish (`pso_socp` only): the TOPP3-SOCP (topp3.py), linearised on each piece around the larger
 of the swarm's and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2
