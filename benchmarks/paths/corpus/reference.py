@@ -15,20 +15,24 @@ chord-error term, the jerk a G1 join's jump of q″ reads as at T) and the path'
 The problem (the planners' constraint set): per rest-to-rest piece (split at exact-stop
 corners, ṡ = s̈ = 0 at its ends), minimise the time subject to |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A,
 |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J per joint, ṡ ≤ min(F_max, programmed F, chord-error cap) and, at a
-G1 join, |jerk| + κṡ² ≤ J (κ = JUMP_READ_FACTOR·Δq″/T) on either side.
+G1 join and at a NURBS knot where q″ jumps (knot_jumps), |jerk| + κṡ² ≤ J (κ =
+JUMP_READ_FACTOR·Δq″/T) on either side: the jump reads at T as that jerk.
 
-The transcription: over arc length, the path-parameter form of Verscheure et al. (IEEE TAC 54,
-2009: b = ṡ², a = s̈, db/ds = 2a), with the jerk s⃛ = ṡ·da/ds as in Pham & Pham's TOPP-RA line of
-work and Wang et al.'s COPP, written here as a nonlinear programme (CasADi + IPOPT) in
-v = ṡ and a = s̈ at the nodes: a linear in s between nodes (da/ds = c constant on a cell), so
-v²_{i+1} − v²_i = (a_i + a_{i+1})Δ exactly, the cell's time 2Δ/(v_i + v_{i+1}), every limit at
-every node (the jerk with the c of the cell either side, and the one-sided derivatives of that
-side). Nodes: at every segment join, NURBS knot and curvature peak, equidistributed between
-them by a monitor that adds nodes per radian turned, graded towards the rest ends as s ∝ σ³
-(there ṡ ∝ s^(2/3): in σ the profile is smooth, so the grids converge at their order). The
-grids are nested (each halves every cell of the one before); the times of the last three give
-the observed order p and the Richardson limit T* = T₃ + (T₃ − T₂)/(2^p − 1), and the error bar is
-the larger of |T* − T₃| and the change of T* from the previous triple. The finest profile is
+The transcription: per rest piece, nodes fixed along the arc length and s(t) a cubic on every
+cell between two of them (a constant path jerk s⃛ over the cell's own duration Δt): at the
+nodes ṡ, s̈, per cell Δt and s⃛, tied by the cubic's exact relations s̈₁ = s̈₀ + s⃛Δt,
+ṡ₁ = ṡ₀ + (s̈₀ + s̈₁)Δt/2, Δs = ṡ₀Δt + (2s̈₀ + s̈₁)Δt²/6; minimise ΣΔt (CasADi + IPOPT). Every
+limit at every node, the jerk at both ends of each cell (with that side's one-sided
+derivatives), ṡ ≥ 0 at each cell's half time. The time-domain form of a jerk-limited profile
+(piecewise-cubic s(t) between fixed path points, as in the time-optimal spline literature);
+it has no quadrature of 1/ṡ, so a slow node costs exactly the time its cells take (the
+path-parameter form before it, VERSION 5, weighted 1/ṡ by a five-point ds/dσ that went ≤ 0 at
+σ³-graded nodes: meander_keops's objective came out negative). Nodes: at every segment join,
+NURBS knot and curvature peak, equidistributed between them by a monitor that adds nodes per
+radian turned, graded towards the rest ends and slow points as s ∝ σ³. The grids are nested
+(each halves every cell of the one before); the times of the last three give the observed
+order p and the Richardson limit T* = T₃ + (T₃ − T₂)/(2^p − 1), and the error bar is the
+larger of |T* − T₃| and the change of T* from the previous triple. The finest profile is
 sampled at T and checked with planners.verify.command_metrics (``check_at_T``).
 """
 from __future__ import annotations
@@ -51,20 +55,20 @@ REPO = HERE.parent.parent.parent
 sys.path.insert(0, str(REPO))
 
 from kins import load_machine  # noqa: E402
-from planners.constraints import (JUMP_READ_FACTOR, PathTable, breakpoints, corner_list, feed_cap,  # noqa: E402
+from planners.constraints import (JUMP_READ_FACTOR, PathTable, breakpoints, feed_cap,  # noqa: E402
                                   join_jumps, joint_derivs, rest_pieces)
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
-VERSION = 5                    # bump when the transcription changes: every cached entry is redone
+VERSION = 6                    # bump when the transcription changes: every cached entry is redone
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
 SLOW_FRACTION = 0.25           # a break whose speed cap is below this part of F_max is graded like a stop
 TURN_RAD = 0.1                 # level 0: a node at least every 0.1 rad of turn
 PEAK_PROMINENCE = 1e-9         # a curvature peak's prominence over κ below this is rounding
-V_FLOOR = 1e-9                 # speeds ≥ this (units A²/J): the time's 1/v stays finite
 SIDE = 1e-7                    # mm: one-sided derivatives either side of a join or knot
+CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2·SIDE is a steep q″, no jump
 IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 1500, "max_cpu_time": 900.0, "print_level": 0,
          "mu_strategy": "adaptive", "linear_solver": "mumps", "bound_relax_factor": 0.0}
 
@@ -168,16 +172,36 @@ def slow_points(path, machine, limits, s, joins, frac=SLOW_FRACTION):
     return s[cap < frac * limits.feed_max]
 
 
+def knot_jumps(path, machine, knots):
+    """[(s, |Δq″| per joint)] at the NURBS knots where q″ jumps (by more than CONTINUOUS × what
+    q‴ moves it over the two sides' 2·SIDE: a cusp tip's q″ is steep, not broken) and the jump
+    reads at T as a jerk that matters (κṡ² = J at a speed below 10 × F_max).  A quadratic
+    NURBS's P″ jumps at every knot; join_jumps (the planners' G1 joins) listed 17 of
+    rational_quadratic_kossel's 37, and the others read 39 × J at T on a profile that ignored
+    them."""
+    if not knots:
+        return []
+    k = np.asarray(knots, float)
+    q = joint_derivs(machine, path, np.concatenate([k - SIDE, k + SIDE]), fit_scale=True)
+    n = len(k)
+    dq2 = np.abs(q[2][n:] - q[2][:n])
+    steep = np.maximum(np.abs(q[3][n:]), np.abs(q[3][:n])) * 2 * SIDE
+    lim, T = machine.limits, machine.servo_period_s
+    with np.errstate(divide="ignore"):
+        cap = np.sqrt(lim.joint.j * T / (JUMP_READ_FACTOR * dq2.max(axis=1)))
+    broken = (dq2 > CONTINUOUS * steep).any(axis=1)
+    return [(float(s), d) for s, d, c, b in zip(k, dq2, cap, broken) if b and c < 10 * lim.feed_max]
+
+
 # --- one piece's NLP ----------------------------------------------------------------------
 class PieceData:
     """The constraint data of a rest piece on a node grid, in scaled units (time t_u = A/J,
-    speed A·t_u; then A = J = 1): per node the joint derivatives of the cell before (left) and
-    after (right) it (they differ at joins and knots only), per cell those at its midpoint, the
-    speed cap per node and, at a G1 join, its read κ."""
+    speed A·t_u; then A = J = 1): per node the joint derivatives from the right (the cell after
+    it) and from the left (the cell before; they differ at joins and knots only), the speed cap
+    per node and, at a G1 join, its read κ."""
 
-    def __init__(self, path, machine, limits, s, brk, joins, tu, s4):
+    def __init__(self, path, machine, limits, s, brk, joins, tu):
         T = machine.servo_period_s
-        self.s4 = np.column_stack([s4[k:-1:4] for k in range(4)] + [s4[4::4]])   # per cell: u = 0, ¼, ½, ¾, 1
         n = len(s)
         sl, sr = s.copy(), s.copy()
         sl[brk] -= SIDE
@@ -187,14 +211,14 @@ class PieceData:
         vu = limits.joint.a * tu
         su = vu * tu          # the length unit: q′ keeps its value, q″ scales by su, q‴ by su²
         self.brk = np.asarray(brk, int)
-        sb = sl[self.brk]
-        # one-sided rows: every node from the right, the break nodes also from the left
-        both = np.concatenate([sr, sb])
+        both = np.concatenate([sr, sl[self.brk]])
         cart = path.derivs(both)
         Q = joint_derivs(machine, path, both, cart=cart, fit_scale=True)
         Q = (Q[0], Q[1], Q[2] * su, Q[3] * su * su)
         self.right = tuple(q[:n] for q in Q[1:])
-        self.left = tuple(q[n:] for q in Q[1:])
+        self.left = tuple(q[:n].copy() for q in Q[1:])
+        for q, ql in zip(Q[1:], self.left):
+            ql[self.brk] = q[n:]
         kap = np.linalg.norm(np.cross(cart[1], cart[2]), axis=1)
         cap = feed_cap(path, both, limits, T, kappa=kap)
         cap_node = cap[:n].copy()
@@ -203,11 +227,9 @@ class PieceData:
         qv[self.brk] = np.maximum(qv[self.brk], np.abs(Q[1][n:]).max(axis=1))
         with np.errstate(divide="ignore", invalid="ignore"):
             self.vmax = np.minimum(cap_node, limits.joint.v / qv) / vu
-        if not np.isfinite(self.vmax).all() and np.isnan(self.vmax).any():
+        if np.isnan(self.vmax).any():
             i = int(np.flatnonzero(np.isnan(self.vmax))[0])
             raise RuntimeError(f"s = {s[i]:.9g} mm: the joint derivatives there are not finite")
-        m = joint_derivs(machine, path, self.s4[:, 2], fit_scale=True)
-        self.mid = (m[1], m[2] * su, m[3] * su * su)
         self.kappa = {}                          # break node → the join's read κ per joint, scaled
         for sj, dq2 in joins:
             i = int(np.argmin(np.abs(s - sj)))
@@ -217,159 +239,118 @@ class PieceData:
 
 
 def solve_piece(D: PieceData, warm=None):
-    """(time in s, v, a, w, IPOPT iterations, status) of one piece's NLP (scaled v, a, w); ``warm``: (v, a) at its nodes."""
+    """One piece's NLP: (time in s, then per node ṡ, s̈ and per cell its duration and path jerk,
+    all scaled; IPOPT iterations, status). ``warm``: (v, a, dt, j) on this grid."""
     import casadi as ca   # casadi only where a piece is solved (the cache answers the rest)
 
     tu, vu = D.scale
     su = vu * tu
-    x = (D.s - D.s[0]) / su
-    dx = np.diff(x)
-    n = len(x)
-    W = cell_weights((D.s4 - D.s[0]) / su)
-    v, a, w = ca.SX.sym("v", n), ca.SX.sym("a", n), ca.SX.sym("w", n - 1)
+    dx = np.diff((D.s - D.s[0]) / su)
+    n, m = len(dx) + 1, len(dx)
+    v, a = ca.SX.sym("v", n), ca.SX.sym("a", n)
+    dt, j = ca.SX.sym("dt", m), ca.SX.sym("j", m)
     b = v * v
-    c = (a[1:] - a[:-1]) / W["ds_mid"]        # da/ds at each cell's midpoint (a linear in σ)
-    # The end cells (ṡ = 0 at one end): there the optimum starts (ends) at the jerk limit,
-    # s ∝ t³, so they are that cubic: v² = 1.5|a|Δ at the inner node, time 3Δ/v, path jerk
-    # |a|·v/(3Δ). The others: Simpson's rule on (ds/dσ)/ṡ over σ.
-    inner = slice(1, n - 2)
-    T = (ca.sum1((W["ds0"][inner] / v[1:-2] + 4 * W["ds_mid"][inner] / w[inner] + W["ds1"][inner] / v[2:-1]) / 6)
-         + 3 * dx[0] / v[1] + 3 * dx[-1] / v[-2])
-    g = [b[2:-1] - b[1:-2] - 2 * (a[1:-2] * W["w0"][inner] + a[2:-1] * W["w1"][inner]),
-         ca.vertcat(b[1] - 1.5 * a[1] * dx[0], b[-2] + 1.5 * a[-2] * dx[-1])]
-    lb, ub = [np.zeros(n - 3), np.zeros(2)], [np.zeros(n - 3), np.zeros(2)]
-    jend = (a[1] * v[1] / (3 * dx[0]), -a[-2] * v[-2] / (3 * dx[-1]))
+    # a cell is s(t) cubic: constant path jerk j over its duration dt, exact from node to node
+    g = [a[1:] - a[:-1] - j * dt,
+         v[1:] - v[:-1] - 0.5 * (a[:-1] + a[1:]) * dt,
+         dx - v[:-1] * dt - (2 * a[:-1] + a[1:]) * dt * dt / 6]
+    lb, ub = [np.zeros(3 * m)], [np.zeros(3 * m)]
 
     def add(expr, lo, hi):
         g.append(expr)
         lb.append(np.full(expr.shape[0], lo))
         ub.append(np.full(expr.shape[0], hi))
 
-    # acceleration at every node (from the right), and from the left at the break nodes
-    d1, d2, _ = D.right
-    for k in range(3):
-        add(d2[1:-1, k] * b[1:-1] + d1[1:-1, k] * a[1:-1], -1.0, 1.0)
+    r1, r2, r3 = D.right
+    l1, l2, l3 = D.left
     bk = [int(i) for i in D.brk]
-    if bk:
-        e1, e2, _ = D.left
-        for k in range(3):
-            add(e2[:, k] * b[bk] + e1[:, k] * a[bk], -1.0, 1.0)
-    # jerk at every cell's midpoint in σ, where b = v² follows from db/ds = 2a exactly for a
-    # linear in σ; its speed w (w² = b there) is a variable of its own
-    m1, m2, m3 = D.mid
-    am = 0.5 * (a[1:] + a[:-1])
-    add(w * w - b[:-1] - 2 * (a[:-1] * W["v0"] + a[1:] * W["v1"]), 0.0, 0.0)
-    mid = slice(1, n - 2)
     for k in range(3):
-        add(w[mid] * (m3[mid, k] * w[mid] * w[mid] + 3 * m2[mid, k] * am[mid] + m1[mid, k] * c[mid]), -1.0, 1.0)
-        for cell, i, je in ((0, 1, jend[0]), (n - 2, n - 2, jend[1])):
-            add(v[i] * (m3[cell, k] * b[i] + 3 * m2[cell, k] * a[i]) + m1[cell, k] * je, -1.0, 1.0)
+        # acceleration at every node from the right, and from the left at the break nodes
+        add(r2[1:-1, k] * b[1:-1] + r1[1:-1, k] * a[1:-1], -1.0, 1.0)
+        if bk:
+            add(l2[bk, k] * b[bk] + l1[bk, k] * a[bk], -1.0, 1.0)
+        # jerk of each cell at both its ends (its start from the right, its end from the left)
+        add(v[:-1] * (r3[:-1, k] * b[:-1] + 3 * r2[:-1, k] * a[:-1]) + r1[:-1, k] * j, -1.0, 1.0)
+        add(v[1:] * (l3[1:, k] * b[1:] + 3 * l2[1:, k] * a[1:]) + l1[1:, k] * j, -1.0, 1.0)
+    # ṡ ≥ 0 inside a cell too (at its half time)
+    add(v[:-1] + 0.5 * a[:-1] * dt + j * dt * dt / 8, 0.0, np.inf)
     # a G1 join: |jerk| + κṡ² ≤ J either side, with that side's cell (TII 2022's read at T)
     for i, kap in D.kappa.items():
-        j = bk.index(i) if i in bk else None
-        for side, cell in (("left", i - 1), ("right", i)):
-            if cell < 0 or cell >= n - 1 or (side == "left" and j is None):
-                continue
-            q1, q2, q3 = (x_[j] for x_ in D.left) if side == "left" else (x_[i] for x_ in D.right)
-            for k in range(3):
-                jerk = v[i] * (q3[k] * b[i] + 3 * q2[k] * a[i] + q1[k] * c[cell])
-                add(ca.vertcat(jerk + kap[k] * b[i], -jerk + kap[k] * b[i]), -np.inf, 1.0)
+        for cell, (q1, q2, q3) in ((i - 1, D.left), (i, D.right)):
+            if 0 <= cell < m:
+                for k in range(3):
+                    jerk = v[i] * (q3[i, k] * b[i] + 3 * q2[i, k] * a[i]) + q1[i, k] * j[cell]
+                    add(ca.vertcat(jerk + kap[k] * b[i], -jerk + kap[k] * b[i]), -np.inf, 1.0)
     vmax = np.minimum(D.vmax, 1e6)
-    # the time is Σ Δ/v: a speed at its bound 0 (IPOPT moves a bound its slack crowds by ~1e-8)
-    # made it −∞ (pocket_kossel); the floor lies far below every optimum's (asserted below)
-    lbx = np.concatenate([np.full(n, V_FLOOR), np.full(n, -np.inf), np.full(n - 1, V_FLOOR)])
-    lbx[[2 * n, 3 * n - 2]] = 0.0              # the end cells' midpoints: not in the time
-    ubx = np.concatenate([vmax, np.full(n, np.inf), np.full(n - 1, np.inf)])
-    lbx[:n] = np.minimum(lbx[:n], vmax)
+    lbx = np.concatenate([np.zeros(n), np.full(n, -np.inf), np.zeros(m), np.full(m, -np.inf)])
+    ubx = np.concatenate([vmax, np.full(n, np.inf), np.full(m, np.inf), np.full(m, np.inf)])
     for i in (0, n - 1):                       # rest: ṡ = s̈ = 0 at both ends
-        lbx[i] = ubx[i] = 0.0
+        ubx[i] = 0.0
         lbx[n + i] = ubx[n + i] = 0.0
-    if warm is None:
-        v0 = initial_guess(D, x, vmax)
-        a0 = np.gradient(0.5 * v0 ** 2, x)
-        a0[[0, -1]] = 0.0
-    else:
-        v0, a0 = warm
-    v0 = np.clip(v0, 0, vmax)
-    # the midpoints' speeds as their equality constraint gives them
-    w0 = np.sqrt(np.maximum(v0[:-1] ** 2 + 2 * (a0[:-1] * W["v0"] + a0[1:] * W["v1"]), 0.0))
-    x0 = np.clip(np.concatenate([v0, a0, w0]), lbx, ubx)   # a 0 where Δ/ṡ is summed: grad_f Inf
-    nlp = {"x": ca.vertcat(v, a, w), "f": T, "g": ca.vertcat(*g)}
+    x0 = np.concatenate(initial_guess(D, dx, vmax) if warm is None else warm)
+    x0 = np.clip(x0, lbx, ubx)
+    nlp = {"x": ca.vertcat(v, a, dt, j), "f": ca.sum1(dt), "g": ca.vertcat(*g)}
     opts = IPOPT if warm is None else {**IPOPT, **IPOPT_WARM}
     solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt": opts, "print_time": False})
     res = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lb), ubg=np.concatenate(ub))
     st = solver.stats()
     sol = np.asarray(res["x"]).ravel()
-    return (float(res["f"]) * tu, sol[:n], sol[n:2 * n], sol[2 * n:], int(st.get("iter_count", -1)),
-            st["return_status"])
+    parts = np.split(sol, [n, 2 * n, 2 * n + m])
+    return (float(res["f"]) * tu, *parts, int(st.get("iter_count", -1)), st["return_status"])
 
 
-def cell_weights(X):
-    """Per cell, from s at σ-fractions u = 0, ¼, ½, ¾, 1 (X, (cells, 5)), the weights of a(σ)
-    linear in u: ∫₀¹ (1 − u, u)·s′ du (w0, w1; by parts, ∫ u s′ = s(1) − ∫ s, Boole's rule),
-    the same over [0, ½] (v0, v1; Simpson), and s′ at u = 0, ½, 1 (ds0, ds_mid, ds1)."""
-    s0, q1, sm, q3, s1 = X.T
-    I = (7 * s0 + 32 * q1 + 12 * sm + 32 * q3 + 7 * s1) / 90
-    Ih = (s0 + 4 * q1 + sm) / 12
-    w1 = s1 - I
-    v1 = 0.5 * sm - Ih
-    return {"w0": (s1 - s0) - w1, "w1": w1, "v0": (sm - s0) - v1, "v1": v1,
-            "ds0": 2 * (-3 * s0 + 4 * q1 - sm), "ds_mid": 2 * (q3 - q1), "ds1": 2 * (3 * s1 - 4 * q3 + sm)}
-
-
-def node_times(D, v, w):
-    """Node times (s) of a solution (v, w in m/s scale units) by the NLP's own rules."""
-    tu, vu = D.scale
-    W = cell_weights(D.s4)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dt = (W["ds0"] / v[:-1] + 4 * W["ds_mid"] / w + W["ds1"] / v[1:]) / 6
-    ds = np.diff(D.s)
-    dt[0], dt[-1] = 3 * ds[0] / v[1], 3 * ds[-1] / v[-2]
-    return np.concatenate([[0.0], np.cumsum(dt)])
-
-
-def initial_guess(D, x, vmax, share=0.5):
+def initial_guess(D, dx, vmax, share=0.5):
     """A start for IPOPT built from the limits (scaled, A = J = 1): per node the speed that
-    spends ``share`` of a joint's acceleration on q″ṡ² alone, of its jerk on q‴ṡ³ alone (at
-    the node and at the cells' midpoints) and of a join's read on κṡ², under vmax; then the
-    forward and backward passes of a path acceleration ``share``/|q′| (the rest ends left along
-    the jerk-limited ṡ^(3/2) ∝ s). Not feasible at the passes' switches, but within a small
-    factor of it: the slow start it replaced put 0.2·F_max through a µm blend arc, and IPOPT spent
-    its iterations (221 on a pocket_kossel piece, restorations, 10¹⁰ regularisation) getting out."""
+    spends ``share`` of a joint's acceleration on q″ṡ² alone, of its jerk on q‴ṡ³ alone and of
+    a join's read on κṡ², under vmax; then the forward and backward passes of a path
+    acceleration ``share``/|q′| (the rest ends left along the jerk-limited ṡ^(3/2) ∝ s); the
+    cells' durations and jerks as that speed gives them. Not feasible at the passes' switches,
+    but within a small factor of it (a slow start put 0.2·F_max through a µm blend arc, and
+    IPOPT spent its iterations getting out)."""
     q1, q2, q3 = (np.abs(q).max(axis=1) for q in D.right)
-    m3 = np.abs(D.mid[2]).max(axis=1)
+    q3 = np.maximum(q3, np.abs(D.left[2]).max(axis=1))
     with np.errstate(divide="ignore"):
-        cap = np.minimum.reduce([vmax, np.sqrt(share / q2), np.cbrt(share / q3),
-                                 np.cbrt(share / np.concatenate([m3, [0.0]])),
-                                 np.cbrt(share / np.concatenate([[0.0], m3]))])
+        cap = np.minimum.reduce([vmax, np.sqrt(share / q2), np.cbrt(share / q3)])
         for i, kap in D.kappa.items():
             cap[i] = min(cap[i], math.sqrt(share / np.abs(kap).max()))
         acc = share / q1
     v = cap.copy()
     v[0] = v[-1] = 0.0
-    dx = np.diff(x)
-    for order in (range(1, len(x)), range(len(x) - 2, -1, -1)):
+    for order in (range(1, len(v)), range(len(v) - 2, -1, -1)):
         for i in order:
-            j = i - 1 if order.step == 1 else i + 1
-            d = dx[min(i, j)]
-            v[i] = min(v[i], math.sqrt(v[j] ** 2 + 2 * acc[j] * d),
-                       (v[j] ** 1.5 + 2.12 * math.sqrt(acc[j]) * d) ** (2 / 3))
-    return v
+            k = i - 1 if order.step == 1 else i + 1
+            d = dx[min(i, k)]
+            v[i] = min(v[i], math.sqrt(v[k] ** 2 + 2 * acc[k] * d),
+                       (v[k] ** 1.5 + 2.12 * math.sqrt(acc[k]) * d) ** (2 / 3))
+    x = np.concatenate([[0.0], np.cumsum(dx)])
+    a = np.gradient(0.5 * v ** 2, x)
+    a[[0, -1]] = 0.0
+    dt = 2 * dx / np.maximum(v[:-1] + v[1:], 1e-12)
+    return v, a, dt, np.diff(a) / dt
 
 
-def refine_warm(s, v, a, w, s_fine):
-    """The coarse solution (nodes s, speeds v, w at the cells' σ-midpoints) on the nested grid
-    twice as fine, as the coarse NLP's own profile: a new node is a coarse cell's σ-midpoint,
-    where ṡ is that cell's w and s̈ the mean (s̈ linear in σ); in the two end cells ṡ ∝ d^(2/3),
-    s̈ ∝ d^(1/3) from the rest (the averages it replaced started a refinement 347 off feasible
-    at a near-stop and IPOPT took 180 iterations, 1.8 s each, to recover)."""
+def cell_state(v, a, j, dt, ds):
+    """Per cell (start speed v, acceleration a, jerk j, duration dt): the time τ ∈ [0, dt] at
+    which s(τ) = v·τ + a·τ²/2 + j·τ³/6 reaches ``ds`` (bisection: s is monotone in a cell), and
+    ṡ, s̈ there."""
+    lo, hi = np.zeros_like(dt), dt.copy()
+    for _ in range(60):
+        t = 0.5 * (lo + hi)
+        below = v * t + a * t * t / 2 + j * t ** 3 / 6 < ds
+        lo, hi = np.where(below, t, lo), np.where(below, hi, t)
+    t = 0.5 * (lo + hi)
+    return t, v + a * t + j * t * t / 2, a + j * t
+
+
+def refine_warm(s, v, a, dt, j, s_fine):
+    """The coarse solution on the nested grid twice as fine, as the coarse NLP's own profile:
+    a new node is a coarse cell's σ-midpoint, reached along that cell's cubic."""
+    t, vm, am = cell_state(v[:-1], a[:-1], j, dt, s_fine[1::2] - s[:-1])
     vf, af = np.empty(len(s_fine)), np.empty(len(s_fine))
-    vf[0::2], af[0::2] = v, a
-    vf[1::2], af[1::2] = w, 0.5 * (a[1:] + a[:-1])
-    for i, j, e in ((1, 1, 0), (-2, -2, -1)):
-        r = abs(s_fine[i] - s_fine[e]) / abs(s[j] - s[e])
-        vf[i], af[i] = v[j] * r ** (2 / 3), a[j] * np.cbrt(r)
-    return vf, af
+    vf[0::2], af[0::2], vf[1::2], af[1::2] = v, a, vm, am
+    dtf, jf = np.empty(2 * len(dt)), np.repeat(j, 2)
+    dtf[0::2], dtf[1::2] = t, dt - t
+    return vf, af, dtf, jf
 
 
 # --- a path -------------------------------------------------------------------------------
@@ -408,6 +389,7 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
     U = getattr(path, "knots", None)
     if U is not None and hasattr(path, "s_of_u"):
         knots = list(np.asarray(path.s_of_u(np.unique(np.asarray(U, float))[1:-1]), float))
+    joins += knot_jumps(path, machine, [k for k in knots if all(abs(k - sj) > 1e-6 for sj, _ in joins)])
     pieces = rest_pieces(path)
     h = path.length / base_nodes
     # the rest ends' graded zone: the distance the jerk-limited start covers to reach ~F_max
@@ -430,19 +412,18 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
         total, iters, nodes, prof = 0.0, 0, 0, []
         for k, ((s0, s1), mp) in enumerate(zip(pieces, maps)):
             s, brk = mp.nodes(level)
-            D = PieceData(path, machine, limits, s, brk, joins, tu, mp.nodes(level + 2)[0])
-            w = None if warm[k] is None else refine_warm(*warm[k], s)
-            Tk, v, a, wm, it, status = solve_piece(D, w)
+            D = PieceData(path, machine, limits, s, brk, joins, tu)
+            x = (s - s[0]) / (D.scale[0] * D.scale[1])
+            w = None if warm[k] is None else refine_warm(*warm[k], x)
+            Tk, v, a, dt, j, it, status = solve_piece(D, w)
             if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
                 raise RuntimeError(f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}: IPOPT {status}")
-            if v[1:-1].min() < 2 * V_FLOOR:
-                raise RuntimeError(f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}: a speed at its floor")
-            warm[k] = (s, v, a, wm)
+            warm[k] = (x, v, a, dt, j)
             total += Tk
             iters += it
             nodes += len(s)
-            V, Wm = v * D.scale[1], wm * D.scale[1]
-            prof.append((s, V, a * D.scale[1] / D.scale[0], node_times(D, V, Wm)))
+            tu_, vu = D.scale
+            prof.append((s, v * vu, a * vu / tu_, j * vu / tu_ ** 2, dt * tu_))
         g = {"nodes": nodes, "T_s": total, "solve_s": round(time.process_time() - t0, 2), "iterations": iters}
         grids.append(g)
         if log:
@@ -453,32 +434,22 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
 
 
 def sample_profile(prof, T):
-    """Arc lengths at t = kT of the piecewise profile [(s, ṡ, s̈, node times) per piece]:
-    quintic Hermite in t between nodes (s, ṡ, s̈ at both ends)."""
-    S, V, A, tt = [], [], [], []
+    """Arc lengths at t = kT of the piecewise-cubic profile [(s, ṡ, s̈ at the nodes, each cell's
+    jerk and duration) per rest piece], evaluated exactly."""
+    S, V, A, Jk, t0 = [], [], [], [], []
     t_off = 0.0
-    for s, v, a, tn in prof:
-        t = t_off + tn
-        S.append(s), V.append(v), A.append(a), tt.append(t)
-        t_off = t[-1]
-    S, V, A, t = (np.concatenate(x) for x in (S, V, A, tt))
-    keep = np.concatenate([[True], np.diff(t) > 0])
-    S, V, A, t = S[keep], V[keep], A[keep], t[keep]
-    tq = np.arange(int(math.ceil(t[-1] / T)) + 1) * T
-    tq[-1] = min(tq[-1], t[-1])
-    i = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 2)
-    h = t[i + 1] - t[i]
-    u = np.clip((tq - t[i]) / h, 0, 1)
-    u2, u3, u4, u5 = u ** 2, u ** 3, u ** 4, u ** 5
-    h0 = 1 - 10 * u3 + 15 * u4 - 6 * u5
-    h1 = u - 6 * u3 + 8 * u4 - 3 * u5
-    h2 = 0.5 * (u2 - 3 * u3 + 3 * u4 - u5)
-    h3 = 10 * u3 - 15 * u4 + 6 * u5
-    h4 = -4 * u3 + 7 * u4 - 3 * u5
-    h5 = 0.5 * (u3 - 2 * u4 + u5)
-    s = (h0 * S[i] + h1 * h * V[i] + h2 * h * h * A[i] + h3 * S[i + 1] + h4 * h * V[i + 1]
-         + h5 * h * h * A[i + 1])
-    return np.maximum.accumulate(np.clip(s, S[0], S[-1]))
+    for s, v, a, j, dt in prof:
+        S.append(s[:-1]), V.append(v[:-1]), A.append(a[:-1]), Jk.append(j)
+        t0.append(t_off + np.concatenate([[0.0], np.cumsum(dt)[:-1]]))
+        t_off += float(np.sum(dt))
+    S, V, A, Jk, t0 = (np.concatenate(x) for x in (S, V, A, Jk, t0))
+    tq = np.arange(int(math.ceil(t_off / T)) + 1) * T
+    tq[-1] = min(tq[-1], t_off)
+    i = np.clip(np.searchsorted(t0, tq, side="right") - 1, 0, len(t0) - 1)
+    u = tq - t0[i]
+    s = S[i] + V[i] * u + A[i] * u * u / 2 + Jk[i] * u ** 3 / 6
+    s_end = prof[-1][0][-1]
+    return np.maximum.accumulate(np.clip(s, S[0], s_end))
 
 
 def check_at_T(path, machine, prof):
@@ -527,7 +498,7 @@ def main(argv=None):
         return 2
     data = load(args.out)
     data.setdefault("paths", {})
-    data["method"] = ("path-parameter NLP (v = ṡ, a = s̈ at nodes; CasADi + IPOPT) on nested grids, "
+    data["method"] = ("piecewise-cubic s(t) between fixed path nodes (ṡ, s̈ at nodes, Δt and s⃛ per cell; CasADi + IPOPT) on nested grids, "
                       "Richardson limit of the last three; see benchmarks/paths/corpus/reference.py")
     machines = {}
     for e in todo:
