@@ -98,7 +98,7 @@ def test_knot_jumps_are_the_knots_where_q2_jumps():
 # 0.2 % of T_ref (the G64 programs' near-stops at µm blends converge at first order from above;
 # rational_quadratic_kossel's differences do not shrink over three grids). The test fails when
 # one is closed (shrink the list) and when a new one appears.
-NO_REFERENCE = {"cusp_trochoid_lcnc"}
+NO_REFERENCE = set()
 WIDE_BAR = {"cam_blend_kossel", "cam_dense_keops", "cam_dense_lcnc", "pocket_keops", "pocket_kossel", "pocket_lcnc",
             "rational_quadratic_kossel"}
 
