@@ -114,8 +114,8 @@ def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=Fals
     """planners.constraints.station_grid with every segment end and G1 join of the piece on it,
     then cells split to ≤ ``radii`` curvature radii (at their ends), none below
     STATION_MIN_MM.  ``knots``: also a station KNOT_SIDE_MM either side of every interior NURBS
-    knot, where P‴ jumps: a rational NURBS's q‴ can jump there to 1.8 × J·ṡ⁻³ and fall back
-    within 0.05 mm, between stations 0.1 mm apart (rational_keops)."""
+    knot, where P‴ jumps: a rational NURBS's q‴ can peak right after a knot and fall back between
+    two stations (docs/TUNING.md)."""
     inner = [sj for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6]
     edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
                                       inner, [s0, s1]]))

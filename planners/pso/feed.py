@@ -217,7 +217,7 @@ class FeedSpline:
         off over TAPER coefficients either side (in log λ), round after round, at most
         START_ROUNDS; what then still reads above, by at most LAST_STRETCH, is taken off by a
         uniform stretch.  Deterministic.  (Untapered, neighbours scaled by different λ put kinks
-        in w″, whose jerk the next round read above: on rand_edge_lcnc a need of 1.06 grew to 5.)"""
+        in w″, whose jerk the next round reads above, and the rounds diverge: docs/TUNING.md.)"""
         c = np.array(c, float)
         for _ in range(START_ROUNDS):
             need = self.reads(c)[1][:, 0]
