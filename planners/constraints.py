@@ -294,9 +294,8 @@ class PathTable:
         self.refined, self.cart = len(self._cells_to_split(S, piece, cart)[0]) > 0, cart
         if not self.refined:
             return inner(S, piece)
-        U = getattr(path, "knots", None)
-        if U is not None and hasattr(path, "s_of_u") and len(np.unique(U)) > 2:
-            sk = np.asarray(path.s_of_u(np.unique(np.asarray(U, float))[1:-1]), float)
+        sk = interior_knots(path)
+        if len(sk):
             sk = np.concatenate([sk - 1e-7, sk + 1e-7])
             pk = np.clip(np.searchsorted(self.edges, sk, side="right") - 1, 0, len(self.counts) - 1)
             keep = (sk > self.edges[pk] + 1e-9) & (sk < self.edges[pk + 1] - 1e-9)
@@ -452,6 +451,16 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
     # keep real jumps (a smooth stretch's change over 2e-7 mm is tiny; a C² knot has none)
     return [(float(0.5 * (lo[n] + hi[n])), float(jump[n])) for n in cand
             if cjump[n] >= max(0.25 * d[n], 1e-6)]
+
+
+def interior_knots(path) -> np.ndarray:
+    """Arc lengths of a NURBS's distinct interior knots (where its polynomial pieces meet);
+    empty for any other path."""
+    U = getattr(path, "knots", None)
+    if U is None or not hasattr(path, "s_of_u"):
+        return np.zeros(0)
+    u = np.unique(np.asarray(U, float))[1:-1]
+    return np.asarray(path.s_of_u(u), float) if len(u) else np.zeros(0)
 
 
 def breakpoints(path) -> list[float]:

@@ -47,6 +47,7 @@ import copp_py as copp
 import numpy as np
 
 from planners.constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
+                                  interior_knots,
                                   check_path, curvature_splits, feed_cap, join_jumps, joint_derivs,
                                   rest_pieces, station_grid)
 from planners.profile import Profile
@@ -120,9 +121,8 @@ def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=Fals
     edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
                                       inner, [s0, s1]]))
     grid = station_grid(edges, grid_mm, s0, s1)
-    U = getattr(path, "knots", None)
-    if knots and U is not None and hasattr(path, "s_of_u"):
-        sk = np.asarray(path.s_of_u(np.unique(np.asarray(U, float))[1:-1]), float)
+    sk = interior_knots(path) if knots else np.zeros(0)
+    if len(sk):
         sk = np.concatenate([sk - KNOT_SIDE_MM, sk + KNOT_SIDE_MM])
         sk = sk[(sk > s0 + 1e-6) & (sk < s1 - 1e-6)]
         grid = np.unique(np.concatenate([grid, sk]))

@@ -210,12 +210,14 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
         # the context within the tightened limits again: scaled locally, or where that slows a
         # stretch down more than it had to (the slowed zone's ramp read above before it, round
         # after round), as a whole; the swarm's pushes then raise it back where it may be
-        again = []
+        again, times = [], []
         for sw in swarms:
-            c = sw.feed.start_locally(sw.c)
-            uniform = sw.feed.scaled_within(sw.c)
-            again.append(uniform if c is None or sw.feed.time(c) > sw.feed.time(uniform) else c)
-        if sum(sw.feed.time(c) for sw, c in zip(swarms, again)) > COLLAPSE * _total(swarms):
+            options = [c for c in (sw.feed.start_locally(sw.c), sw.feed.scaled_within(sw.c)) if c is not None]
+            t = [sw.feed.time(c) for c in options]
+            k = int(np.argmin(t))      # the local one where it is no slower (first of equals)
+            again.append(options[k])
+            times.append(t[k])
+        if sum(times) > COLLAPSE * _total(swarms):
             break       # a context that collapsed somewhere
         repairs.append(len(above))
         for sw, c in zip(swarms, again):

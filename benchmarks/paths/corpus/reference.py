@@ -56,7 +56,7 @@ sys.path.insert(0, str(REPO))
 
 from kins import load_machine  # noqa: E402
 from planners.constraints import (JUMP_READ_FACTOR, PathTable, breakpoints, feed_cap,  # noqa: E402
-                                  join_jumps, joint_derivs, rest_pieces)
+                                  interior_knots, join_jumps, joint_derivs, rest_pieces)
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
@@ -168,17 +168,23 @@ def slow_points(path, machine, limits, s, joins, frac=SLOW_FRACTION):
                                  np.sqrt(limits.joint.a / np.abs(q[2]).max(axis=1))])
     for sj, dq2 in joins:
         i = np.abs(s - sj) < 1e-6
-        cap[i] = np.minimum(cap[i], np.sqrt(limits.joint.j * T / (JUMP_READ_FACTOR * max(np.max(dq2), 1e-300))))
+        cap[i] = np.minimum(cap[i], read_cap(machine, max(np.max(dq2), 1e-300)))
     return s[cap < frac * limits.feed_max]
+
+
+def read_cap(machine, dq2):
+    """The speed at which a jump Δq″ (largest over the joints) reads at T as the jerk limit:
+    κṡ² = J with κ = JUMP_READ_FACTOR·Δq″/T."""
+    with np.errstate(divide="ignore"):
+        return np.sqrt(machine.limits.joint.j * machine.servo_period_s / (JUMP_READ_FACTOR * np.asarray(dq2)))
 
 
 def knot_jumps(path, machine, knots):
     """[(s, |Δq″| per joint)] at the NURBS knots where q″ jumps (by more than CONTINUOUS × what
     q‴ moves it over the two sides' 2·SIDE: a cusp tip's q″ is steep, not broken) and the jump
     reads at T as a jerk that matters (κṡ² = J at a speed below 10 × F_max).  A quadratic
-    NURBS's P″ jumps at every knot; join_jumps (the planners' G1 joins) listed 17 of
-    rational_quadratic_kossel's 37, and the others read 39 × J at T on a profile that ignored
-    them."""
+    NURBS's P″ jumps at every knot, and join_jumps (the planners' G1 joins) does not list all of
+    them (benchmarks/paths/corpus/README.md)."""
     if not knots:
         return []
     k = np.asarray(knots, float)
@@ -186,11 +192,9 @@ def knot_jumps(path, machine, knots):
     n = len(k)
     dq2 = np.abs(q[2][n:] - q[2][:n])
     steep = np.maximum(np.abs(q[3][n:]), np.abs(q[3][:n])) * 2 * SIDE
-    lim, T = machine.limits, machine.servo_period_s
-    with np.errstate(divide="ignore"):
-        cap = np.sqrt(lim.joint.j * T / (JUMP_READ_FACTOR * dq2.max(axis=1)))
+    cap = read_cap(machine, dq2.max(axis=1))
     broken = (dq2 > CONTINUOUS * steep).any(axis=1)
-    return [(float(s), d) for s, d, c, b in zip(k, dq2, cap, broken) if b and c < 10 * lim.feed_max]
+    return [(float(s), d) for s, d, c, b in zip(k, dq2, cap, broken) if b and c < 10 * machine.limits.feed_max]
 
 
 # --- one piece's NLP ----------------------------------------------------------------------
@@ -385,10 +389,7 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
     table = PathTable(path, machine)
     joins = join_jumps(path, table, machine)
     brk_all = sorted(set(breakpoints(path)) | {sj for sj, _ in joins})
-    knots = []
-    U = getattr(path, "knots", None)
-    if U is not None and hasattr(path, "s_of_u"):
-        knots = list(np.asarray(path.s_of_u(np.unique(np.asarray(U, float))[1:-1]), float))
+    knots = list(interior_knots(path))
     joins += knot_jumps(path, machine, [k for k in knots if all(abs(k - sj) > 1e-6 for sj, _ in joins)])
     pieces = rest_pieces(path)
     h = path.length / base_nodes
