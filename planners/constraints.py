@@ -430,17 +430,25 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
         cand = np.nonzero((d > 50 * base) & (d > 1e-3) & (d > 4 * dn))[0]
         if len(corners):
             cand = np.array([i for i in cand if np.min(np.abs(corners - g[i])) >= 1e-3], int)
-        if len(cand) == 0:
-            return []
         lo, hi = g[cand], g[cand + 1]
         m, rows = 64, np.arange(len(cand))
-        for _ in range(3):          # three vectorised 64-way refinements: cell / 2.6e5 ≈ 2e-7 mm
+        for _ in range(3 if len(cand) else 0):   # 64-way refinements: cell / 2.6e5 ≈ 2e-7 mm
             sub = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, m)[None, :]
             Q2 = cartesian_derivs(path, sub.ravel())[2].reshape(len(cand), m, 3)
             k = np.linalg.norm(np.diff(Q2, axis=1), axis=2).argmax(axis=1)
             lo, hi = sub[rows, k], sub[rows, k + 1]
         d = d[cand]
-        cand = np.arange(len(cand))
+        # a NURBS's knots are where P″ can jump (every knot of a quadratic one): those the cell
+        # search missed (a jump below 50 × the median cell change) are read where they are
+        sk = knot_jumps_cartesian(path, corners)
+        if len(sk):
+            mid = 0.5 * (lo + hi)
+            sk = sk[[len(mid) == 0 or np.min(np.abs(mid - x)) > 1e-6 for x in sk]]
+            lo, hi = np.concatenate([lo, sk]), np.concatenate([hi, sk])
+            d = np.concatenate([d, np.zeros(len(sk))])
+        if len(lo) == 0:
+            return []
+        cand = np.arange(len(lo))
     # one-sided values 1e-7 mm either side, within the path (a jump found in its last cell)
     pairs = np.clip(np.column_stack([lo - 1e-7, hi + 1e-7]).ravel(), 0.0, path.length)
     cart = cartesian_derivs(path, pairs)
@@ -449,8 +457,26 @@ def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
     cjump = np.linalg.norm(cart[2][1::2] - cart[2][0::2], axis=1)
     jump = np.abs(D[2][1::2] - D[2][0::2]).max(axis=1)
     # keep real jumps (a smooth stretch's change over 2e-7 mm is tiny; a C² knot has none)
-    return [(float(0.5 * (lo[n] + hi[n])), float(jump[n])) for n in cand
-            if cjump[n] >= max(0.25 * d[n], 1e-6)]
+    return sorted((float(0.5 * (lo[n] + hi[n])), float(jump[n])) for n in cand
+                  if cjump[n] >= max(0.25 * d[n], 1e-6))
+
+
+def knot_jumps_cartesian(path, corners=(), continuous: float = 1e3) -> np.ndarray:
+    """Arc lengths of a NURBS's interior knots (not corners) where P″ jumps: by more than
+    ``continuous`` × what P‴ moves it across the two sides 1e-7 mm apart (a C² knot moves it
+    by that much; a steep but continuous P″ near a cusp does not pass 10³ of it)."""
+    sk = interior_knots(path)
+    if len(corners) and len(sk):
+        cs = np.asarray(corners, float)
+        sk = sk[np.abs(sk[:, None] - cs[None, :]).min(axis=1) >= 1e-3]
+    sk = sk[(sk > 1e-7) & (sk < path.length - 1e-7)]
+    if len(sk) == 0:
+        return sk
+    n = len(sk)
+    _, _, P2, P3 = cartesian_derivs(path, np.concatenate([sk - 1e-7, sk + 1e-7]))
+    jump = np.linalg.norm(P2[n:] - P2[:n], axis=1)
+    steep = np.maximum(np.linalg.norm(P3[n:], axis=1), np.linalg.norm(P3[:n], axis=1)) * 2e-7
+    return sk[(jump > continuous * steep) & (jump >= 1e-6)]
 
 
 def interior_knots(path) -> np.ndarray:

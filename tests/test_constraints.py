@@ -10,7 +10,7 @@ from kins.machine import Limits, MachineLimits
 from kins.resources import REPO
 from planners.constraints import PathTable, check_limits, curvature_splits, second_derivative_jumps, station_grid
 from planners.errors import PlanningError
-from planners.paths import resolve_path
+from planners.paths import NurbsPath, resolve_path
 
 
 def test_station_grid_puts_every_edge_on_it_within_the_step_and_resolves_short_segments():
@@ -50,3 +50,17 @@ def test_a_second_derivative_jump_in_the_last_cell_is_read_within_the_path():
     path = resolve_path(str(REPO / "benchmarks/paths/corpus/cusp_epitrochoid_keops.json"), home=machine.home)
     jumps = second_derivative_jumps(path, PathTable(path, machine), machine)
     assert all(0.0 < s < path.length for s, _ in jumps)
+
+
+def test_every_knot_of_a_quadratic_nurbs_is_a_second_derivative_jump_and_none_of_a_cubics():
+    """P″ of a quadratic NURBS jumps at each simple interior knot (its pieces are conics) and is
+    continuous at a cubic's. rational_quadratic_kossel's jumps are small beside its steep P″:
+    the cell search alone found 17 of its 37 knots, and optimal's profile broke J at T at the rest."""
+    machine = load_machine("kossel")
+    path = resolve_path(str(REPO / "benchmarks/paths/corpus/rational_quadratic_kossel.json"), home=machine.home)
+    knots = path.s_of_u(np.unique(path.knots)[1:-1])
+    jumps = second_derivative_jumps(path, PathTable(path, machine), machine)
+    assert len(knots) == 37 and np.allclose([s for s, _ in jumps], knots, rtol=0, atol=1e-6)
+    P = [[-8, -6, -300], [-3, 6, -300], [2, -6, -300], [6, 5, -300], [9, -4, -300], [12, 3, -300]]
+    cubic = NurbsPath(3, [0, 0, 0, 0, 1 / 3, 2 / 3, 1, 1, 1, 1], P)
+    assert second_derivative_jumps(cubic, PathTable(cubic, machine), machine) == []
