@@ -2,6 +2,7 @@
 drives the joints 1:1, its lower bound (bound.py) against the jerk-free closed form, finer
 stations where the check at T fails and an error (never another planner's profile) where
 nothing passes, order against toppra, errors; the IPOPT NLP (the polish) on its own."""
+import dataclasses
 import math
 
 import numpy as np
@@ -252,6 +253,41 @@ def test_a_profile_above_a_limit_is_solved_on_finer_stations_then_refused(monkey
         optimal.plan(path, KOSSEL, polish=False)
     assert len(grids) == optimal.REFINE_LEVELS + 1
 
+
+
+@pytest.mark.parametrize("costly, refined_faster, grids_run, returned", [
+    (True, True, 2, "refined"),       # repairs cost 1 %: finer stations, faster there: theirs
+    (True, False, 2, "first"),        # ... no faster there: the first profile, the search ends
+    (False, True, 1, "first"),        # repairs cost nothing: no finer stations
+])
+def test_costly_repairs_are_solved_again_on_finer_stations_and_the_faster_kept(monkeypatch, costly, refined_faster,
+                                                                                grids_run, returned):
+    """Where the SOCP's repairs cost more than REPAIR_COST of the time its stations allowed
+    (continuous_time_s against station_relaxation_s) the path is solved again on stations
+    STATION_REFINEMENT times closer; the faster profile within the limits is returned."""
+    path = vertical(10.0)
+    lim = KOSSEL.limits
+    half = MachineLimits(Limits(lim.joint.v / 2, lim.joint.a / 2, lim.joint.j / 2), lim.cartesian,
+                         lim.feed_max, lim.chord_error_mm)
+    fast = optimal.topp3.solve(path, KOSSEL, lim, optimal.topp3.Settings("optimal"))
+    slow = optimal.topp3.solve(path, KOSSEL, half, optimal.topp3.Settings("optimal"))
+    assert slow.execution_time_s > fast.execution_time_s
+
+    def with_cost(prof, cost):
+        info = dict(prof.info, station_relaxation_s=prof.info["continuous_time_s"] / (1 + cost))
+        return dataclasses.replace(prof, info=info)
+    first = with_cost(slow if refined_faster else fast, 10 * optimal.REPAIR_COST if costly else 0.0)
+    refined = with_cost(fast if refined_faster else slow, 0.0)
+    grids = []
+
+    def solve(path_, machine, limits, settings, pieces=None):
+        grids.append(settings.grid_mm)
+        return first if len(grids) == 1 else refined
+    monkeypatch.setattr(optimal.topp3, "solve", solve)
+    p = optimal.plan(path, KOSSEL, polish=False)
+    assert grids == [optimal.GRID_MM / optimal.STATION_REFINEMENT ** k for k in range(grids_run)]
+    want = first if returned == "first" else refined
+    assert np.array_equal(p.s, want.s) and p.info["grid_mm"] == grids[0 if returned == "first" else 1]
 
 def test_lower_bound_below_the_optimum_on_a_curved_path():
     """keops' bird: the bound (velocity and acceleration only, each interval's worst case) lies

@@ -50,9 +50,10 @@ from planners.verify import command_metrics, keeps_joints_and_feed, windows_abov
 STATION_REFINEMENT = 2
 REFINE_LEVELS = 2
 # ... and where the repairs cost more than this fraction of the time the stations alone allowed
-# (station_relaxation_s): at a cusp tip the repairs at 0.05 mm cost 2.4 % of the time, at
-# 0.025 mm 0.01 % (docs/TUNING.md)
-REPAIR_COST = 1e-3
+# (station_relaxation_s), while a refinement gains at least as much: at a cusp tip the repairs
+# at 0.05 mm cost 2.4 % of the time, at 0.025 mm 0.01 %; at 0.1 % most kossel paths took 5× the
+# time for 0.03 % (docs/TUNING.md)
+REPAIR_COST = 3e-3
 # stations ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (copp's engine: 0.1 mm and 0.5 radii).
 # TOPP3's b is linear in s between stations, a restriction whose time excess shrinks about in
 # proportion to the spacing: at 0.1 mm / 0.1 radii the stations alone kept optimal 0.2–0.46 % above
@@ -224,9 +225,9 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     time the stations alone allowed, the path is solved again on stations STATION_REFINEMENT
     times closer (also in curvature radii), up to REFINE_LEVELS times: the limits hold at the
     stations, so finer stations leave less to read between them and to repair.  The fastest
-    profile within the limits is returned; a refinement that has no solution or is no faster
-    ends the search.  Never another planner's profile: without a profile within the limits a
-    PlanningError names the path and the limit."""
+    profile within the limits is returned; a refinement that has no solution or gains less
+    than REPAIR_COST ends the search.  Never another planner's profile: without a profile
+    within the limits a PlanningError names the path and the limit."""
     why, best = [], None
     J = limits.joint
     inner = dataclasses.replace(limits, joint=type(J)(*(x * (1 - CHAIN_MARGIN) for x in (J.v, J.a, J.j))))
@@ -244,12 +245,14 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
         if not ok:
             why.append(f"stations ≤ {settings.grid_mm:g} mm: {worst}")
             continue
-        if best is not None and prof.execution_time_s >= best.execution_time_s:
+        # continuous times (the samples at T round up by up to one period)
+        t_new = prof.info["continuous_time_s"]
+        if best is not None and t_new >= best.info["continuous_time_s"]:
             break
+        gain = 1.0 if best is None else 1 - t_new / best.info["continuous_time_s"]
         prof.info.update(source="socp", grid_mm=settings.grid_mm)
         best = prof
-        # both continuous (the samples at T round the time up by up to one period)
-        if prof.info["continuous_time_s"] <= (1 + REPAIR_COST) * prof.info["station_relaxation_s"]:
+        if gain < REPAIR_COST or t_new <= (1 + REPAIR_COST) * prof.info["station_relaxation_s"]:
             break
     if best is None:
         raise PlanningError(f"optimal: {getattr(path, 'source', 'the path')}: no profile within the limits at T; "
