@@ -397,8 +397,9 @@ class PathTable:
 
 def second_derivative_jumps(path, table: PathTable, machine=None, corners=()):
     """[(s, jump)]: points where the path is tangent-continuous but P″ jumps (a G1 join of two
-    curves), and the size of the jump max|Δx″| of the checked coordinates (the joints through
-    the IK with a machine, else the Cartesian axes).
+    curves, a NURBS's knot of a quadratic or a multiple knot), sorted, and the size of the jump
+    max|Δx″| of the checked coordinates (the joints through the IK with a machine, else the
+    Cartesian axes).
 
     No feed-limiting function of the sources covers these: a nonzero feed ṡ there makes the
     acceleration jump by Δx″·ṡ², which a drive reads at period T as a jerk ≈ Δx″·ṡ²/T, so

@@ -254,9 +254,8 @@ def test_a_profile_above_a_limit_is_solved_on_finer_stations_then_refused(monkey
     assert len(grids) == optimal.REFINE_LEVELS + 1
 
 
-
 @pytest.mark.parametrize("costly, refined_faster, grids_run, returned", [
-    (True, True, 2, "refined"),       # repairs cost 1 %: finer stations, faster there: theirs
+    (True, True, 2, "refined"),       # repairs cost 10 × REPAIR_COST: finer stations, faster: theirs
     (True, False, 2, "first"),        # ... no faster there: the first profile, the search ends
     (False, True, 1, "first"),        # repairs cost nothing: no finer stations
 ])
@@ -288,6 +287,7 @@ def test_costly_repairs_are_solved_again_on_finer_stations_and_the_faster_kept(m
     assert grids == [optimal.GRID_MM / optimal.STATION_REFINEMENT ** k for k in range(grids_run)]
     want = first if returned == "first" else refined
     assert np.array_equal(p.s, want.s) and p.info["grid_mm"] == grids[0 if returned == "first" else 1]
+
 
 def test_lower_bound_below_the_optimum_on_a_curved_path():
     """keops' bird: the bound (velocity and acceleration only, each interval's worst case) lies
