@@ -233,7 +233,7 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     inner = dataclasses.replace(limits, joint=type(J)(*(x * (1 - CHAIN_MARGIN) for x in (J.v, J.a, J.j))))
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
-        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f)
+        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, join_grading=True)
         try:
             prof = topp3.solve(path, machine, inner, settings)
         except PlanningError as e:

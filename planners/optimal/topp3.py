@@ -60,6 +60,12 @@ STATION_RADII = 0.5
 STATION_MIN_MM = 1e-3
 # knot stations (Settings.knot_stations) this far either side of the knot: one-sided derivatives
 KNOT_SIDE_MM = 1e-7
+# Settings.join_grading: either side of a G1 join, stations 2^k × the travel in one period at
+# the join's cap (a blend arc's cell where smaller), k ≥ 0, up to the next station; none
+# closer than GRADED_MIN_MM.  At a corner of a G64 program the feed falls to ~0.05 mm/s over
+# µm: on the line's 0.05 mm cell beside it, a(s) left it as one quadratic, whose time (a log
+# near a ≈ 0) the SOCP's chord time misses; a 2× grading bounds a's ratio across each cell.
+GRADED_MIN_MM = 1e-6
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
 # read, doubled each round (windows next to a G1 join read above again by less each time);
 # then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit (a stretch
@@ -93,7 +99,8 @@ class Settings:
     (copp-py's default, kept for every planner on the engine): without, the profiles move
     under other numpy SIMD paths more than the reproducibility contract allows (docs/TUNING.md).
     ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default).
-    ``knot_stations``: a station a hair either side of every interior NURBS knot (grid_of)."""
+    ``knot_stations``: a station a hair either side of every interior NURBS knot (grid_of).
+    ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
@@ -101,6 +108,7 @@ class Settings:
     kkt_refinement: bool = True
     station_radii: float = STATION_RADII
     knot_stations: bool = False
+    join_grading: bool = False
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -138,6 +146,19 @@ def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=Fals
     return grid
 
 
+def _graded(grid, at, first):
+    """The grid with, either side of each station grid[i] for i in ``at``, stations h·2^k away
+    (k ≥ 0, h: the smaller of its two cells and first[m], at least GRADED_MIN_MM) up to the
+    next station."""
+    new = []
+    for i, h0 in zip(at, first):
+        h = max(min(grid[i] - grid[i - 1], grid[i + 1] - grid[i], h0), GRADED_MIN_MM)
+        for side, room in ((-1, grid[i] - grid[i - 1]), (1, grid[i + 1] - grid[i])):
+            off = h * 2.0 ** np.arange(max(int(math.log2(room / h)), 0) + 1)
+            new.append(grid[i] + side * off[off < room - h / 2])
+    return np.unique(np.concatenate([grid, *new]))
+
+
 def _join_rows(machine, path, grid, joins, T_scaled):
     """[(station, q′, q″, q‴ either side (2, 3), κ per joint)] of the G1 joins on the grid,
     T in scaled time: the jump Δq″ reads at T as a jerk κṡ², κ = JUMP_READ_FACTOR·Δq″/T."""
@@ -159,15 +180,18 @@ class Piece:
         self.options = settings.clarabel()
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
+        self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
         self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii,
                             settings.knot_stations)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
+        if settings.join_grading and self.joins:
+            self.grid = _graded(self.grid, [r[0] for r in self.joins], self._join_travel(path, limits, T))
+            self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)
         cap = feed_cap(path, self.grid, limits, T, kappa=np.linalg.norm(np.cross(cart[1], cart[2]), axis=1))
         self.cap2 = (cap * self.tu) ** 2
         self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
-        self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
         for i, *_, kappa in self.joins:        # the read κṡ² alone within J
             self.cap2[i] = min(self.cap2[i], self.lims[2] / kappa.max())
         # per station the fraction of each limit (LIMIT_COLUMNS) it is held to: 1 until the
@@ -177,6 +201,19 @@ class Piece:
         self.prof = self.span = self.reference = None
         self.stuck = False
         self.insufficient_progress = 0
+
+    def _join_travel(self, path, limits, T):
+        """Per G1 join (self.joins) the travel in one servo period T at its cap (the feed cap
+        either side, and the jump's read κṡ² ≤ J alone), in mm."""
+        out = []
+        for i, *_, kappa in self.joins:
+            sj = self.grid[i] + np.array([-1e-7, 1e-7])
+            _, P1, P2, _ = cartesian_derivs(path, sj)
+            v = float(feed_cap(path, sj, limits, T, kappa=np.linalg.norm(np.cross(P1, P2), axis=1)).min())
+            if kappa.max() > 0:
+                v = min(v, math.sqrt(self.lims[2] / kappa.max()) / self.tu)
+            out.append(v * T)
+        return out
 
     def where(self) -> str:
         return f"piece {self.k} (s = {self.s0:.6g}…{self.s1:.6g} mm)"
