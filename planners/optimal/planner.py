@@ -4,7 +4,9 @@ The constraint set is the planners' shared one (joint v, a, j; F_max; the chord-
 cap; the G1-join reads).  Two transcriptions:
 
 * COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel): stations
-  ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s), the jerk limit
+  ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s) and graded 2×
+  outward from every G1 join (topp3.Settings.join_grading: the SOCP's chord time is the
+  profile's time also where the feed falls near 0 at a G64 corner), the jerk limit
   linearised by tangents (a restriction: the time never grows from one linearisation to the
   next), checked at T and repaired in windows where a difference reads above a limit.  Where a limit
   still reads above 1 after the repairs the path is solved again on finer stations

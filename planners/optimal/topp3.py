@@ -27,7 +27,7 @@ magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile fa
 optimum (docs/TUNING.md).
 
 Stations: ≤ grid_mm apart, every segment end and G1 join on the grid, refined at curvature
-peaks; q′, q″, q‴ at each station from the IK's stencil (constraints.joint_derivs), not
+peaks (for `optimal` also graded 2× outward from every join, Settings.join_grading); q′, q″, q‴ at each station from the IK's stencil (constraints.joint_derivs), not
 interpolated.  The limits hold at the stations.  Between them (a(s) is quadratic there and
 bulges over a bound held at both ends) the check at T can read above them: the profile is sampled at T and checked; where a
 difference window reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at
