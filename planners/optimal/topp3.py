@@ -159,6 +159,13 @@ def _graded(grid, at, first):
     return np.unique(np.concatenate([grid, *new]))
 
 
+def _read_weight(u):
+    """The weight of a jump of the second derivative at u periods into a third difference's
+    window [0, 3] (the quadratic B-spline: 0.75 at the centre, JUMP_READ_FACTOR)."""
+    u = min(max(u, 0.0), 3.0)
+    return u * u / 2 if u < 1 else (-2 * u * u + 6 * u - 3) / 2 if u < 2 else (3 - u) ** 2 / 2
+
+
 def _join_rows(machine, path, grid, joins, T_scaled):
     """[(station, q′, q″, q‴ either side (2, 3), κ per joint)] of the G1 joins on the grid,
     T in scaled time: the jump Δq″ reads at T as a jerk κṡ², κ = JUMP_READ_FACTOR·Δq″/T."""
@@ -184,15 +191,27 @@ class Piece:
         self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii,
                             settings.knot_stations)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
+        travel = []
         if settings.join_grading and self.joins:
-            self.grid = _graded(self.grid, [r[0] for r in self.joins], self._join_travel(path, limits, T))
+            travel = self._join_travel(path, limits, T)
+            self.grid = _graded(self.grid, [r[0] for r in self.joins], travel)
             self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)
         cap = feed_cap(path, self.grid, limits, T, kappa=np.linalg.norm(np.cross(cart[1], cart[2]), axis=1))
         self.cap2 = (cap * self.tu) ** 2
         self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
-        for i, *_, kappa in self.joins:        # the read κṡ² alone within J
+        # a third difference at T reads the jump wherever the join lies in its 3-period window,
+        # weighted by _read_weight: graded stations within 1.5 periods' travel (at the join's
+        # cap) of a join hold its read too, so weighted, with their own q′, q″, q‴ (without, the
+        # SOCP used the whole J there and the repairs at T did not converge on cam_blend_kossel)
+        self.join_reads = list(self.joins)
+        for (i, *_, kappa), v in zip(self.joins, travel):
+            d = np.abs(self.grid - self.grid[i]) / max(v, GRADED_MIN_MM)   # periods' travel
+            near = np.nonzero((d > 0) & (d < 1.5))[0]
+            self.join_reads += [(k, *(D[k][None, :] for D in self.deriv[1:]),
+                                 kappa * _read_weight(1.5 - d[k]) / _read_weight(1.5)) for k in near]
+        for i, *_, kappa in self.join_reads:   # the read κṡ² alone within J
             self.cap2[i] = min(self.cap2[i], self.lims[2] / kappa.max())
         # per station the fraction of each limit (LIMIT_COLUMNS) it is held to: 1 until the
         # check at T reads the limit above 1 in a window over the station (tighten)
@@ -231,11 +250,11 @@ class Piece:
         rob.add_acceleration_limits(a, -a, start_idx_s=0, length=n)
         rob.add_jerk_limits(j, -j, start_idx_s=0, length=n)
         rob.constraints.add_constraint_1st((self.cap2 * f[:, 3] ** 2)[:, None], 0)
-        for i, D1, D2, D3, kappa in (self.joins if a_lin is not None else ()):
+        for i, D1, D2, D3, kappa in (self.join_reads if a_lin is not None else ()):
             # ±(q‴a + 3q″b + q′c) + κ√a ≤ J/√a with κ√a ≥ its tangent at r² = a_lin (≤ the cap)
             r = math.sqrt(max(min(a_lin[i], self.cap2[i]), 1e-12))
             rows = [(sg * d3 + kap / (2 * r), sg * 3 * d2, sg * d1, kap * r / 2)
-                    for d1, d2, d3, kap in zip(D1.ravel(), D2.ravel(), D3.ravel(), np.tile(kappa, 2))
+                    for d1, d2, d3, kap in zip(D1.ravel(), D2.ravel(), D3.ravel(), np.tile(kappa, len(D1)))
                     for sg in (1.0, -1.0)]
             ga, gb, gc, gd = (np.array([[row[m] for row in rows]]) for m in range(4))
             rob.constraints.add_constraint_3rd(ga, gb, gc, gd, np.full_like(ga, j[i, 0]), i)
