@@ -191,6 +191,10 @@ def test_join_grading_makes_the_socp_time_the_profiles_time(tmp_path):
             cells = np.diff(run)
             assert cells[0] <= max(v, topp3.GRADED_MIN_MM) * (1 + 1e-9)
             assert np.all(cells[1:] <= 2 * cells[:-1] * (1 + 1e-9))
+    # the join's read, weighted, at every other station within 1.5 periods' travel of it
+    near = {(i, k) for (i, *_), v in zip(p.joins, travel) for k in range(len(p.grid))
+            if 0 < abs(p.grid[k] - p.grid[i]) < 1.5 * v}
+    assert len(p.join_reads) == len(p.joins) + len(near) > len(p.joins)
 
 
 def test_read_weight_is_the_third_difference_of_a_second_derivative_jump():

@@ -27,14 +27,16 @@ magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile fa
 optimum (docs/TUNING.md).
 
 Stations: ≤ grid_mm apart, every segment end and G1 join on the grid, refined at curvature
-peaks (for `optimal` also graded 2× outward from every join, Settings.join_grading); q′, q″, q‴ at each station from the IK's stencil (constraints.joint_derivs), not
-interpolated.  The limits hold at the stations.  Between them (a(s) is quadratic there and
-bulges over a bound held at both ends) the check at T can read above them: the profile is sampled at T and checked; where a
+peaks (for `optimal` also graded 2× outward from every join, whose read the graded stations
+within 1.5 periods' travel hold too, weighted: Settings.join_grading); q′, q″, q‴ at each
+station from the IK's stencil (constraints.joint_derivs), not interpolated.  The limits hold
+at the stations.  Between them (a(s) is quadratic there and bulges over a bound held at both
+ends) the check at T can read above them: the profile is sampled at T and checked; where a
 difference window reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at
 the stations under the window and one either side, and only a window of stations around
 those is solved again, its ends held at the last solution's a and b (a window's solve is a
-fraction of a whole piece's),
-up to MAX_REPAIRS rounds; pieces still above a limit then are stretched uniformly in time.
+fraction of a whole piece's), up to MAX_REPAIRS rounds; pieces still above a limit then are
+stretched uniformly in time.
 A profile still above a limit after that is returned as it is (info["above_at_T"] counts
 its windows): the harness's check reports it.
 """
