@@ -29,7 +29,9 @@ as fine (from the seed again) where the node budget had spread the nodes ≥ 3×
 pieces where a limit read above 1: with the margin doubled on each limit read above 1 (each
 piece has one margin per limit) and, if it was a or j on a grid not refined, these bounded
 at each interval's midpoint too.  Still above after `retries`, the pieces are slowed down
-uniformly until they pass (_slowed_down).  (Why refining comes first and why margins are per
+uniformly until they pass (_slowed_down).  A wider margin and the slow-down only slow the
+solution: one that reads above and is already no faster than its start ends the polish there
+(NoFasterThanStart; the start is returned).  (Why refining comes first and why margins are per
 piece and per limit: docs/TUNING.md.)
 """
 from __future__ import annotations
@@ -327,12 +329,9 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
             # the lower bound: scaled in time by 1/(1 − m), a profile within the limits becomes one
             # within the limits less the margin m, so the margin-free optimum on these nodes is
             # ≥ T₁·(1 − m) (IPOPT's optimum is local: a bound of the node relaxation, not a certificate)
-            bound = sum(float(np.sum(x[0])) for x in sols) * (1 - max(max(m.values()) for m in margins))
+            bound = duration(sols) * (1 - max(max(m.values()) for m in margins))
         r = command_metrics(machine, path.point(prof.s), T, prof.s)
         if keeps_joints_and_feed(r):
-            break
-        if attempt == retries:
-            prof = _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slow)
             break
         # the limits hold at the nodes only: where the node budget spread a piece's grid
         # ≥ THIN_GRID_FACTOR times thinner than node_period_s, a grid twice as fine comes before a
@@ -341,6 +340,16 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
         # many times longer
         thin = [float(np.mean(st[1])) >= THIN_GRID_FACTOR * node_period_s
                 and budgets[i] < MAX_NODES_REFINED for i, st in enumerate(starts)]
+        if attempt == retries or not any(thin):
+            # a wider margin or the slow-down only makes the solution slower: already no faster
+            # than its start (within the limits at T), no later one can win in _faster_of
+            start_s = warm.info.get("continuous_time_s", warm.execution_time_s)
+            if duration(sols) >= start_s:
+                raise NoFasterThanStart(f"optimal: the NLP's solution takes {duration(sols):.6g} s at T's "
+                                        f"check {attempt + 1}, no faster than its start's {start_s:.6g} s")
+        if attempt == retries:
+            prof = _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slow)
+            break
         if any(thin):
             for i, b in enumerate(bounds):
                 if thin[i]:
@@ -353,10 +362,20 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
     return prof
 
 
+class NoFasterThanStart(PlanningError):
+    """The NLP stopped before its margins were widened: its solution was already no faster than
+    its start."""
+
+
+def duration(sols) -> float:
+    """The continuous time of the pieces' NLP solutions (their interval lengths summed)."""
+    return sum(float(np.sum(x[0])) for x in sols)
+
+
 def _check_duration(sols, too_slow, what) -> None:
     """A solution slower than ``too_slow`` is not sampled at T (a wild NLP solution slowed down
     by its worst read asked for gigabytes of samples); the start is kept."""
-    d = sum(float(np.sum(x[0])) for x in sols)
+    d = duration(sols)
     if not d <= too_slow:
         raise PlanningError(f"optimal: the NLP's {what} takes {d:.6g} s, more than {TOO_SLOW:g} × its start's "
                             f"{too_slow / TOO_SLOW:.6g} s: not sampled")
