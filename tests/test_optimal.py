@@ -65,7 +65,6 @@ def test_nlp_on_the_vertical_line_is_the_seven_phase_closed_form_within_its_marg
     assert free * (1 - 0.005) * (1 - 1e-4) <= p.info["node_relaxation_s"] <= free * (1 + 1e-6)
 
 
-
 def test_nlp_stops_before_widening_its_margins_where_its_solution_is_no_faster_than_its_start(monkeypatch):
     """A wider margin or the slow-down only makes the NLP slower, so a solution that breaks a
     limit at T (here: every check reads above) and is already no faster than its start ends the
@@ -83,6 +82,7 @@ def test_nlp_stops_before_widening_its_margins_where_its_solution_is_no_faster_t
     with pytest.raises(PlanningError) as e:
         nlp(path, KOSSEL, plan_joint(path, KOSSEL))
     assert not isinstance(e.value, optimal.NoFasterThanStart) and widened
+
 
 def test_optimal_is_not_faster_than_toppra():
     t_opt = plan("optimal", vertical(), KOSSEL).info["continuous_time_s"]

@@ -345,8 +345,9 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
             # than its start (within the limits at T), no later one can win in _faster_of
             start_s = warm.info.get("continuous_time_s", warm.execution_time_s)
             if duration(sols) >= start_s:
-                raise NoFasterThanStart(f"optimal: the NLP's solution takes {duration(sols):.6g} s at T's "
-                                        f"check {attempt + 1}, no faster than its start's {start_s:.6g} s")
+                raise NoFasterThanStart(f"optimal: the NLP's solution {attempt + 1} takes {duration(sols):.6g} s "
+                                        f"and reads above a limit at T, no faster than its start's "
+                                        f"{start_s:.6g} s")
         if attempt == retries:
             prof = _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slow)
             break
@@ -363,8 +364,8 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
 
 
 class NoFasterThanStart(PlanningError):
-    """The NLP stopped before its margins were widened: its solution was already no faster than
-    its start."""
+    """The polish ended: a solution that read above a limit at T was already no faster than its
+    start, and a wider margin or the slow-down would only slow it."""
 
 
 def duration(sols) -> float:
