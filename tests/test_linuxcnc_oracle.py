@@ -374,11 +374,21 @@ def test_trapezoid_takes_task_time_at_every_queue_sync_as_linuxcnc(tmp_path, kos
     # one, M5 + M3 S three: usrmotWriteEmcmotCommand waits for the servo thread's echo):
     # 16 × 2 ms + 4 × 1 ms + 4 × 3 ms = 48 ms, which trapezoid without task's time misses, and
     # the S and MSG stops besides. The spread: the phase of task's cycle at each stop (±0.5 ms),
-    # its mean 0.1–0.17 ms above the model's (60-sync programs), more on a loaded host (6 ms seen)
+    # its mean 0.1–0.17 ms above the model's (60-sync programs). A loaded host only makes a stop
+    # later (task and the servo thread are scheduled late; 19 ms over the 16 on a CI machine), so
+    # the stops are compared one by one: the typical one must be the model's, and what a stop took
+    # beyond the typical plus a period is the host's, taken out of LinuxCNC's total
     body = "G1 X5\n(MSG,m)\nG1 X-5\nG4 P0\nG1 X5\nS1000\nG1 X-5\nM5\nM3 S1000\n"
     text = "G21 G90 G17 G64\nG0 X-5 Y0 Z-250\nG1 X-5 F1200\nM3 S500\n" + 4 * body + "G1 X5\nM2\n"
     path = gcode_path(tmp_path, "syncs.ngc", text)
     lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
-    assert len(_rests(tz)) == len(_rests(lc)) == 16
+    rests_lc, rests_tz = np.array(_rests(lc)), np.array(_rests(tz))
+    assert len(rests_tz) == len(rests_lc) == 16
     assert sum(tz.info["queue_waits_s"].values()) == pytest.approx(16 * 0.002 + 16 * 0.001, abs=1e-12)
-    assert abs(tz.execution_time_s - lc.execution_time_s) <= 0.010
+    # LinuxCNC's last decelerating period reads a speed above 0 where trapezoid's reads 0: its
+    # rests are a period shorter and its motion a period longer (−1 ms measured at 14 of 16 stops)
+    later = rests_lc - rests_tz
+    typical = np.median(later)
+    assert -0.0015 <= typical <= 0.0005, later
+    host = np.clip(later - typical - tz.T, 0.0, None).sum()
+    assert abs(tz.execution_time_s - (lc.execution_time_s - host)) <= 0.010, (later, host)
