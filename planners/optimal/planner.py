@@ -344,8 +344,9 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
             # a wider margin or the slow-down only makes the solution slower: already no faster
             # than its start (within the limits at T), no later one can win in _faster_of
             start_s = warm.info.get("continuous_time_s", warm.execution_time_s)
-            if duration(sols) >= start_s:
-                raise NoFasterThanStart(f"optimal: the NLP's solution {attempt + 1} takes {duration(sols):.6g} s "
+            solved_s = duration(sols)
+            if solved_s >= start_s:
+                raise NoFasterThanStart(f"optimal: the NLP's solution {attempt + 1} takes {solved_s:.6g} s "
                                         f"and reads above a limit at T, no faster than its start's "
                                         f"{start_s:.6g} s")
         if attempt == retries:
