@@ -161,6 +161,29 @@ def test_feasible_at_T_never_slower_than_its_seed_and_both_results_reported():
     assert q.planner == "pso" and rq["feasible"] and "polished_time_s" not in q.info
     assert q.execution_time_s == pytest.approx(min(q.info["swarm_time_s"], seed.execution_time_s))
     assert q.info["returned"] == "swarm" and q.execution_time_s < seed.execution_time_s
+    assert "source" not in q.info and "source" not in p.info
+
+
+def _pso_seeded_by_copp(path, machine, limits=None, seed=0, **kw):
+    from planners.pso.planner import plan as pso    # the module's: the registry's "pso" is this in the test
+    return pso(path, machine, limits, seed=seed, seed_profile=plan("copp", path, machine, limits), **FAST)
+
+
+_pso_seeded_by_copp.stochastic = True
+
+
+def test_its_seed_returned_is_another_planners_profile_and_the_rows_failure(monkeypatch):
+    """Seeded by copp's near-optimal profile, the swarm ends slower (0.3655 against 0.353 s
+    measured): pso returns the seed, names it in info["source"], and the corpus row is a
+    fallback, a failure, as optimal's would be."""
+    from harness.corpus.run import run_one
+    from planners import registry
+    q = _pso_seeded_by_copp(PATH, KEOPS)
+    assert q.info["returned"] == "seed" and q.info["source"] == "copp" and q.planner == "pso"
+    assert q.execution_time_s == q.info["seed_time_s"] < q.info["swarm_time_s"]
+    monkeypatch.setitem(registry.BUILTIN, "pso", (__name__, "_pso_seeded_by_copp"))
+    row = run_one({"name": "corner", "machine": "keops"}, "pso", KEOPS, PATH, seed=0)
+    assert row.status == "fallback" and "copp's profile" in row.error and row.feasible
 
 
 def test_both_are_declared_stochastic_and_the_others_not():

@@ -38,9 +38,10 @@ repaired at T like `optimal`'s.  The swarm's, the polished and the seed's times 
 
 Returned: the fastest of the swarm's profile, the seed (the swarm's initial guess) and, for
 `pso_socp`, the polished profile, each checked at T (joint limits and F_max), so neither is
-slower than its seed (info["returned"]).  The swarm's own profile is sampled from the exact
-time map of its spline (span.py) and stretched per piece by what its samples at T read above a
-limit.
+slower than its seed (info["returned"]).  The seed is another planner's profile: returned, it is
+named in info["source"], and the corpus counts the row as a fallback, a failure.  The swarm's
+own profile is sampled from the exact time map of its spline (span.py) and stretched per piece
+by what its samples at T read above a limit.
 
 Deterministic: ``seed`` drives every random number (`plan.stochastic`: the corpus runs both
 over seeds), the iteration count ends the search (an optional wall-clock ``time_budget_s``
@@ -167,6 +168,10 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
         raise PlanningError(f"{name}: neither the swarm's" + (", the polished" if polish else "") + " nor the seed's profile is within the limits at T"
                             + "".join(f"; {k}: {info[k]}" for k in ("swarm", "polish") if k in info))
     _, which, best = min(ok, key=lambda x: x[:2])
+    if which == "seed":
+        # the seed is another planner's profile: the row reports it as that planner's
+        # (harness.corpus counts it as the row's failure, a fallback)
+        info["source"] = seed_prof.planner
     prof = dataclasses.replace(best, planner=name, info=dict(best.info, **info, returned=which))
     prof.planning_time_s = time.perf_counter() - t0
     return prof
