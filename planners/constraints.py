@@ -38,10 +38,26 @@ STENCIL_H_MM = 0.02
 # most 0.75·Δq″·ṡ²/T (the cumulative mass of the two-period hat kernel of a second
 # difference moves by ≤ 3/4 in one period); it adds to the continuous jerk at the join.
 JUMP_READ_FACTOR = 0.75
+# ... and a third difference centred d periods from the jump reads it too, for d < READ_REACH
+READ_REACH = 1.5
 # PathTable(refine=True): a cell is at most this many curvature radii wide (q‴ is interpolated
 # linearly, its relative error ~ (h/ρ)²/8 = 0.1 %), and never split below REFINE_MIN_MM
 REFINE_RADII = 0.1
 REFINE_MIN_MM = 1e-5
+
+
+def third_difference_weight(u: float) -> float:
+    """The weight of a jump of the second derivative at u periods into a third difference's
+    window [0, 3] (the quadratic B-spline: 0.75 at the centre, JUMP_READ_FACTOR)."""
+    u = min(max(u, 0.0), 3.0)
+    return u * u / 2 if u < 1 else (-2 * u * u + 6 * u - 3) / 2 if u < 2 else (3 - u) ** 2 / 2
+
+
+def join_read_weight(d: float) -> float:
+    """The read of a G1 join's jump (κṡ², κ = JUMP_READ_FACTOR·Δq″/T) by the third difference
+    centred d periods from it, as a fraction of the read at the join: 1 − 4d²/3 to d = ½, then
+    2(1.5 − d)²/3, 0 from READ_REACH on."""
+    return third_difference_weight(READ_REACH - abs(d)) / third_difference_weight(READ_REACH)
 
 
 def station_grid(edges, grid_mm: float, s0: float, s1: float) -> np.ndarray:

@@ -198,11 +198,15 @@ def test_join_grading_makes_the_socp_time_the_profiles_time(tmp_path):
 
 
 def test_read_weight_is_the_third_difference_of_a_second_derivative_jump():
-    """_read_weight(u): a unit jump of f″ at u periods into the window [0, 3] reads in the third
-    difference f(3) − 3f(2) + 3f(1) − f(0) of f = ½(t − u)₊² as this weight (T = 1): computed here
-    directly; 0.75 at the centre (JUMP_READ_FACTOR), 0 at the window's ends."""
+    """third_difference_weight(u): a unit jump of f″ at u periods into the window [0, 3] reads in
+    the third difference f(3) − 3f(2) + 3f(1) − f(0) of f = ½(t − u)₊² as this weight (T = 1):
+    computed here directly; 0.75 at the centre (JUMP_READ_FACTOR), 0 at the window's ends.
+    join_read_weight(d) is the window centred d periods from the jump, relative to the centre's."""
+    from planners.constraints import READ_REACH, join_read_weight, third_difference_weight
     f = lambda t, u: 0.5 * max(t - u, 0.0) ** 2
     for u in np.linspace(0.0, 3.0, 31):
         third = f(3, u) - 3 * f(2, u) + 3 * f(1, u) - f(0, u)
-        assert topp3._read_weight(u) == pytest.approx(third, abs=1e-12)
-    assert topp3._read_weight(1.5) == pytest.approx(topp3.JUMP_READ_FACTOR)
+        assert third_difference_weight(u) == pytest.approx(third, abs=1e-12)
+        d = u - READ_REACH
+        assert join_read_weight(d) == pytest.approx(third / topp3.JUMP_READ_FACTOR, abs=1e-12)
+    assert third_difference_weight(1.5) == pytest.approx(topp3.JUMP_READ_FACTOR)

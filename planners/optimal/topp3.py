@@ -48,10 +48,9 @@ import math
 import copp_py as copp
 import numpy as np
 
-from planners.constraints import (JUMP_READ_FACTOR, PathTable, PlanningError, cartesian_derivs, check_limits,
-                                  interior_knots,
-                                  check_path, curvature_splits, feed_cap, join_jumps, joint_derivs,
-                                  rest_pieces, station_grid)
+from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, PlanningError, cartesian_derivs,
+                                  check_limits, check_path, curvature_splits, feed_cap, interior_knots,
+                                  join_jumps, join_read_weight, joint_derivs, rest_pieces, station_grid)
 from planners.profile import Profile
 from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
@@ -161,13 +160,6 @@ def _graded(grid, at, first):
     return np.unique(np.concatenate([grid, *new]))
 
 
-def _read_weight(u):
-    """The weight of a jump of the second derivative at u periods into a third difference's
-    window [0, 3] (the quadratic B-spline: 0.75 at the centre, JUMP_READ_FACTOR)."""
-    u = min(max(u, 0.0), 3.0)
-    return u * u / 2 if u < 1 else (-2 * u * u + 6 * u - 3) / 2 if u < 2 else (3 - u) ** 2 / 2
-
-
 def _join_rows(machine, path, grid, joins, T_scaled):
     """[(station, q′, q″, q‴ either side (2, 3), κ per joint)] of the G1 joins on the grid,
     T in scaled time: the jump Δq″ reads at T as a jerk κṡ², κ = JUMP_READ_FACTOR·Δq″/T."""
@@ -204,15 +196,15 @@ class Piece:
         self.cap2 = (cap * self.tu) ** 2
         self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
         # a third difference at T reads the jump wherever the join lies in its 3-period window,
-        # weighted by _read_weight: graded stations within 1.5 periods' travel (at the join's
+        # weighted by join_read_weight: graded stations within 1.5 periods' travel (at the join's
         # cap) of a join hold its read too, so weighted, with their own q′, q″, q‴ (without, the
         # SOCP used the whole J there and the repairs at T did not converge on cam_blend_kossel)
         self.join_reads = list(self.joins)
         for (i, *_, kappa), v in zip(self.joins, travel):
             d = np.abs(self.grid - self.grid[i]) / max(v, GRADED_MIN_MM)   # periods' travel
-            near = np.nonzero((d > 0) & (d < 1.5))[0]
+            near = np.nonzero((d > 0) & (d < READ_REACH))[0]
             self.join_reads += [(k, *(D[k][None, :] for D in self.deriv[1:]),
-                                 kappa * _read_weight(1.5 - d[k]) / _read_weight(1.5)) for k in near]
+                                 kappa * join_read_weight(d[k])) for k in near]
         for i, *_, kappa in self.join_reads:   # the read κṡ² alone within J
             self.cap2[i] = min(self.cap2[i], self.lims[2] / kappa.max())
         # per station the fraction of each limit (LIMIT_COLUMNS) it is held to: 1 until the

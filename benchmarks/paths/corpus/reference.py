@@ -16,7 +16,11 @@ The problem (the planners' constraint set): per rest-to-rest piece (split at exa
 corners, ṡ = s̈ = 0 at its ends), minimise the time subject to |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A,
 |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J per joint, ṡ ≤ min(F_max, programmed F, chord-error cap) and, at a
 G1 join and at a NURBS knot where q″ jumps (knot_jumps), |jerk| + κṡ² ≤ J (κ =
-JUMP_READ_FACTOR·Δq″/T) on either side: the jump reads at T as that jerk.
+JUMP_READ_FACTOR·Δq″/T) on either side: the jump reads at T as that jerk.  The third
+differences at T read it over 3 periods, so the nodes within 2·READ_REACH periods of the join
+hold |jerk| + w·κṡ² ≤ J too, w = read_envelope of their time from it (1 within READ_REACH):
+enough for every third difference whatever the samples' phase (VERSION 7; VERSION 6 held the
+join's node alone and its profiles read up to 1.99 × J at T on the CAM programs).
 
 The transcription: per rest piece, nodes fixed along the arc length and s(t) a cubic on every
 cell between two of them (a constant path jerk s⃛ over the cell's own duration Δt): at the
@@ -55,12 +59,12 @@ REPO = HERE.parent.parent.parent
 sys.path.insert(0, str(REPO))
 
 from kins import load_machine  # noqa: E402
-from planners.constraints import (JUMP_READ_FACTOR, PathTable, breakpoints, feed_cap,  # noqa: E402
+from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, breakpoints, feed_cap,  # noqa: E402
                                   interior_knots, join_jumps, joint_derivs, rest_pieces)
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
-VERSION = 6                    # bump when the transcription changes: every cached entry is redone
+VERSION = 7                    # bump when the transcription changes: every cached entry is redone
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
@@ -69,6 +73,10 @@ TURN_RAD = 0.1                 # level 0: a node at least every 0.1 rad of turn
 PEAK_PROMINENCE = 1e-9         # a curvature peak's prominence over κ below this is rounding
 SIDE = 1e-7                    # mm: one-sided derivatives either side of a join or knot
 CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2·SIDE is a steep q″, no jump
+# a join's read is imposed at the nodes within 2·READ_REACH periods of it at the start's node
+# times widened by READ_SLACK; a solution with a node closer outside that set is solved again with it
+READ_SLACK = 1.2
+READ_ROUNDS = 8
 IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 1500, "max_cpu_time": 900.0, "print_level": 0,
          "mu_strategy": "adaptive", "linear_solver": "mumps", "bound_relax_factor": 0.0}
 
@@ -239,12 +247,34 @@ class PieceData:
             i = int(np.argmin(np.abs(s - sj)))
             if abs(s[i] - sj) < 1e-6:
                 self.kappa[i] = JUMP_READ_FACTOR * np.asarray(dq2) * su / (T / tu)
-        self.s, self.scale = s, (tu, vu)
+        self.s, self.scale, self.period = s, (tu, vu), T / tu
 
 
-def solve_piece(D: PieceData, warm=None):
+def read_envelope(u):
+    """The share of a join's read (κṡ² at the join's speed) held off the jerk at u ≥ 0 periods
+    from the join, as a CasADi expression: 1 within READ_REACH, then join_read_weight(u −
+    READ_REACH) (planners/constraints.py: 1 − 4x²/3 to x = ½, then 2(1.5 − x)²/3), 0 from
+    2·READ_REACH on.  Sufficient for every third difference at T, whatever the samples' phase:
+    the one centred c reads ∫jerk·K(t − c)dt + κṡ²·join_read_weight(c), K its kernel (mass 1,
+    support ±READ_REACH), and over that support the envelope is ≥ join_read_weight(c)."""
+    import casadi as ca
+    x = u - READ_REACH
+    return ca.if_else(x < 0, 1.0, ca.if_else(x < 0.5, 1 - 4 * x * x / 3,
+                                             ca.if_else(x < READ_REACH, 2 * (READ_REACH - x) ** 2 / 3, 0.0)))
+
+
+def read_nodes(D: PieceData, dt, reach=1.0) -> dict:
+    """Per join node, the other nodes less than ``reach`` × 2·READ_REACH periods from it at the
+    cells' durations ``dt`` (scaled): where read_envelope is not 0."""
+    t = np.concatenate([[0.0], np.cumsum(dt)])
+    return {i: {int(c) for c in np.nonzero(np.abs(t - t[i]) < reach * 2 * READ_REACH * D.period)[0] if c != i}
+            for i in D.kappa}
+
+
+def solve_piece(D: PieceData, warm=None, reads=None):
     """One piece's NLP: (time in s, then per node ṡ, s̈ and per cell its duration and path jerk,
-    all scaled; IPOPT iterations, status). ``warm``: (v, a, dt, j) on this grid."""
+    all scaled; IPOPT iterations, status). ``warm``: (v, a, dt, j) on this grid; ``reads``: per
+    join node the nodes whose jerk holds the join's read weighted by their time from it."""
     import casadi as ca   # casadi only where a piece is solved (the cache answers the rest)
 
     tu, vu = D.scale
@@ -278,13 +308,20 @@ def solve_piece(D: PieceData, warm=None):
         add(v[1:] * (l3[1:, k] * b[1:] + 3 * l2[1:, k] * a[1:]) + l1[1:, k] * j, -1.0, 1.0)
     # ṡ ≥ 0 inside a cell too (at its half time)
     add(v[:-1] + 0.5 * a[:-1] * dt + j * dt * dt / 8, 0.0, np.inf)
-    # a G1 join: |jerk| + κṡ² ≤ J either side, with that side's cell (TII 2022's read at T)
+    # a G1 join: |jerk| + κṡ² ≤ J either side, with that side's cell (TII 2022's read at T),
+    # and at each node c of ``reads`` |jerk| + w·κṡ² ≤ J, ṡ the join's, w = read_envelope of c's
+    # time from it: the third differences whose window holds c read the jump too (VERSION 6,
+    # the join's node alone, read 1.86–1.99 × J at T on the CAM programs, every excess within a
+    # period of a join; the weight of the window centred at c alone, 1.12 × J on 45 of their lines)
     for i, kap in D.kappa.items():
-        for cell, (q1, q2, q3) in ((i - 1, D.left), (i, D.right)):
-            if 0 <= cell < m:
-                for k in range(3):
-                    jerk = v[i] * (q3[i, k] * b[i] + 3 * q2[i, k] * a[i]) + q1[i, k] * j[cell]
-                    add(ca.vertcat(jerk + kap[k] * b[i], -jerk + kap[k] * b[i]), -np.inf, 1.0)
+        near = sorted((reads or {}).get(i, ()))
+        for c in [i] + near:
+            w = 1.0 if c == i else read_envelope(ca.sum1(dt[min(i, c):max(i, c)]) / D.period)
+            for cell, (q1, q2, q3) in ((c - 1, D.left), (c, D.right)):
+                if 0 <= cell < m:
+                    for k in range(3):
+                        jerk = v[c] * (q3[c, k] * b[c] + 3 * q2[c, k] * a[c]) + q1[c, k] * j[cell]
+                        add(ca.vertcat(jerk + w * kap[k] * b[i], -jerk + w * kap[k] * b[i]), -np.inf, 1.0)
     vmax = np.minimum(D.vmax, 1e6)
     lbx = np.concatenate([np.zeros(n), np.full(n, -np.inf), np.zeros(m), np.full(m, -np.inf)])
     ubx = np.concatenate([vmax, np.full(n, np.inf), np.full(m, np.inf), np.full(m, np.inf)])
@@ -301,6 +338,31 @@ def solve_piece(D: PieceData, warm=None):
     sol = np.asarray(res["x"]).ravel()
     parts = np.split(sol, [n, 2 * n, 2 * n + m])
     return (float(res["f"]) * tu, *parts, int(st.get("iter_count", -1)), st["return_status"])
+
+
+def solve_with_reads(D: PieceData, warm, where: str):
+    """solve_piece with the joins' reads at the nodes near them: the nodes near at the start's
+    times (READ_SLACK wider), then, while the solution has a node within 2·READ_REACH periods
+    of a join outside that set, again from the solution with it added (the envelope is 0
+    beyond, so the set need only hold the nodes that are near at the solution)."""
+    tu, vu = D.scale
+    dx = np.diff((D.s - D.s[0]) / (tu * vu))
+    start = warm if warm is not None else initial_guess(D, dx, np.minimum(D.vmax, 1e6))
+    reads = read_nodes(D, start[2], READ_SLACK)
+    iters = 0
+    for _ in range(READ_ROUNDS):
+        Tk, v, a, dt, j, it, status = solve_piece(D, warm, reads)
+        iters += it
+        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+            raise RuntimeError(f"{where}: IPOPT {status}")
+        missing = {i: c - reads[i] for i, c in read_nodes(D, dt).items() if c - reads[i]}
+        if not missing:
+            return Tk, v, a, dt, j, iters, status
+        for i, c in missing.items():
+            reads[i] |= c
+        warm = (v, a, dt, j)
+    raise RuntimeError(f"{where}: the nodes within {2 * READ_REACH} periods of a join still grew after "
+                       f"{READ_ROUNDS} solves")
 
 
 def initial_guess(D, dx, vmax, share=0.5):
@@ -416,9 +478,7 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
             D = PieceData(path, machine, limits, s, brk, joins, tu)
             x = (s - s[0]) / (D.scale[0] * D.scale[1])
             w = None if warm[k] is None else refine_warm(*warm[k], x)
-            Tk, v, a, dt, j, it, status = solve_piece(D, w)
-            if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
-                raise RuntimeError(f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}: IPOPT {status}")
+            Tk, v, a, dt, j, it, status = solve_with_reads(D, w, f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}")
             warm[k] = (x, v, a, dt, j)
             total += Tk
             iters += it
