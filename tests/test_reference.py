@@ -94,6 +94,49 @@ def test_knot_jumps_are_the_knots_where_q2_jumps():
         assert len(R.knot_jumps(path, m, knots)) == expect
 
 
+def test_the_read_envelope_covers_every_third_difference_whatever_its_phase():
+    """read_envelope(u) (the CasADi expression the NLP holds) is 1 within READ_REACH periods of
+    a join and join_read_weight(u − READ_REACH) beyond; on the support of the third difference
+    centred c (±READ_REACH) it never falls below join_read_weight(c), the share of the jump that
+    window reads: so |jerk| + envelope·κṡ² ≤ J everywhere keeps that window within J."""
+    import casadi as ca
+    from planners.constraints import READ_REACH, join_read_weight
+    R = _ref()
+    u = ca.SX.sym("u")
+    env = ca.Function("env", [u], [R.read_envelope(u)])
+    grid = np.linspace(0.0, 3.5, 701)
+    e = np.array([float(env(x)) for x in grid])
+    np.testing.assert_allclose(e, [1.0 if x < READ_REACH else join_read_weight(x - READ_REACH) for x in grid],
+                               atol=1e-12)
+    assert e[-1] == 0.0
+    for c in np.linspace(0.0, 2 * READ_REACH, 61):
+        window = np.abs(grid - c) <= READ_REACH
+        assert e[window].min() >= join_read_weight(c) - 1e-12
+
+
+# the head of cam_dense_keops.ngc: 9 chords of 0.15–0.6 mm under G64 P0.01 on keops
+CAM_LINES = 12
+
+
+@pytest.mark.slow
+def test_a_g64_program_s_reference_keeps_the_jerk_at_t_by_the_nodes_near_its_joins(monkeypatch):
+    """Short chords blended under G64: with the joins' reads at the nodes near them, the finest
+    profile sampled at T keeps J (to 0.5 %); with the join's node alone (VERSION 6:
+    read_nodes finds none) the same grid reads 1.64 × J next to the joins."""
+    from planners.paths.gcode import parse_gcode, program_path
+    R = _ref()
+    m = load_machine("keops")
+    text = "\n".join((CORPUS_DIR / "cam_dense_keops.ngc").read_text().splitlines()[:CAM_LINES]) + "\nM2\n"
+    path = program_path(parse_gcode(text, "cam_dense_keops_head.ngc"))
+    r = R.reference(path, m, levels=2)
+    assert r["check_at_T"]["joint_peak_ratio"]["jerk"] <= 1.005
+    monkeypatch.setattr(R, "read_nodes", lambda D, dt, reach=1.0: {i: set() for i in D.kappa})
+    alone = R.reference(path, m, levels=2)
+    assert alone["check_at_T"]["joint_peak_ratio"]["jerk"] > 1.3
+    # the reads cost time: the node-alone profile is faster by what it breaks
+    assert alone["T_reference_s"] < r["T_reference_s"]
+
+
 # Issue 32 is open on these (benchmarks/paths/corpus/README.md): no reference yet, and bars above
 # 0.2 % of T_ref (the G64 programs' near-stops at µm blends converge at first order from above;
 # rational_quadratic_kossel's differences do not shrink over three grids). The test fails when
