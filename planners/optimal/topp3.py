@@ -49,8 +49,9 @@ import copp_py as copp
 import numpy as np
 
 from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, PlanningError, cartesian_derivs,
-                                  check_limits, check_path, curvature_splits, feed_cap, interior_knots,
-                                  join_jumps, join_read_weight, joint_derivs, rest_pieces, station_grid)
+                                  check_limits, check_path, cross_norm, curvature_splits, feed_cap,
+                                  interior_knots, join_jumps, join_read_weight, joint_derivs, rest_pieces,
+                                  station_grid)
 from planners.profile import Profile
 from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
@@ -138,7 +139,7 @@ def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=Fals
     for _ in range(6):
         _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
         h = np.diff(grid)
-        need, parts = curvature_splits(h, np.linalg.norm(np.cross(P1, P2), axis=1), radii,
+        need, parts = curvature_splits(h, cross_norm(P1, P2), radii,
                                        STATION_MIN_MM, 16)
         if len(need) == 0:
             break
@@ -192,7 +193,7 @@ class Piece:
             self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)
-        cap = feed_cap(path, self.grid, limits, T, kappa=np.linalg.norm(np.cross(cart[1], cart[2]), axis=1))
+        cap = feed_cap(path, self.grid, limits, T, kappa=cross_norm(cart[1], cart[2]))
         self.cap2 = (cap * self.tu) ** 2
         self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
         # a third difference at T reads the jump wherever the join lies in its 3-period window,
@@ -222,7 +223,7 @@ class Piece:
         for i, *_, kappa in self.joins:
             sj = self.grid[i] + np.array([-1e-7, 1e-7])
             _, P1, P2, _ = cartesian_derivs(path, sj)
-            v = float(feed_cap(path, sj, limits, T, kappa=np.linalg.norm(np.cross(P1, P2), axis=1)).min())
+            v = float(feed_cap(path, sj, limits, T, kappa=cross_norm(P1, P2)).min())
             if kappa.max() > 0:
                 v = min(v, math.sqrt(self.lims[2] / kappa.max()) / self.tu)
             out.append(v * T)
