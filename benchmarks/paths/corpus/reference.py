@@ -341,15 +341,21 @@ def solve_piece(D: PieceData, warm=None, reads=None):
 
 
 def solve_with_reads(D: PieceData, warm, where: str):
-    """solve_piece with the joins' reads at the nodes near them: the nodes near at the start's
-    times (READ_SLACK wider), then, while the solution has a node within 2·READ_REACH periods
-    of a join outside that set, again from the solution with it added (the envelope is 0
-    beyond, so the set need only hold the nodes that are near at the solution)."""
-    tu, vu = D.scale
-    dx = np.diff((D.s - D.s[0]) / (tu * vu))
-    start = warm if warm is not None else initial_guess(D, dx, np.minimum(D.vmax, 1e6))
-    reads = read_nodes(D, start[2], READ_SLACK)
+    """solve_piece with the joins' reads at the nodes near them: from a cold start first without
+    them (with them, IPOPT ran out of its CPU time on cam_dense_lcnc's first grid: > 900 s
+    against 414 s), then with the nodes near at the start's times (READ_SLACK wider) and, while
+    the solution has a node within 2·READ_REACH periods of a join outside that set, again from
+    the solution with it added (the envelope is 0 beyond, so the set need only hold the nodes
+    near at the solution)."""
     iters = 0
+    if warm is None:
+        Tk, v, a, dt, j, iters, status = solve_piece(D)
+        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+            raise RuntimeError(f"{where}: IPOPT {status}")
+        if not D.kappa:
+            return Tk, v, a, dt, j, iters, status
+        warm = (v, a, dt, j)
+    reads = read_nodes(D, warm[2], READ_SLACK)
     for _ in range(READ_ROUNDS):
         Tk, v, a, dt, j, it, status = solve_piece(D, warm, reads)
         iters += it
