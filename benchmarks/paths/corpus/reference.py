@@ -313,10 +313,17 @@ def solve_piece(D: PieceData, warm=None, reads=None):
     # time from it: the third differences whose window holds c read the jump too (VERSION 6,
     # the join's node alone, read 1.86–1.99 × J at T on the CAM programs, every excess within a
     # period of a join; the weight of the window centred at c alone, 1.12 × J on 45 of their lines)
+    timed = any(reads.values()) if reads else False
+    if timed:
+        # the nodes' times as variables, tied by their cells: a read's weight then depends on
+        # two of them, not on the sum of every cell between (dense rows and Hessian blocks: 12×
+        # the CPU time on pocket_lcnc's finest grid)
+        tn = ca.SX.sym("tn", n)
+        add(tn[1:] - tn[:-1] - dt, 0.0, 0.0)
     for i, kap in D.kappa.items():
         near = sorted((reads or {}).get(i, ()))
         for c in [i] + near:
-            w = 1.0 if c == i else read_envelope(ca.sum1(dt[min(i, c):max(i, c)]) / D.period)
+            w = 1.0 if c == i else read_envelope(ca.fabs(tn[c] - tn[i]) / D.period)
             for cell, (q1, q2, q3) in ((c - 1, D.left), (c, D.right)):
                 if 0 <= cell < m:
                     for k in range(3):
@@ -330,13 +337,19 @@ def solve_piece(D: PieceData, warm=None, reads=None):
         lbx[n + i] = ubx[n + i] = 0.0
     x0 = np.concatenate(initial_guess(D, dx, vmax) if warm is None else warm)
     x0 = np.clip(x0, lbx, ubx)
-    nlp = {"x": ca.vertcat(v, a, dt, j), "f": ca.sum1(dt), "g": ca.vertcat(*g)}
+    x = ca.vertcat(v, a, dt, j)
+    if timed:
+        x = ca.vertcat(x, tn)
+        lbx = np.concatenate([lbx, [0.0], np.zeros(n - 1)])
+        ubx = np.concatenate([ubx, [0.0], np.full(n - 1, np.inf)])
+        x0 = np.concatenate([x0, [0.0], np.cumsum(x0[2 * n:2 * n + m])])
+    nlp = {"x": x, "f": ca.sum1(dt), "g": ca.vertcat(*g)}
     opts = IPOPT if warm is None else {**IPOPT, **IPOPT_WARM}
     solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt": opts, "print_time": False})
     res = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lb), ubg=np.concatenate(ub))
     st = solver.stats()
     sol = np.asarray(res["x"]).ravel()
-    parts = np.split(sol, [n, 2 * n, 2 * n + m])
+    parts = np.split(sol, [n, 2 * n, 2 * n + m, 2 * n + 2 * m])[:4]
     return (float(res["f"]) * tu, *parts, int(st.get("iter_count", -1)), st["return_status"])
 
 
