@@ -385,8 +385,9 @@ def test_trapezoid_takes_task_time_at_every_queue_sync_as_linuxcnc(tmp_path, kos
     rests_lc, rests_tz = np.array(_rests(lc)), np.array(_rests(tz))
     assert len(rests_tz) == len(rests_lc) == 16
     assert sum(tz.info["queue_waits_s"].values()) == pytest.approx(16 * 0.002 + 16 * 0.001, abs=1e-12)
-    # LinuxCNC's last decelerating period reads a speed above 0 where trapezoid's reads 0: its
-    # rests are a period shorter and its motion a period longer (−1 ms measured at 14 of 16 stops)
+    # LinuxCNC's speeds are its positions' differences, half a period behind trapezoid's samples
+    # (…0.375, 0.125, 0, 0, 0.125 of the feed at a stop against …0.5, 0.25, 0, 0, 0, 0.25): its
+    # rests count a period fewer (−1 ms at 11–15 of the 16 stops in three runs, the others 0, one −2)
     later = rests_lc - rests_tz
     typical = np.median(later)
     assert -0.0015 <= typical <= 0.0005, later
