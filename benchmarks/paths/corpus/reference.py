@@ -78,8 +78,7 @@ CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2�
 READ_SLACK = 1.2
 READ_ROUNDS = 8
 # max_cpu_time stops a solve that runs away, never shortens one that converges (a stop is an
-# error of the path): VERSION 7's cam_dense_lcnc level 2 and cusp_trochoid_lcnc's cold level 0
-# ran past 900 s of CPU
+# error of the path; the largest CAM grids need up to ~1700 s: corpus README)
 IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 1500, "max_cpu_time": 3600.0, "print_level": 0,
          "mu_strategy": "adaptive", "linear_solver": "mumps", "bound_relax_factor": 0.0}
 
@@ -313,14 +312,11 @@ def solve_piece(D: PieceData, warm=None, reads=None):
     add(v[:-1] + 0.5 * a[:-1] * dt + j * dt * dt / 8, 0.0, np.inf)
     # a G1 join: |jerk| + κṡ² ≤ J either side, with that side's cell (TII 2022's read at T),
     # and at each node c of ``reads`` |jerk| + w·κṡ² ≤ J, ṡ the join's, w = read_envelope of c's
-    # time from it: the third differences whose window holds c read the jump too (VERSION 6,
-    # the join's node alone, read 1.86–1.99 × J at T on the CAM programs, every excess within a
-    # period of a join; the weight of the window centred at c alone, 1.12 × J on 45 of their lines)
+    # time from it: the third differences whose window holds c read the jump too
     timed = any(reads.values()) if reads else False
     if timed:
         # the nodes' times as variables, tied by their cells: a read's weight then depends on
-        # two of them, not on the sum of every cell between (dense rows and Hessian blocks: 12×
-        # the CPU time on pocket_lcnc's finest grid)
+        # two of them, not on the sum of every cell between (dense rows and Hessian blocks)
         tn = ca.SX.sym("tn", n)
         add(tn[1:] - tn[:-1] - dt, 0.0, 0.0)
     for i, kap in D.kappa.items():
@@ -358,25 +354,21 @@ def solve_piece(D: PieceData, warm=None, reads=None):
 
 def solve_with_reads(D: PieceData, warm, where: str):
     """solve_piece with the joins' reads at the nodes near them: from a cold start first without
-    them (with them, IPOPT ran out of its CPU time on cam_dense_lcnc's first grid: > 900 s
-    against 414 s), then with the nodes near at the start's times (READ_SLACK wider) and, while
+    them (IPOPT finds the coupled problem from a cold start far slower than from a warm one),
+    then with the nodes near at the start's times (READ_SLACK wider) and, while
     the solution has a node within 2·READ_REACH periods of a join outside that set, again from
     the solution with it added (the envelope is 0 beyond, so the set need only hold the nodes
     near at the solution)."""
     iters = 0
     if warm is None:
-        Tk, v, a, dt, j, iters, status = solve_piece(D)
-        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
-            raise RuntimeError(f"{where}: IPOPT {status}")
+        Tk, v, a, dt, j, iters, status = _solved(solve_piece(D), where)
         if not D.kappa:
             return Tk, v, a, dt, j, iters, status
         warm = (v, a, dt, j)
     reads = read_nodes(D, warm[2], READ_SLACK)
     for _ in range(READ_ROUNDS):
-        Tk, v, a, dt, j, it, status = solve_piece(D, warm, reads)
+        Tk, v, a, dt, j, it, status = _solved(solve_piece(D, warm, reads), where)
         iters += it
-        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
-            raise RuntimeError(f"{where}: IPOPT {status}")
         missing = {i: c - reads[i] for i, c in read_nodes(D, dt).items() if c - reads[i]}
         if not missing:
             return Tk, v, a, dt, j, iters, status
@@ -385,6 +377,13 @@ def solve_with_reads(D: PieceData, warm, where: str):
         warm = (v, a, dt, j)
     raise RuntimeError(f"{where}: the nodes within {2 * READ_REACH} periods of a join still grew after "
                        f"{READ_ROUNDS} solves")
+
+
+def _solved(result, where: str):
+    """solve_piece's result, or an error naming the piece where IPOPT did not converge."""
+    if result[-1] not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+        raise RuntimeError(f"{where}: IPOPT {result[-1]}")
+    return result
 
 
 def initial_guess(D, dx, vmax, share=0.5):
