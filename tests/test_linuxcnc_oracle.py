@@ -347,11 +347,15 @@ def test_an_m0_stop_is_the_operators_time_not_the_planners(tmp_path, kossel):
     text = "G21 G90 G17 G61\nG0 X0 Y0 Z-250\nG1 X5 F600\nM0\nG1 Y5\nM0\nM0\nG1 X0\nM2\n"
     path = gcode_path(tmp_path, "m0.ngc", text)
     lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
-    assert 0.0 < lc.info["operator_pause_s"] < 0.2
+    assert lc.info["operator_pause_s"] < 0.2
     assert tz.info["queue_waits_s"] == {0: pytest.approx(0.004), 1: pytest.approx(0.006)}
-    # LinuxCNC 1.580–1.583 s (three runs), trapezoid 1.570 s (1.560 s without task's time); the
-    # runner finds each pause between two polls (±2.5 ms a stop)
-    assert abs(lc.execution_time_s - tz.execution_time_s) <= 3 * 0.005
+    # LinuxCNC 1.576–1.579 s (three runs), trapezoid 1.570 s (1.560 s without task's time). The
+    # runner finds each pause between two of its polls, ± half their gap (±4 ms a pause here; a
+    # loaded host's late polls widen it: 16 ms over on a CI machine when it was a fixed ±2.5 ms),
+    # so that is the bound, with the phase of task's cycle at each stop (±1 ms)
+    uncertain = lc.info["operator_pause_uncertainty_s"]
+    assert uncertain >= 3 * 0.5 * kossel.servo_period_s and lc.info["operator_pause_s"] > 0.0
+    assert abs(lc.execution_time_s - tz.execution_time_s) <= uncertain + 3 * 0.001
 
 
 @needs_linuxcnc

@@ -12,7 +12,8 @@ reason goes to ``[PKMBENCH]OUTPUT.err`` and the exit status is non-zero, which e
 LinuxCNC (the ``linuxcnc`` script shuts everything down when its display exits).
 An M0/M1 pause is the operator's time, not the planner's: the sample rows from the pause (the
 midpoint between the last poll that did not see it and the first that did) to the resume go
-to ``[PKMBENCH]OUTPUT.pauses`` ("first last" sample numbers, one pause a line).
+to ``[PKMBENCH]OUTPUT.pauses`` ("first last gap" sample numbers, one pause a line; gap: the
+samples between the two polls, so where the pause began is known to ± gap/2).
 No pkmbench import here: this file must run without the venv.
 """
 import sys
@@ -51,8 +52,8 @@ def main(argv):
         for sampleno, row in rows:
             f.write(" ".join([str(sampleno)] + [repr(v) for v in row]) + "\n")
     with open(out + ".pauses", "w") as f:
-        for a, b in pauses:
-            f.write("%d %d\n" % (a, b))
+        for a, b, gap in pauses:
+            f.write("%d %d %d\n" % (a, b, gap))
     import os
     os.replace(out + ".tmp", out)
     return 0
@@ -92,7 +93,7 @@ def run(program, start, cfg, timeout, delay, pauses):
                 return
             if time.monotonic() - t0 > limit:
                 raise Fail("LinuxCNC: timed out after %g s waiting for %s" % (limit, what))
-            time.sleep(0.005)
+            time.sleep(0.001)        # a poll takes ~7 ms besides: an M0's start is known to ±4 ms
 
     wait(lambda: True, "task")
     c.state(linuxcnc.STATE_ESTOP_RESET)
@@ -130,7 +131,7 @@ def run(program, start, cfg, timeout, delay, pauses):
         if paused and resumed[0] is None:  # M0/M1: resumed at once, as an operator would
             began = (last[0] + last[1]) // 2 + 1        # paused between the two polls
             drain()
-            pauses.append((began, last[1]))
+            pauses.append((began, last[1], last[1] - last[0]))
             c.auto(linuxcnc.AUTO_RESUME)
             resumed[0] = c.serial
             return False

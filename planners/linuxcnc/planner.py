@@ -91,7 +91,8 @@ def plan(path, machine, limits=None, *, programmed_feed: bool = True,
          keep_dir: str | None = None, start_delay_s: float = 0.0) -> Profile:
     """Run ``path`` on the real LinuxCNC 2.9 for ``machine``; its command as a profile.
     ``start_delay_s``: wait that long before the AUTO run (runner.run_program). An M0/M1 pause
-    is the operator's time and is left out of the profile (``info["operator_pause_s"]``)."""
+    is the operator's time and is left out of the profile (``info["operator_pause_s"]``; where
+    each began is known to a poll of the display, ± ``info["operator_pause_uncertainty_s"]`` in all)."""
     limits = limits or machine.limits
     check_limits(limits, "linuxcnc")
     if getattr(machine, "family", None) != "lineardelta":
@@ -116,5 +117,6 @@ def plan(path, machine, limits=None, *, programmed_feed: bool = True,
     kin_dev = float(np.abs(Q[:len(J)] - J).max()) if len(J) else 0.0
     prof.info.update({"programmed_feed": bool(programmed_feed), "linuxcnc": "2.9 (tp, planner type 0)",
                       "samples": int(k1 - k0 + 1), "joint_vs_ik_deviation_mm": kin_dev,
-                      "operator_pause_s": smp.paused_s, "start_delay_s": float(start_delay_s)})
+                      "operator_pause_s": smp.paused_s,
+                      "operator_pause_uncertainty_s": smp.pause_uncertainty_s, "start_delay_s": float(start_delay_s)})
     return prof

@@ -72,6 +72,7 @@ class Samples:
     line: np.ndarray          # motion.program-line
     motion_type: np.ndarray   # motion.motion-type (1 traverse, 2 feed, 3 arc)
     paused_s: float = 0.0     # M0/M1 pauses left out (the operator's time): their rows are not here
+    pause_uncertainty_s: float = 0.0   # ± where the pauses began, summed: half the polls' gaps
 
     def moving_span(self, tol: float = 1e-9) -> tuple[int, int]:
         """(k0, k1): rows k0 (at rest, last before any motion) .. k1 (first at the final
@@ -333,15 +334,17 @@ def _read_samples(file: FsPath, T: float, pauses: FsPath | None = None) -> Sampl
         raise LinuxCNCError(f"linuxcnc: sampler rows not consecutive after sample {int(n[gaps[0]])}")
     # an M0/M1 pause lasts as long as the operator: its rows (at rest) are left out
     drop = np.zeros(len(data), bool)
+    gaps_sum = 0
     if pauses is not None and pauses.is_file():
-        for a, b in (map(int, ln.split()) for ln in pauses.read_text().splitlines() if ln.strip()):
+        for a, b, gap in (map(int, ln.split()) for ln in pauses.read_text().splitlines() if ln.strip()):
+            gaps_sum += gap
             rows = (n >= a) & (n <= b)
             if rows.any() and np.abs(data[rows, 4:7] - data[rows, 4:7][0]).max() > 0.0:
                 raise LinuxCNCError(f"linuxcnc: the tool moved during the pause at samples {a}..{b}")
             drop |= rows
     data = data[~drop]
     return Samples(T, data[:, 1:4], data[:, 4:7], data[:, 7], data[:, 8].astype(int),
-                   data[:, 9].astype(int), float(drop.sum()) * T)
+                   data[:, 9].astype(int), float(drop.sum()) * T, 0.5 * gaps_sum * T)
 
 
 def finite_or(x, default):
