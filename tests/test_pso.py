@@ -63,7 +63,7 @@ def test_the_basis_matrices_are_the_spline_and_its_derivatives():
 def test_the_time_map_inverts_and_the_samples_reach_the_end():
     """s(t) from Newton on the Gauss–Legendre time map: t(s(t)) = t at 2000 times, s(T_end) = L."""
     feed = _feed()
-    c = feed.start_locally(feed.fit(np.sqrt(feed.a_ra)))
+    c = feed.start_within(feed.fit(np.sqrt(feed.a_ra)))
     span = FeedSpan(feed, c, 0)
     tt = np.linspace(0.0, span.duration, 2000)
     x = span.at(tt)[0]
@@ -102,7 +102,9 @@ def test_knots_follow_the_limits_not_the_seed():
     feed = _feed()
     t_ra = feed.station_times(np.sqrt(feed.a_ra))
     m = int(np.ceil(t_ra[-1] / KNOT_STEP_TU))
-    wanted = np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, feed.x)
+    even = np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, feed.x)
+    # and graded toward the G1 joins (test_knots_are_graded_toward_a_g1_join)
+    wanted = np.sort(np.concatenate([even, feed._graded_at_joins(feed.joins, even)]))
     inner = feed.knots[4:-4]
     # moved to a station, at most MIN_SPAN_STATIONS intervals off (kept that far apart, so
     # a wanted knot that close to the end is dropped)
@@ -112,7 +114,7 @@ def test_knots_follow_the_limits_not_the_seed():
 
 def test_blocks_cover_every_coefficient_once_and_one_colour_shares_no_station():
     feed = _feed()
-    sw = BlockSwarm(feed, feed.start_locally(feed.fit(np.sqrt(feed.a_ra))), np.random.default_rng(0), 4, 0.05)
+    sw = BlockSwarm(feed, feed.start_within(feed.fit(np.sqrt(feed.a_ra))), np.random.default_rng(0), 4, 0.05)
     for it in range(BLOCK):
         sw.iteration = it
         seen = []
@@ -126,14 +128,17 @@ def test_blocks_cover_every_coefficient_once_and_one_colour_shares_no_station():
 
 
 def test_the_context_stays_within_the_limits_and_never_slows_down():
+    """From the start slowed to 85 % of its feed, 12 iterations stay within the limits, never
+    slow down, and end faster than the start itself (18.11 against 18.26 scaled, measured)."""
     feed = _feed()
-    sw = BlockSwarm(feed, feed.start_locally(feed.fit(np.sqrt(feed.a_ra))), np.random.default_rng(1), 8, 0.05)
+    c0 = feed.start_within(feed.fit(np.sqrt(feed.a_ra)))
+    sw = BlockSwarm(feed, c0 * 0.85 ** 1.5, np.random.default_rng(1), 8, 0.05)
     times = [feed.time(sw.c)]
     for _ in range(12):
         sw.step()
         assert feed.reads(sw.c)[1].max() <= 1.0
         times.append(feed.time(sw.c))
-    assert all(b <= a for a, b in zip(times, times[1:])) and times[-1] < 0.97 * times[0]
+    assert all(b <= a for a, b in zip(times, times[1:])) and times[-1] < feed.time(c0)
 
 
 def test_same_seed_same_profile_other_seed_other_swarm():
@@ -196,12 +201,57 @@ def test_both_are_declared_stochastic_and_the_others_not():
     assert get("pso").stochastic is True and get("pso_socp").stochastic is True
 
 
+def _blend_path(r):
+    """Two lines joined by a quarter arc of radius r: a G64 blend of a few µm when r is."""
+    return SegmentPath([Line([-40, -r, Z], [0, -r, Z]), Arc([0, -r, Z], [0, 0, Z], [0, 0, 1], np.pi / 2),
+                        Line([r, 0, Z], [r, 40, Z])])
+
+
+def test_knots_are_graded_toward_a_g1_join():
+    """At a µm blend the joins' reads cap the feed in a dip TOPP2-RA passes in no time, so its
+    even time steps put no knot near; the seed's feed fitted on those knots rings (its stations
+    read 20.7 × a limit, measured) and its start is 0.570 s against the seed's 0.301 s.  Knots at
+    each join and h·2^k either side: the fit reads 4.1 ×, the start 0.374 s."""
+    path = _blend_path(0.002)
+    piece = topp3.pieces_of(path, KEOPS, KEOPS.limits, topp3.Settings("pso"))[0]
+    graded = FeedSpline(piece, 0.0)
+    t_ra = graded.t_ra
+    m = int(np.ceil(t_ra[-1] / KNOT_STEP_TU))
+    even = FeedSpline(piece, 0.0, inner=graded._on_stations(np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, graded.x)))
+    assert len(graded.joins) == 2
+    for i, *_ in graded.joins:
+        assert np.abs(graded.knots - graded.x[i]).min() <= MIN_SPAN_STATIONS * max(graded.dx[i - 1], graded.dx[i])
+    seed = plan("scurve_joint", path, KEOPS)
+    sd = np.interp(piece.grid, seed.s, seed.sd) * piece.tu
+    fit_g, fit_e = graded.fit(sd), even.fit(sd)
+    assert graded.reads(fit_g)[1].max() < even.reads(fit_e)[1].max() / 3
+    start_g, start_e = (f.time(f.start_within(c)) * piece.tu for f, c in ((graded, fit_g), (even, fit_e)))
+    assert start_g < 0.8 * start_e and start_g < 1.3 * seed.execution_time_s
+
+
+def test_the_start_is_the_target_where_it_holds_and_below_it_by_a_climb_elsewhere():
+    """start_within: within the limits, never above the target (coefficient by coefficient), the
+    target itself where the target holds, and faster than the target stretched as a whole (the
+    climb raises the stretches that hold back toward the target).  Deterministic."""
+    path = _blend_path(0.002)
+    feed = FeedSpline(topp3.pieces_of(path, KEOPS, KEOPS.limits, topp3.Settings("pso"))[0], 0.0)
+    target = feed.fit(np.sqrt(feed.a_ra)) * 1.3 ** 1.5          # 30 % above the jerk-free optimum
+    assert feed.reads(target)[1].max() > 1.2
+    c = feed.start_within(target)
+    assert feed.reads(c)[1].max() <= 1.0 and np.all(c <= target)
+    uniform = feed.scaled_within(target)
+    assert feed.time(c) < feed.time(uniform) - 0.5 * (feed.time(uniform) - feed.time(target))
+    assert np.array_equal(feed.start_within(target), c)
+    ok = feed.start_within(c)
+    assert np.array_equal(ok, c)
+
+
 def test_the_push_keeps_the_limits_and_only_raises_the_feed():
     """Every coefficient only grows (so w and the feed only grow: the basis is ≥ 0), every
     station stays within its limits, and from a start scaled down to half the feed the push
     gains back at least a third of the lost time."""
     feed = _feed()
-    c0 = feed.start_locally(feed.fit(np.sqrt(feed.a_ra)))
+    c0 = feed.start_within(feed.fit(np.sqrt(feed.a_ra)))
     low = c0 * 0.5 ** 1.5                              # half the feed everywhere: twice the time
     c = feed.push(low, 3)
     assert np.all(c >= low) and feed.reads(c)[1].max() <= 1.0
@@ -213,7 +263,7 @@ def test_refined_knots_keep_the_old_ones_and_the_same_feed():
     """Knot insertion: the refined spline has every old knot, about twice as many coefficients,
     and the same w at the stations (to the least squares' round-off)."""
     feed = _feed()
-    c = feed.start_locally(feed.fit(np.sqrt(feed.a_ra)))
+    c = feed.start_within(feed.fit(np.sqrt(feed.a_ra)))
     fine, cf = feed.refined(c)
     assert np.all(np.isin(feed.knots[4:-4], fine.knots[4:-4]))
     assert feed.K < fine.K <= 2 * feed.K

@@ -34,12 +34,12 @@ MIN_SPANS = 4
 # knots at least this many station intervals apart: a coefficient whose support held fewer
 # stations would be free between them
 MIN_SPAN_STATIONS = 3
-# rounds of the local scaling that makes a start feasible (start_locally), the coefficients
-# either side its stretch tapers off over, and the largest rest a uniform stretch then takes off
-START_ROUNDS = 60
-TAPER = 3
-LAST_STRETCH = 1.05
 TINY = 1e-12
+# the start (start_within): uniform stretches to reach the limits, then sweeps of the climb back
+# toward the target, each raise the largest of these fractions of a coefficient's log-ratio to it
+UNIFORM_ROUNDS = 20
+CLIMB_SWEEPS = 40
+CLIMB_FRACTIONS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])
 CHUNK = 1024              # stations a pass of reads() (its temporaries stay in cache)
 # the relative raises a push tries on each coefficient, largest first
 PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
@@ -65,7 +65,8 @@ class FeedSpline:
         self.t_ra = self.station_times(np.sqrt(self.a_ra))
         if inner is None:
             m = max(MIN_SPANS, int(math.ceil(self.t_ra[-1] / KNOT_STEP_TU)))
-            inner = self._on_stations(np.interp(np.linspace(0.0, self.t_ra[-1], m + 1)[1:-1], self.t_ra, self.x))
+            even = np.interp(np.linspace(0.0, self.t_ra[-1], m + 1)[1:-1], self.t_ra, self.x)
+            inner = self._on_stations(np.sort(np.concatenate([even, self._graded_at_joins(piece.joins, even)])))
         self.knots = np.concatenate([[0.0] * 4, inner, [self.L] * 4])
         self.K = len(self.knots) - 4
         self.bases = self._bases()
@@ -84,6 +85,23 @@ class FeedSpline:
         # samples at T read the limit above 1 over the station (tighten)
         self.factor = np.ones((len(self.x), 4))
         self._limits()
+
+    def _graded_at_joins(self, joins, even):
+        """Knots at each G1 join and h·2^k either side (h: MIN_SPAN_STATIONS station intervals
+        there), out to half the even knots' spacing around it: a join's read caps the feed in
+        a dip a few µm to mm wide, which TOPP2-RA passes in almost no time, so the even steps of
+        its time put no knot there, and a spline fitted to a feed that dips between knots rings."""
+        out = []
+        bounds = np.concatenate([[0.0], even, [self.L]])
+        for i, *_ in joins:
+            xj = self.x[i]
+            k = int(np.searchsorted(bounds, xj))
+            room = 0.5 * (bounds[min(k, len(bounds) - 1)] - bounds[max(k - 1, 0)])
+            h = MIN_SPAN_STATIONS * max(self.dx[max(i - 1, 0)], self.dx[min(i, len(self.dx) - 1)])
+            off = h * 2.0 ** np.arange(max(int(math.log2(max(room, h) / h)), 0) + 1)
+            off = off[off < room]
+            out += [[xj], xj - off, xj + off]
+        return np.concatenate(out) if out else np.empty(0)
 
     def _on_stations(self, want):
         """The wanted inner knots moved to stations, ≥ MIN_SPAN_STATIONS intervals apart and from
@@ -211,73 +229,82 @@ class FeedSpline:
     def within(self, c) -> bool:
         return bool(self.reads(c)[1].max() <= 1 + FEASIBLE_TOL)
 
-    def start_locally(self, c):
-        """A version of c within the limits at the stations, or None: each coefficient whose
-        support needs a stretch λ > 1 is scaled by λ^{−3/2} (w ∝ ṡ^{3/2}), the stretch tapered
-        off over TAPER coefficients either side (in log λ), round after round, at most
-        START_ROUNDS; what then still reads above, by at most LAST_STRETCH, is taken off by a
-        uniform stretch.  Deterministic.  (Untapered, neighbours scaled by different λ put kinks
-        in w″, whose jerk the next round reads above, and the rounds diverge: docs/TUNING.md.)"""
-        c = np.array(c, float)
-        for _ in range(START_ROUNDS):
-            need = self.reads(c)[1][:, 0]
-            if need.max() <= 1.0:
-                return c
-            lam = np.array([need[lo:hi + 1].max(initial=0.0) for lo, hi in zip(self.sup_lo, self.sup_hi)])
-            lam = _tapered(np.maximum(lam, 1.0))
-            c = c / lam ** 1.5 / np.where(lam > 1.0, 1.0 + 1e-3, 1.0)
-        worst = float(self.reads(c)[1].max())
-        return c if worst <= 1.0 else self.scaled_within(c) if worst <= LAST_STRETCH else None
+    def start_within(self, target):
+        """A version of ``target`` within the limits at the stations that lies below it by the
+        least the climb finds, or None: the target uniformly stretched until within (a G1 join's
+        read κṡ² shrinks slower than the stretch: repeated, at most UNIFORM_ROUNDS), then each
+        coefficient raised back toward the target by the largest of CLIMB_FRACTIONS of their
+        log-ratio that keeps the stations under its support within, alone and g neighbours
+        together (as push), until a sweep moves nothing or CLIMB_SWEEPS.  Where the target holds
+        the limits it is returned; elsewhere only the stretches that break them stay slower, by
+        as much as their neighbours' limits require.  Deterministic."""
+        target = np.asarray(target, float)
+        c = target
+        for _ in range(UNIFORM_ROUNDS):
+            if self.reads(c)[1].max() <= 1.0:
+                break
+            c = self.scaled_within(c)
+        else:
+            return None
+        if c is target:
+            return target.copy()
+        c = c.copy()
+
+        def toward(c, rows, k):
+            return np.maximum(target[rows] / np.maximum(c[rows], TINY), 1.0)[:, None] ** CLIMB_FRACTIONS[None, :]
+
+        for _ in range(CLIMB_SWEEPS):
+            before = c.copy()
+            for g in (1, 2, 4):
+                self._raise(c, g, toward, CLIMB_FRACTIONS)
+            if np.array_equal(c, before):
+                break
+        return c
+
+    def _raise(self, c, g, factors, gain):
+        """c (in place) with its free coefficients in groups of g neighbours raised by one column
+        of ``factors(c, rows, k)`` (rows: the k-th coefficient of each group; (rows, columns) ≥ 1):
+        per group the column of largest ``gain`` that keeps the stations under the group's
+        supports within the limits (none where none does).  Groups g + 3 apart have supports
+        that share at most a knot, where the other's w, w′, w″ are 0: a pass raises every
+        (g + 3)-th group at once."""
+        period = g + 3
+        for r in range(period):
+            firsts = np.arange(1 + r, self.K - 1, period)
+            if not len(firsts):
+                continue
+            at = firsts[:, None] + np.arange(g)[None, :]          # (groups, g)
+            inside = at <= self.K - 2
+            C = np.repeat(c[:, None], len(gain), axis=1)
+            for k in range(g):
+                rows = at[inside[:, k], k]
+                C[rows] *= factors(c, rows, k)
+            last = np.minimum(firsts + g - 1, self.K - 2)
+            need = np.vstack([self.reads(C)[1], np.zeros((1, len(gain)))])
+            lo, hi = self.sup_lo[firsts], self.sup_hi[last]
+            worst = np.maximum.reduceat(need, np.ravel(np.column_stack([lo, hi + 1])), axis=0)[::2]
+            score = np.where(worst <= 1.0, gain[None, :], -1.0)
+            best = np.argmax(score, axis=1)
+            move = score[np.arange(len(firsts)), best] > 0
+            for k in range(g):
+                sel = move & inside[:, k]
+                c[at[sel, k]] = C[at[sel, k], best[sel]]
 
     def push(self, c, sweeps: int = 1, groups=(1, 2, 4)):
         """c with its free coefficients raised, g neighbours at a time for each g of ``groups``, by
         the largest of PUSH_STEPS that keeps the stations under their support within the limits
-        (none where none does): w grows with every coefficient (the basis is ≥ 0), so a raise
-        never costs time.  Neighbours are raised alike, or by a ramp rising or falling across
-        them (the jerk at a group's edge limits a raise alike where the feed climbs or falls
-        there).  Groups g + 3 apart have supports that share at most a knot, where the other's
-        w, w′, w″ are 0: a pass raises every (g + 3)-th group at once.  Deterministic."""
+        (none where none does; _raise): w grows with every coefficient (the basis is ≥ 0), so a
+        raise never costs time.  Neighbours are raised alike, or by a ramp rising or falling
+        across them (the jerk at a group's edge limits a raise alike where the feed climbs or
+        falls there); of the feasible raises, the one largest in sum.  Deterministic."""
         c = np.array(c, float)
         for _ in range(sweeps):
             for g in groups:
                 shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else [])
                 up = np.concatenate([1.0 + np.outer(PUSH_STEPS, sh) for sh in shapes])    # (columns, g)
-                period = g + 3
-                for r in range(period):
-                    firsts = np.arange(1 + r, self.K - 1, period)
-                    if not len(firsts):
-                        continue
-                    at = firsts[:, None] + np.arange(g)[None, :]          # (groups, g)
-                    inside = at <= self.K - 2
-                    C = np.repeat(c[:, None], len(up), axis=1)
-                    for k in range(g):
-                        rows = at[inside[:, k], k]
-                        C[rows] *= up[None, :, k]
-                    last = np.minimum(firsts + g - 1, self.K - 2)
-                    need = np.vstack([self.reads(C)[1], np.zeros((1, len(up)))])
-                    lo, hi = self.sup_lo[firsts], self.sup_hi[last]
-                    worst = np.maximum.reduceat(need, np.ravel(np.column_stack([lo, hi + 1])), axis=0)[::2]
-                    # per group the feasible column that raises its coefficients most in sum
-                    gain = np.where(worst <= 1.0, (up - 1).sum(axis=1)[None, :], -1.0)
-                    best = np.argmax(gain, axis=1)
-                    move = gain[np.arange(len(firsts)), best] > 0
-                    for k in range(g):
-                        sel = move & inside[:, k]
-                        c[at[sel, k]] *= up[best[sel], k]
+                self._raise(c, g, lambda c, rows, k: up[None, :, k], (up - 1).sum(axis=1))
         return c
 
     def scaled_within(self, c):
         """c scaled as a whole (a uniform time stretch) until every station is within its limits."""
         return np.asarray(c, float) / max(float(self.reads(c)[1].max()), 1.0) ** 1.5 / (1 + 1e-9)
-
-
-def _tapered(lam):
-    """Per coefficient the largest of λ_k^{1 − |k − j|/(TAPER + 1)} over |k − j| ≤ TAPER: a
-    stretch that fades out over its neighbours instead of a step between them."""
-    L = np.log(lam)
-    out = L.copy()
-    for d in range(1, TAPER + 1):
-        w = 1.0 - d / (TAPER + 1)
-        out[d:] = np.maximum(out[d:], w * L[:-d])
-        out[:-d] = np.maximum(out[:-d], w * L[d:])
-    return np.exp(out)

@@ -17,8 +17,10 @@ times, and nothing is chosen per path.  The search runs on these knots, then on 
 dense (REFINEMENTS times): knot insertion keeps the feed, so each level starts where the last
 ended, and the coarse levels move the feed broadly where the fine ones would need many steps.
 
-Start: the `scurve_joint` seed's feed fitted by the spline, made feasible by scaling each
-coefficient by the stretch its support needs (feed.start_locally).
+Start: the `scurve_joint` seed's feed fitted by the spline (knots also graded toward each G1
+join, where the seed dips), brought within the limits by the least the climb of
+feed.start_within finds: stretched as a whole, then each coefficient raised back toward the fit
+as far as its stations allow.
 
 Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
 the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
@@ -121,11 +123,11 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
 
     feeds, starts = [], []
     for p in pieces:
-        # the papers' start: the s-curve seed's feed as a spline, made feasible locally (or else
-        # by a uniform stretch)
+        # the papers' start: the s-curve seed's feed as a spline, within the limits (or else
+        # stretched as a whole)
         feed = FeedSpline(p, margin)
         c = feed.fit(_seed_feed(seed_prof, p))
-        c = _first_not_none(feed.start_locally(c), feed.scaled_within(c))
+        c = _first_not_none(feed.start_within(c), feed.scaled_within(c))
         feeds.append(feed)
         starts.append(c if feed.within(c) else None)
     no_start = [p.where() for p, c in zip(pieces, starts) if c is None]
@@ -187,7 +189,7 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
     # then on knots twice as dense, from the same feed (knot insertion keeps it), REFINEMENTS times
     for _ in range(REFINEMENTS):
         finer = [sw.feed.refined(sw.c) for sw in swarms]
-        swarms = [BlockSwarm(f, _first_not_none(f.start_locally(c), f.scaled_within(c)), rng, particles, spread)
+        swarms = [BlockSwarm(f, _first_not_none(f.start_within(c), f.scaled_within(c)), rng, particles, spread)
                   for f, c in finer]
         progress.run(swarms, iterations)
     feeds = [sw.feed for sw in swarms]
@@ -212,16 +214,10 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
             for f in feeds:
                 if f.piece.s0 <= hi and f.piece.s1 >= lo:
                     f.tighten(col, lo, hi, ratio, topp3.TIGHTEN_EXTRA * 2 ** rnd)
-        # the context within the tightened limits again: scaled locally, or where that slows a
-        # stretch down more than it had to (the slowed zone's ramp read above before it, round
-        # after round), as a whole; the swarm's pushes then raise it back where it may be
-        again, times = [], []
-        for sw in swarms:
-            options = [c for c in (sw.feed.start_locally(sw.c), sw.feed.scaled_within(sw.c)) if c is not None]
-            t = [sw.feed.time(c) for c in options]
-            k = int(np.argmin(t))      # the local one where it is no slower (first of equals)
-            again.append(options[k])
-            times.append(t[k])
+        # the context within the tightened limits again (start_within: below it by the least
+        # the climb finds); the swarm's pushes then raise it where it may be
+        again = [_first_not_none(sw.feed.start_within(sw.c), sw.feed.scaled_within(sw.c)) for sw in swarms]
+        times = [sw.feed.time(c) for sw, c in zip(swarms, again)]
         if sum(times) > COLLAPSE * _total(swarms):
             break       # a context that collapsed somewhere
         repairs.append(len(above))
