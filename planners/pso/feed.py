@@ -41,8 +41,12 @@ UNIFORM_ROUNDS = 20
 CLIMB_SWEEPS = 40
 CLIMB_FRACTIONS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])
 CHUNK = 1024              # stations a pass of reads() (its temporaries stay in cache)
-# the relative raises a push tries on each coefficient, largest first
+# the relative raises a push tries on each coefficient, largest first, and the sizes of the
+# groups of neighbours it raises together: with groups of 1–4 only, the swarm stalled within 1 %
+# of its seed where the jerk holds the feed over many knots (cusp_epitrochoid_keops 1.37 ×
+# T_ref; with 8 and 16 1.21 ×: docs/TUNING.md)
 PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
+PUSH_GROUPS = (1, 2, 4, 8, 16)
 
 
 def interval_time(dx, sd0, sd1):
@@ -81,6 +85,9 @@ class FeedSpline:
         self.lims = [lim * (1 - margin) for lim in piece.lims]
         self.cap2 = piece.cap2 * (1 - margin) ** 2
         self.joins = piece.joins
+        # a join's read at T as rows: at the join either side, and (graded stations) weighted
+        # at the stations within READ_REACH periods' travel of it (topp3.Piece.join_reads)
+        self.join_reads = piece.join_reads
         # per station the fraction of each limit (v, a, j, feed) it is held to: 1 until the
         # samples at T read the limit above 1 over the station (tighten)
         self.factor = np.ones((len(self.x), 4))
@@ -188,9 +195,9 @@ class FeedSpline:
                 qj = np.maximum(qj, np.abs(d3 * sd3 + 3 * d2 * sd * sdd + d1 * sddd))
             need[lo:hi] = np.maximum(np.maximum(self.q_v[lo:hi] * sd, self.q_feed[lo:hi] * sd),
                                      np.maximum(np.sqrt(qa * self.q_a[lo:hi]), np.cbrt(qj * self.q_j[lo:hi])))
-        for i, D1, D2, D3, kappa in self.joins:
+        for i, D1, D2, D3, kappa in self.join_reads:
             sd, sdd, sddd = (x[0] for x in self.motion(C, [B[i:i + 1] for B in self.bases]))
-            for side in range(2):
+            for side in range(len(D1)):
                 for m in range(3):
                     jerk = D3[side, m] * sd ** 3 + 3 * D2[side, m] * sd * sdd + D1[side, m] * sddd
                     need[i] = np.maximum(need[i], np.cbrt((np.abs(jerk) + kappa[m] * sd * sd) * self.q_j[i, 0]))
@@ -290,17 +297,20 @@ class FeedSpline:
                 sel = move & inside[:, k]
                 c[at[sel, k]] = C[at[sel, k], best[sel]]
 
-    def push(self, c, sweeps: int = 1, groups=(1, 2, 4)):
+    def push(self, c, sweeps: int = 1, groups=PUSH_GROUPS):
         """c with its free coefficients raised, g neighbours at a time for each g of ``groups``, by
         the largest of PUSH_STEPS that keeps the stations under their support within the limits
         (none where none does; _raise): w grows with every coefficient (the basis is ≥ 0), so a
         raise never costs time.  Neighbours are raised alike, or by a ramp rising or falling
         across them (the jerk at a group's edge limits a raise alike where the feed climbs or
-        falls there); of the feasible raises, the one largest in sum.  Deterministic."""
+        falls there), or, in groups of more than 4, by a half sine (the middle most, the edges
+        least: where the jerk holds the feed, a stretch rises only as a whole and smoothly); of
+        the feasible raises, the one largest in sum.  Deterministic."""
         c = np.array(c, float)
         for _ in range(sweeps):
             for g in groups:
-                shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else [])
+                shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else []) \
+                    + ([np.sin(np.pi * (np.arange(g) + 0.5) / g)] if g > 4 else [])
                 up = np.concatenate([1.0 + np.outer(PUSH_STEPS, sh) for sh in shapes])    # (columns, g)
                 self._raise(c, g, lambda c, rows, k: up[None, :, k], (up - 1).sum(axis=1))
         return c

@@ -8,7 +8,9 @@ then the TOPP3-SOCP polish.
 Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations, here also a
 hair either side of every NURBS knot, where q‴ may jump): joint v, a, j limits, F_max and the
 chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at T added to the
-continuous jerk.
+continuous jerk, there and, weighted, at stations graded toward the join within 1.5 periods'
+travel (topp3.Settings.join_grading, as `optimal`: held at the join alone, the swarm's profile
+read 2 × J at T next to pocket_keops's µm blends and no stretch brought it within).
 
 Parametrisation (feed.py): per rest-to-rest piece w = ṡ^{3/2} as a cubic B-spline over arc
 length, its knots placed by the limits (equal steps of the jerk-free optimum's time), so the
@@ -25,12 +27,11 @@ as far as its stations allow.
 Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
 the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
 block's best) stays within the limits at the stations (Deb's feasibility rule); after each
-iteration the context is pushed to the limits (feed.push: each coefficient, or a few
-neighbours, raised by the largest step that keeps their stations within the limits: a repair
+iteration the context is pushed to the limits (feed.push: each coefficient, or groups of up
+to 16 neighbours, raised by the largest step that keeps their stations within the limits: a repair
 operator in the sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed
 lies).  Where its samples at T read above a limit, the limit is held lower at the stations
-there, the context is brought within it again (scaled locally, or as a whole where that is
-faster) and the swarm goes on (_search).
+there, the context is brought within it again (feed.start_within) and the swarm goes on (_search).
 
 Polish (`pso_socp` only): the TOPP3-SOCP (topp3.py), linearised on each piece around the larger
 of the swarm's and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2
@@ -80,7 +81,7 @@ REPAIR_ITERATIONS = 10     # swarm iterations after each
 COLLAPSE = 2.0
 
 
-def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 20,
+def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 10,
          margin: float = 0.002, spread: float = 0.05, grid_mm: float = 0.1,
          time_budget_s: float | None = None, seed_profile=None) -> Profile:
     """`pso`: the swarm alone (module docstring): ``particles`` per block swarm, ``iterations`` of
@@ -90,7 +91,7 @@ def plan(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iter
                  seed_profile=seed_profile, polish=False, polish_linearisations=0)
 
 
-def plan_socp(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 20,
+def plan_socp(path, machine, limits=None, *, seed: int = 0, particles: int = 20, iterations: int = 10,
               margin: float = 0.002, spread: float = 0.05, grid_mm: float = 0.1,
               polish_linearisations: int = 2, time_budget_s: float | None = None, seed_profile=None) -> Profile:
     """`pso_socp`: the swarm, then the TOPP3-SOCP polish (at most ``polish_linearisations`` SOCP
@@ -117,7 +118,8 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
     settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1),
-                               station_radii=SWARM_STATION_RADII, knot_stations=True)
+                               station_radii=SWARM_STATION_RADII, knot_stations=True,
+                               join_grading=True)
     pieces = topp3.pieces_of(path, machine, limits, settings)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
