@@ -18,7 +18,7 @@ KEOPS = load_machine("keops")
 Z = -400.0
 PATH = SegmentPath([Line([-40, -20, Z], [0, -20, Z]), Arc([0, -20, Z], [0, 0, Z], [0, 0, 1], np.pi / 2),
                     Line([20, 0, Z], [20, 30, Z])])
-FAST = {"iterations": 15, "particles": 8}
+FAST = {"iterations": 4, "particles": 8}
 
 
 def _feed(path=PATH, machine=KEOPS, margin=0.0):
