@@ -15,7 +15,8 @@ Knots are placed by the path's limits, not by any profile's switch times: at equ
 the time of the jerk-free time-optimal profile (TOPP2-RA on the same stations), KNOT_STEP_TU
 jerk time scales apart, so they are dense where the limits hold the feed low (lobes, joins,
 the workspace edge) and sparse on fast stretches, and their number grows with the piece's
-duration under its limits, not with its segment count.
+duration under its limits, not with its segment count.  Where a G1 join's read dips the feed
+more than those steps resolve, knots are graded toward it (_graded_at_joins).
 """
 from __future__ import annotations
 
@@ -102,7 +103,7 @@ class FeedSpline:
         intervals there), out to half the even knots' spacing around it: such a dip is a few µm
         to mm wide, TOPP2-RA passes it in almost no time, so the even steps of its time put no
         knot there, and a spline fitted to a feed that dips between knots rings.  (Graded at
-        joins that do not dip, the knots only held the swarm: keops/bird 1.828 → 1.875 s.)"""
+        joins that do not dip, the knots only held the swarm: docs/TUNING.md.)"""
         out = []
         bounds = np.concatenate([[0.0], even, [self.L]])
         sd = np.sqrt(self.a_ra)
@@ -260,7 +261,7 @@ class FeedSpline:
             if self.reads(c)[1].max() <= 1.0:
                 break
             c = self.scaled_within(c)
-        else:
+        if self.reads(c)[1].max() > 1.0:
             return None
         if c is target:
             return target.copy()
