@@ -512,3 +512,31 @@ def test_flf_minima_are_found_by_the_golden_section_on_all_brackets_at_once(monk
     monkeypatch.setattr(pl, "F_at", lambda s: (s - np.floor(s) - 0.37) ** 2)
     x, fx = pl.minimise_F(np.arange(10.0), np.arange(10.0) + 1)
     assert np.abs(x - (np.arange(10) + 0.37)).max() <= 1e-6 and fx.max() <= 1e-12
+
+
+def test_near_cusps_by_a_critical_point_are_critical_points_themselves():
+    """cusp_trochoid_lcnc's near-cusps (radius ~2 µm) lie 0.0235 mm from each end of the path,
+    and one has a second dip 0.5 µm after it. Dropped as "the end's own dip" and merged into
+    the first dip, they left segments whose s-curve had to stay under the dip's feed (~0.1 mm/s)
+    over tens of mm: 869 s. The independent reference (reference.json, a converged
+    transcription) is 1.555 s; the other corpus paths' scurve_joint runs 1.1–1.5 × theirs."""
+    from pathlib import Path
+    from harness.corpus.analysis import load_reference
+    from planners.paths import resolve_path
+    m = load_machine("linuxcnc_delta")
+    corpus = Path(__file__).resolve().parents[1] / "benchmarks" / "paths" / "corpus"
+    path = resolve_path(str(corpus / "cusp_trochoid_lcnc.json"), home=m.home)
+    pl = scurve._Planner(path, m, m.limits, True, 0.005, 0.05)
+    s, v = pl.critical_points()
+    L = path.length
+    g, F = pl.grid, pl.F
+    for lo, hi in ((0.0, 0.05), (L - 0.05, L), (85.8812, 85.8818)):
+        inside = (g > lo) & (g < hi)
+        dip = g[inside][np.argmin(F[inside])]
+        near = np.argmin(np.abs(s - dip))
+        # the dip itself (to the golden section's tolerance), at no more than its FLF
+        assert abs(s[near] - dip) < 2e-5 and v[near] <= F[inside].min() * (1 + 1e-6), (lo, s[near], dip)
+    p = plan("scurve_joint", path, m)
+    r = command_metrics(m, path.point(p.s), p.T, p.s)
+    T_ref = load_reference()["cusp_trochoid_lcnc"][0]
+    assert r["feasible"] and r["execution_time_s"] < 2 * T_ref, (r["execution_time_s"], T_ref)
