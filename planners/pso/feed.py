@@ -15,8 +15,9 @@ Knots are placed by the path's limits, not by any profile's switch times: at equ
 the time of the jerk-free time-optimal profile (TOPP2-RA on the same stations), KNOT_STEP_TU
 jerk time scales apart, so they are dense where the limits hold the feed low (lobes, joins,
 the workspace edge) and sparse on fast stretches, and their number grows with the piece's
-duration under its limits, not with its segment count.  Where a G1 join's read dips the feed
-more than those steps resolve, knots are graded toward it (_graded_at_joins).
+duration under its limits, not with its segment count.  Where a G1 join's read or a near-cusp's
+curvature dips the feed more than those steps resolve, knots are graded toward it
+(_graded_at_dips).
 """
 from __future__ import annotations
 
@@ -36,9 +37,10 @@ MIN_SPANS = 4
 # stations would be free between them
 MIN_SPAN_STATIONS = 3
 TINY = 1e-12
-# knots are graded toward a G1 join where the feed TOPP2-RA allows there is below this fraction
-# of the feed at the even knots either side (µm blends read 0.001–0.11, a NURBS's joins 0.59–0.82)
-JOIN_DIP = 0.5
+# knots are graded toward a join or a local minimum where the feed TOPP2-RA allows is below this
+# fraction of the feed at the even knots either side (µm blends read 0.001–0.11, a NURBS's
+# joins 0.59–0.82)
+FEED_DIP = 0.5
 # the start (start_within): uniform stretches to reach the limits, then sweeps of the climb back
 # toward the target, each raise the largest of these fractions of a coefficient's log-ratio to it
 UNIFORM_ROUNDS = 20
@@ -74,7 +76,7 @@ class FeedSpline:
         if inner is None:
             m = max(MIN_SPANS, int(math.ceil(self.t_ra[-1] / KNOT_STEP_TU)))
             even = np.interp(np.linspace(0.0, self.t_ra[-1], m + 1)[1:-1], self.t_ra, self.x)
-            inner = self._on_stations(np.sort(np.concatenate([even, self._graded_at_joins(piece.joins, even)])))
+            inner = self._on_stations(np.sort(np.concatenate([even, self._graded_at_dips(piece.joins, even)])))
         self.knots = np.concatenate([[0.0] * 4, inner, [self.L] * 4])
         self.K = len(self.knots) - 4
         self.bases = self._bases()
@@ -97,21 +99,24 @@ class FeedSpline:
         self.factor = np.ones((len(self.x), 4))
         self._limits()
 
-    def _graded_at_joins(self, joins, even):
-        """Knots at each G1 join whose read dips the feed (TOPP2-RA's there below JOIN_DIP × the
-        larger at the even knots either side) and h·2^k either side (h: MIN_SPAN_STATIONS station
-        intervals there), out to half the even knots' spacing around it: such a dip is a few µm
-        to mm wide, TOPP2-RA passes it in almost no time, so the even steps of its time put no
-        knot there, and a spline fitted to a feed that dips between knots rings.  (Graded at
-        joins that do not dip, the knots only held the swarm: docs/TUNING.md.)"""
+    def _graded_at_dips(self, joins, even):
+        """Knots at each station where the feed dips (TOPP2-RA's below FEED_DIP × the larger at the
+        even knots either side: a G1 join's read, a near-cusp's curvature peak) and h·2^k either
+        side (h: MIN_SPAN_STATIONS station intervals there), out to half the even knots' spacing
+        around it: such a dip is a few µm to mm wide, TOPP2-RA passes it in almost no time, so
+        the even steps of its time put no knot there, and a spline fitted to a feed that dips
+        between knots rings.  (Graded at joins that do not dip, the knots only held the swarm:
+        docs/TUNING.md.)"""
         out = []
         bounds = np.concatenate([[0.0], even, [self.L]])
         sd = np.sqrt(self.a_ra)
-        for i, *_ in joins:
+        # the candidates: the joins and every strict local minimum of the feed inside the piece
+        inner = np.nonzero((sd[1:-1] < sd[:-2]) & (sd[1:-1] <= sd[2:]))[0] + 1
+        for i in np.union1d(np.array([j[0] for j in joins], np.intp), inner).tolist():
             xj = self.x[i]
             k = int(np.searchsorted(bounds, xj))
             left, right = np.searchsorted(self.x, [bounds[max(k - 1, 0)], bounds[min(k, len(bounds) - 1)]])
-            if sd[i] >= JOIN_DIP * max(sd[left], sd[min(right, len(sd) - 1)]):
+            if sd[i] >= FEED_DIP * max(sd[left], sd[min(right, len(sd) - 1)]):
                 continue
             room = 0.5 * (bounds[min(k, len(bounds) - 1)] - bounds[max(k - 1, 0)])
             h = MIN_SPAN_STATIONS * max(self.dx[max(i - 1, 0)], self.dx[min(i, len(self.dx) - 1)])
