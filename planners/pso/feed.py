@@ -101,11 +101,12 @@ class FeedSpline:
 
     def _graded_at_dips(self, joins, even):
         """Knots at each station where the feed dips (TOPP2-RA's below FEED_DIP × the larger at the
-        even knots either side: a G1 join's read, a near-cusp's curvature peak) and h·2^k either
-        side (h: MIN_SPAN_STATIONS station intervals there), out to half the even knots' spacing
-        around it: such a dip is a few µm to mm wide, TOPP2-RA passes it in almost no time, so
-        the even steps of its time put no knot there, and a spline fitted to a feed that dips
-        between knots rings.  (Graded at joins that do not dip, the knots only held the swarm:
+        even knots either side: a G1 join's read, a near-cusp's curvature peak) over a stretch
+        narrower than the even knots' spacing there, and h·2^k either side (h: MIN_SPAN_STATIONS
+        station intervals there), out to half that spacing: such a dip is a few µm wide,
+        TOPP2-RA passes it in almost no time, so the even steps of its time put no knot there,
+        and a spline fitted to a feed that dips between knots rings.  (Graded at joins that do
+        not dip, or at a lobe's dip as wide as the spacing, the knots only held the swarm:
         docs/TUNING.md.)"""
         out = []
         bounds = np.concatenate([[0.0], even, [self.L]])
@@ -118,12 +119,27 @@ class FeedSpline:
             left, right = np.searchsorted(self.x, [bounds[max(k - 1, 0)], bounds[min(k, len(bounds) - 1)]])
             if sd[i] >= FEED_DIP * max(sd[left], sd[min(right, len(sd) - 1)]):
                 continue
-            room = 0.5 * (bounds[min(k, len(bounds) - 1)] - bounds[max(k - 1, 0)])
+            spacing = bounds[min(k, len(bounds) - 1)] - bounds[max(k - 1, 0)]
+            if self._dip_width(sd, i, spacing) >= spacing:
+                continue            # as wide as the even knots' spacing: they follow it
+            room = 0.5 * spacing
             h = MIN_SPAN_STATIONS * max(self.dx[max(i - 1, 0)], self.dx[min(i, len(self.dx) - 1)])
             off = h * 2.0 ** np.arange(max(int(math.log2(max(room, h) / h)), 0) + 1)
             off = off[off < room]
             out += [[xj], xj - off, xj + off]
         return np.concatenate(out) if out else np.empty(0)
+
+    def _dip_width(self, sd, i, upto):
+        """Length of the stretch around station i where the feed stays below its value there
+        / FEED_DIP (the dip), looked for up to ``upto`` either side."""
+        x, top = self.x, sd[i] / FEED_DIP
+        lo, hi = np.searchsorted(x, [x[i] - upto, x[i] + upto])
+        hi = min(hi, len(x) - 1)
+        left = np.nonzero(sd[lo:i + 1] >= top)[0]
+        right = np.nonzero(sd[i:hi + 1] >= top)[0]
+        a = x[lo + left[-1]] if len(left) else x[i] - upto
+        b = x[i + right[0]] if len(right) else x[i] + upto
+        return b - a
 
     def _on_stations(self, want):
         """The wanted inner knots moved to stations, ≥ MIN_SPAN_STATIONS intervals apart and from

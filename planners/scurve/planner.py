@@ -6,7 +6,9 @@ Erwinski et al., NU·ROBOTI·FTS 2022 (shared/SOURCES.md §A, §D):
 1. FLF(s) = min(F_max, F_clim, F_alim, F_jlim) with F_clim = (2/T)√(ρ² − (ρ − ε)²),
    F_alim = √(A/κ), F_jlim = ∛(J/κ²).
 2. Critical points: the path ends and exact-stop corners (feed 0) and the FLF local minima
-   (a sample lower than 5 neighbours on each side, refined by Brent's method).
+   (a sample lower than 5 neighbours on each side, refined by a golden-section search); a
+   minimum next to a stop or another critical point is dropped only where the feed could not
+   rise above it over the distance between them (near-cusps µm apart are kept).
 3. Between critical points one jerk-limited 1-D profile (v0, a = 0) → (v1, a = 0) over the arc
    length of the segment: computed by ruckig (time-optimal with target velocity) rather than
    hand-written seven-phase formulas; its peak feed is lowered by bisection (≤ 30 iterations
