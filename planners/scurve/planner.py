@@ -57,7 +57,9 @@ MIN_NEIGHBOURS = 5          # TII 2022: a minimum is lower than 5 neighbours eac
 PEAK_BISECTION_ITERS = 30   # TII 2022: ≤ 30 iterations or Δ < 0.001 mm/s
 PEAK_BISECTION_TOL = 1e-3   # mm/s
 REPAIR_MIN_FACTOR = 0.05    # the lowest A or J factor the repair tries (TII 2022)
-AT_T_REPLANS = 4            # plans again after a reading at T above a limit, at most
+# plans again after a reading at T above a limit, at most (meander_lcnc's U-turns needed 5:
+# joint jerk 1.013 at T after 4)
+AT_T_REPLANS = 8
 
 
 # -- the feed limiting function ----------------------------------------------------
