@@ -214,19 +214,28 @@ def test_knots_are_graded_toward_a_g1_join():
     each join and h·2^k either side: the fit reads 4.1 ×, the start 0.374 s."""
     path = _blend_path(0.002)
     piece = topp3.pieces_of(path, KEOPS, KEOPS.limits, topp3.Settings("pso"))[0]
+    graded, (read_g, read_e), (start_g, start_e), seed_T = _seed_on_graded_and_even_knots(piece, path, KEOPS)
+    assert len(graded.joins) == 2
+    for i, *_ in graded.joins:
+        assert np.abs(graded.knots - graded.x[i]).min() <= MIN_SPAN_STATIONS * max(graded.dx[i - 1], graded.dx[i])
+    assert read_g < read_e / 3
+    assert start_g < 0.8 * start_e and start_g < 1.3 * seed_T
+
+
+def _seed_on_graded_and_even_knots(piece, path, machine):
+    """The scurve_joint seed fitted on the piece's knots (graded) and on the even knots alone:
+    (the graded FeedSpline, the fits' largest reads (graded, even), their starts' times in s
+    (graded, even), the seed's time)."""
     graded = FeedSpline(piece, 0.0)
     t_ra = graded.t_ra
     m = int(np.ceil(t_ra[-1] / KNOT_STEP_TU))
     even = FeedSpline(piece, 0.0, inner=graded._on_stations(np.interp(np.linspace(0.0, t_ra[-1], m + 1)[1:-1], t_ra, graded.x)))
-    assert len(graded.joins) == 2
-    for i, *_ in graded.joins:
-        assert np.abs(graded.knots - graded.x[i]).min() <= MIN_SPAN_STATIONS * max(graded.dx[i - 1], graded.dx[i])
-    seed = plan("scurve_joint", path, KEOPS)
+    seed = plan("scurve_joint", path, machine)
     sd = np.interp(piece.grid, seed.s, seed.sd) * piece.tu
-    fit_g, fit_e = graded.fit(sd), even.fit(sd)
-    assert graded.reads(fit_g)[1].max() < even.reads(fit_e)[1].max() / 3
-    start_g, start_e = (f.time(f.start_within(c)) * piece.tu for f, c in ((graded, fit_g), (even, fit_e)))
-    assert start_g < 0.8 * start_e and start_g < 1.3 * seed.execution_time_s
+    fits = [f.fit(sd) for f in (graded, even)]
+    reads = tuple(f.reads(c)[1].max() for f, c in zip((graded, even), fits))
+    starts = tuple(f.time(f.start_within(c)) * piece.tu for f, c in zip((graded, even), fits))
+    return graded, reads, starts, seed.execution_time_s
 
 
 def test_knots_are_graded_toward_a_near_cusp():
@@ -240,10 +249,7 @@ def test_knots_are_graded_toward_a_near_cusp():
     path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
     piece = topp3.pieces_of(path, m, m.limits, topp3.Settings("pso", station_radii=0.1, knot_stations=True,
                                                               join_grading=True))[0]
-    graded = FeedSpline(piece, 0.0)
-    t_ra = graded.t_ra
-    k = int(np.ceil(t_ra[-1] / KNOT_STEP_TU))
-    even = FeedSpline(piece, 0.0, inner=graded._on_stations(np.interp(np.linspace(0.0, t_ra[-1], k + 1)[1:-1], t_ra, graded.x)))
+    graded, (read_g, read_e), (start_g, start_e), seed_T = _seed_on_graded_and_even_knots(piece, path, m)
     sd_ra = np.sqrt(graded.a_ra)
     lows = np.nonzero((sd_ra[1:-1] < sd_ra[:-2]) & (sd_ra[1:-1] <= sd_ra[2:]) & (sd_ra[1:-1] < 0.05 * sd_ra.max()))[0] + 1
     # the 7 feet of the 6 arches (some with a double dip), none of them a G1 join
@@ -251,12 +257,8 @@ def test_knots_are_graded_toward_a_near_cusp():
     # a knot at every deep dip (moved to a station at most MIN_SPAN_STATIONS intervals off)
     for i in lows:
         assert np.abs(graded.knots - graded.x[i]).min() <= MIN_SPAN_STATIONS * max(graded.dx[i - 1], graded.dx[i]) + 1e-12
-    seed = plan("scurve_joint", path, m)
-    sd = np.interp(piece.grid, seed.s, seed.sd) * piece.tu
-    fit_g, fit_e = graded.fit(sd), even.fit(sd)
-    assert graded.reads(fit_g)[1].max() < even.reads(fit_e)[1].max() / 10
-    start_g, start_e = (f.time(f.start_within(c)) * piece.tu for f, c in ((graded, fit_g), (even, fit_e)))
-    assert start_g < 0.3 * start_e and start_g < 2 * seed.execution_time_s
+    assert read_g < read_e / 10
+    assert start_g < 0.3 * start_e and start_g < 2 * seed_T
 
 
 def test_the_start_is_the_target_where_it_holds_and_below_it_by_a_climb_elsewhere():
