@@ -174,8 +174,10 @@ class _Planner:
         # reach from that stop within the distance rises above the dip (a near-cusp a few µm
         # from the path's start: one segment across it was held to the dip's feed throughout)
         c = self.limits.cartesian
-        covered = [reachable(0.0, d, c.a, c.j, self.limits.feed_max) <= f for d, f in zip(near.tolist(), F[mins].tolist())]
-        mins = mins[(near >= 2 * m * h) | ~np.array(covered, bool)]
+        apart = near >= 2 * m * h
+        for k in np.nonzero(~apart)[0].tolist():
+            apart[k] = reachable(0.0, float(near[k]), c.a, c.j, self.limits.feed_max) > F[mins[k]]
+        mins = mins[apart]
         if len(mins):
             x, fx = self.minimise_F(g[np.maximum(mins - 1, 0)], g[np.minimum(mins + 1, n - 1)])
             lower = fx <= F[mins]
