@@ -66,7 +66,10 @@ GRID_MM = 0.05
 STATION_RADII = 0.05
 # the SOCP plans to the joint limits less this fraction: its repairs stop at a read of
 # 1 + FEASIBLE_TOL, and the FMU chain's command read the joints up to 1e-6 above the planner's
-# samples (keops/bird: jerk 1.0000006 → 1.0000014, "breaks the limit"); 1e-5 costs ~3e-6 of the time
+# samples (keops/bird: jerk 1.0000006 → 1.0000014, "breaks the limit"); 1e-5 costs ~3e-6 of the time.
+# The samples at T may use half of it (topp3.Settings.read_slack): repaired down to 1 + 1e-6 of the
+# inner limits, reads of a few 10⁻⁶ crept along rose3_keops_tilted's acceleration plateaus from
+# window to window, and 8 rounds of ever larger tightenings cost 0.08 % (docs/TUNING.md)
 CHAIN_MARGIN = 1e-5
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # short G64 blend arc the joint derivatives turn through 90° (docs/TUNING.md).
@@ -237,7 +240,8 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     inner = dataclasses.replace(limits, joint=type(J)(*(x * (1 - CHAIN_MARGIN) for x in (J.v, J.a, J.j))))
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
-        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, join_grading=True)
+        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, join_grading=True,
+                                   read_slack=CHAIN_MARGIN / 2)
         try:
             prof = topp3.solve(path, machine, inner, settings)
         except PlanningError as e:

@@ -102,7 +102,10 @@ class Settings:
     under other numpy SIMD paths more than the reproducibility contract allows (docs/TUNING.md).
     ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default).
     ``knot_stations``: a station a hair either side of every interior NURBS knot (grid_of).
-    ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM)."""
+    ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM).
+    ``read_slack``: the samples at T are repaired only where they read a limit above
+    1 + read_slack (a planner that hands the engine its limits less a margin lets its samples
+    use part of it, rather than chase reads of a few 10⁻⁶ from window to window)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
@@ -111,6 +114,7 @@ class Settings:
     station_radii: float = STATION_RADII
     knot_stations: bool = False
     join_grading: bool = False
+    read_slack: float = 0.0
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -464,13 +468,14 @@ def _sample(pieces, T, path, info, settings) -> Profile:
     return Profile.from_pieces(settings.name, T, [p.span for p in pieces], path, info)
 
 
-def reads_above(prof, machine, path, limits):
+def reads_above(prof, machine, path, limits, slack: float = 0.0):
     """[(limit column, first sample of the window, its width in samples, ratio)] of every window
-    that reads a limit above 1 at T (planners.verify.windows_above): joint v, a, j of the IK'd
-    samples, the feed against F_max."""
+    that reads a limit above 1 + ``slack`` at T (planners.verify.windows_above): joint v, a, j of
+    the IK'd samples, the feed against F_max."""
     column = {"velocity": 0, "acceleration": 1, "jerk": 2, "feed": 3}
     return [(column[o], i, max(column[o], 1), r) for o, i, r in
-            windows_above(machine.ik(path.point(prof.s)), prof.T, limits.joint, prof.s, limits.feed_max)]
+            windows_above(machine.ik(path.point(prof.s)), prof.T, limits.joint, prof.s, limits.feed_max)
+            if r > 1.0 + slack]
 
 
 def _tighten(prof, pieces, above, extra) -> None:
@@ -491,21 +496,23 @@ def _tighten(prof, pieces, above, extra) -> None:
             p.changed |= moved
 
 
-def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
+def _stretch(prof, pieces, machine, path, limits, info, name, slack=0.0) -> Profile:
     """The last resort when tightening left windows above a limit: each piece with a sample
-    above stretched uniformly in time by the worst need there (planners.verify.stretch_need:
-    velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to MAX_STRETCHES times."""
+    above 1 + ``slack`` stretched uniformly in time by the worst need there
+    (planners.verify.stretch_need: velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to
+    MAX_STRETCHES times."""
     T = prof.T
+    tol = max(FEASIBLE_TOL, slack)
     for _ in range(MAX_STRETCHES):
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         starts = np.concatenate([[0.0], np.cumsum([p.span.duration for p in pieces])])
         g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
         worst = np.zeros(len(pieces))
         np.maximum.at(worst, g, need)
-        if worst.max() <= 1 + FEASIBLE_TOL:
+        if worst.max() <= 1 + tol:
             break
         for p, w in zip(pieces, worst):
-            if w > 1 + FEASIBLE_TOL:
+            if w > 1 + tol:
                 p.span.lam *= w * (1 + STRETCH_EXTRA)
         prof = Profile.from_pieces(name, T, [p.span for p in pieces], path, info)
     prof.info["stretch"] = [round(p.span.lam, 6) for p in pieces]
@@ -538,12 +545,12 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
         prof = _sample(pieces, T, path, info, settings)
         if rnd == 0:
             info["station_relaxation_s"] = float(sum(p.span.duration for p in pieces))
-        above = reads_above(prof, machine, path, limits)
+        above = reads_above(prof, machine, path, limits, settings.read_slack)
         if not above:
             break
         if rnd == MAX_REPAIRS:
-            prof = _stretch(prof, pieces, machine, path, limits, info, settings.name)
-            above = reads_above(prof, machine, path, limits)
+            prof = _stretch(prof, pieces, machine, path, limits, info, settings.name, settings.read_slack)
+            above = reads_above(prof, machine, path, limits, settings.read_slack)
             break
         # what the round read above: windows per limit, the time before tightening
         info["tightened"].append({"time_s": prof.execution_time_s,
