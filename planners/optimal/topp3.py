@@ -103,9 +103,10 @@ class Settings:
     ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default).
     ``knot_stations``: a station a hair either side of every interior NURBS knot (grid_of).
     ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM).
-    ``read_slack``: the samples at T are repaired only where they read a limit above
-    1 + read_slack (a planner that hands the engine its limits less a margin lets its samples
-    use part of it, rather than chase reads of a few 10⁻⁶ from window to window)."""
+    ``read_slack``: the samples at T are repaired only where they read a joint limit above
+    1 + read_slack (a planner that hands the engine its joint limits less a margin lets its
+    samples use part of it, rather than chase reads of a few 10⁻⁶ from window to window; F_max
+    has no margin and keeps no slack)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
@@ -468,14 +469,23 @@ def _sample(pieces, T, path, info, settings) -> Profile:
     return Profile.from_pieces(settings.name, T, [p.span for p in pieces], path, info)
 
 
-def reads_above(prof, machine, path, limits, slack: float = 0.0):
+def reads_above(prof, machine, path, limits):
     """[(limit column, first sample of the window, its width in samples, ratio)] of every window
-    that reads a limit above 1 + ``slack`` at T (planners.verify.windows_above): joint v, a, j of
-    the IK'd samples, the feed against F_max."""
+    that reads a limit above 1 at T (planners.verify.windows_above): joint v, a, j of the IK'd
+    samples, the feed against F_max."""
     column = {"velocity": 0, "acceleration": 1, "jerk": 2, "feed": 3}
     return [(column[o], i, max(column[o], 1), r) for o, i, r in
-            windows_above(machine.ik(path.point(prof.s)), prof.T, limits.joint, prof.s, limits.feed_max)
-            if r > 1.0 + slack]
+            windows_above(machine.ik(path.point(prof.s)), prof.T, limits.joint, prof.s, limits.feed_max)]
+
+
+def _read_limits(limits, slack: float):
+    """The limits the samples at T are read against: the joint limits 1 + ``slack`` × wider
+    (Settings.read_slack), F_max as it is."""
+    if not slack:
+        return limits
+    J = limits.joint
+    return dataclasses.replace(limits, joint=dataclasses.replace(J, v=J.v * (1 + slack), a=J.a * (1 + slack),
+                                                                 j=J.j * (1 + slack)))
 
 
 def _tighten(prof, pieces, above, extra) -> None:
@@ -496,23 +506,21 @@ def _tighten(prof, pieces, above, extra) -> None:
             p.changed |= moved
 
 
-def _stretch(prof, pieces, machine, path, limits, info, name, slack=0.0) -> Profile:
+def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
     """The last resort when tightening left windows above a limit: each piece with a sample
-    above 1 + ``slack`` stretched uniformly in time by the worst need there
-    (planners.verify.stretch_need: velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to
-    MAX_STRETCHES times."""
+    above stretched uniformly in time by the worst need there (planners.verify.stretch_need:
+    velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to MAX_STRETCHES times."""
     T = prof.T
-    tol = max(FEASIBLE_TOL, slack)
     for _ in range(MAX_STRETCHES):
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         starts = np.concatenate([[0.0], np.cumsum([p.span.duration for p in pieces])])
         g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
         worst = np.zeros(len(pieces))
         np.maximum.at(worst, g, need)
-        if worst.max() <= 1 + tol:
+        if worst.max() <= 1 + FEASIBLE_TOL:
             break
         for p, w in zip(pieces, worst):
-            if w > 1 + tol:
+            if w > 1 + FEASIBLE_TOL:
                 p.span.lam *= w * (1 + STRETCH_EXTRA)
         prof = Profile.from_pieces(name, T, [p.span for p in pieces], path, info)
     prof.info["stretch"] = [round(p.span.lam, 6) for p in pieces]
@@ -541,16 +549,17 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
     T = machine.servo_period_s
     info = {"pieces": len(pieces), "stations": int(sum(len(p.grid) for p in pieces)),
             "g1_joins": sum(len(p.joins) for p in pieces), "tightened": []}
+    read = _read_limits(limits, settings.read_slack)
     for rnd in range(MAX_REPAIRS + 1):
         prof = _sample(pieces, T, path, info, settings)
         if rnd == 0:
             info["station_relaxation_s"] = float(sum(p.span.duration for p in pieces))
-        above = reads_above(prof, machine, path, limits, settings.read_slack)
+        above = reads_above(prof, machine, path, read)
         if not above:
             break
         if rnd == MAX_REPAIRS:
-            prof = _stretch(prof, pieces, machine, path, limits, info, settings.name, settings.read_slack)
-            above = reads_above(prof, machine, path, limits, settings.read_slack)
+            prof = _stretch(prof, pieces, machine, path, read, info, settings.name)
+            above = reads_above(prof, machine, path, read)
             break
         # what the round read above: windows per limit, the time before tightening
         info["tightened"].append({"time_s": prof.execution_time_s,
