@@ -243,3 +243,25 @@ def test_read_slack_spares_the_reads_inside_the_planners_margin(monkeypatch):
     # 1 + 1e-6 at every station spacing and `optimal` had no profile)
     read = topp3._read_limits(inner, CHAIN_MARGIN / 2)
     assert read.feed_max == inner.feed_max and read.joint.j == pytest.approx(inner.joint.j * (1 + CHAIN_MARGIN / 2))
+
+
+def test_midpoint_cap_stops_the_feed_chattering_at_F_max():
+    """On the vertical kossel line the feed cruises at F_max = V.  Held at the stations alone,
+    the SOCP's b chatters there (±b at alternate stations), each cell's middle bulges above the
+    cap and the first solve's samples read F_max above 1 along the cruise; with the cap also at
+    the cells' middles (Settings.midpoint_cap, `optimal`'s) none does, for the same time within
+    10⁻⁵, and that time is the 1-D closed form's within the grid's loss."""
+    path = SegmentPath([Line([0, 0, -300], [0, 0, -270])])
+    lim = KOSSEL.limits.joint
+    exact = rest_to_rest_time(30.0, lim.v, lim.a, lim.j)
+    first = {}
+    for mid in (False, True):
+        settings = topp3.Settings("optimal", 0.05, join_grading=True, midpoint_cap=mid)
+        pieces = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, settings)
+        prof = topp3._sample(pieces, KOSSEL.servo_period_s, path, {}, settings)
+        feed = [r for col, _, _, r in topp3.reads_above(prof, KOSSEL, path, KOSSEL.limits) if col == 3]
+        first[mid] = (pieces[0].span.duration, feed)
+    assert len(first[False][1]) > 100 and max(first[False][1]) > 1 + 1e-5
+    assert first[True][1] == []
+    assert first[True][0] == pytest.approx(first[False][0], rel=1e-5)
+    assert exact <= first[True][0] <= exact * 1.003

@@ -241,7 +241,7 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
         settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, join_grading=True,
-                                   read_slack=CHAIN_MARGIN / 2)
+                                   read_slack=CHAIN_MARGIN / 2, midpoint_cap=True)
         try:
             prof = topp3.solve(path, machine, inner, settings)
         except PlanningError as e:

@@ -106,7 +106,8 @@ class Settings:
     ``read_slack``: the samples at T are repaired only where they read a joint limit above
     1 + read_slack (a planner that hands the engine its joint limits less a margin lets its
     samples use part of it, rather than chase reads of a few 10⁻⁶ from window to window; F_max
-    has no margin and keeps no slack)."""
+    has no margin and keeps no slack).
+    ``midpoint_cap``: the feed cap also at the middle of every cell (Piece._robot)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
@@ -116,6 +117,7 @@ class Settings:
     knot_stations: bool = False
     join_grading: bool = False
     read_slack: float = 0.0
+    midpoint_cap: bool = False
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -185,6 +187,7 @@ class Piece:
     def __init__(self, k, table, path, machine, limits, s0, s1, settings, joins):
         self.k, self.s0, self.s1 = k, s0, s1
         self.options = settings.clarabel()
+        self.midpoint_cap = settings.midpoint_cap
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
         self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
@@ -258,6 +261,19 @@ class Piece:
                     for sg in (1.0, -1.0)]
             ga, gb, gc, gd = (np.array([[row[m] for row in rows]]) for m in range(4))
             rob.constraints.add_constraint_3rd(ga, gb, gc, gd, np.full_like(ga, j[i, 0]), i)
+        if a_lin is not None and self.midpoint_cap:
+            # between stations b is linear and a(x) = a_k + 2b_k·x + c·x², so a cell's middle is
+            # (3a_k + a_k+1)/4 + b_k·Δ/2 = (a_k + 3a_k+1)/4 − b_k+1·Δ/2.  With the far station within
+            # its cap C, the middle is within the mean of the caps either side where
+            # a_k + ⅔Δ·b_k ≤ (2C_k + C_k+1)/3, and where a_k+1 − ⅔Δ·b_k+1 ≤ (C_k + 2C_k+1)/3.  Both
+            # rows are held: a cell peaks off its middle where a station's slope points out of the
+            # cap, which they bound from either side.  Without them b chatters at the cap (±b at
+            # alternate stations lifts each middle by |b|Δ/2): the samples at T read F_max 1 + 4e-4
+            # along spiral_cone_kossel's cruise.  (A scaled-down feed keeps them: never infeasible.)
+            C = self.cap2 * f[:, 3] ** 2
+            d, ones = np.diff(self.grid)[:, None], np.ones((len(self.grid) - 1, 1))
+            rob.constraints.add_constraint_2nd(ones, 2 * d / 3, ((2 * C[:-1] + C[1:]) / 3)[:, None], 0)
+            rob.constraints.add_constraint_2nd(ones, -2 * d / 3, ((C[:-1] + 2 * C[1:]) / 3)[:, None], 1)
         return rob
 
     def solve(self, settings):
