@@ -6,12 +6,14 @@ cap; the G1-join reads).  Two transcriptions:
 * COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel): stations
   ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s) and graded 2×
   outward from every G1 join (topp3.Settings.join_grading: the SOCP's chord time is the
-  profile's time also where the feed falls near 0 at a G64 corner), the jerk limit
-  linearised by tangents (a restriction: the time never grows from one linearisation to the
-  next), checked at T and repaired in windows where a difference reads above a limit.  Where a limit
-  still reads above 1 after the repairs the path is solved again on finer stations
-  (_socp_within_limits).  No other planner's profile is ever returned: without a profile
-  within the limits `optimal` raises a PlanningError naming the path and the limit;
+  profile's time also where the feed falls near 0 at a G64 corner), the feed cap held at every
+  cell's middle too (topp3.Settings.midpoint_cap), the jerk limit linearised by tangents (a
+  restriction: the time never grows from one linearisation to the next), checked at T and
+  repaired in windows where a difference reads above a limit (a joint read within half of
+  CHAIN_MARGIN is left: Settings.read_slack).  Where a limit still reads above 1 after the
+  repairs the path is solved again on finer stations (_socp_within_limits).  No other
+  planner's profile is ever returned: without a profile within the limits `optimal` raises a
+  PlanningError naming the path and the limit;
 * the time-domain NLP (CasADi + IPOPT, planners/optimal/nlp.py): direct multiple shooting with
   constant jerk on each interval, the limits at the nodes, started from the SOCP's profile.  It
   runs with ``polish=True`` and, by default, where its nodes resolve every piece
