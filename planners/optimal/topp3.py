@@ -203,6 +203,7 @@ class Piece:
         cart = cartesian_derivs(path, e)
         cap = feed_cap(path, self.grid, limits, T, kappa=cross_norm(cart[1], cart[2]))
         self.cap2 = (cap * self.tu) ** 2
+        self.path_cap2 = self.cap2.copy()          # F_max and the chord-error cap: caps along s
         self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
         # a third difference at T reads the jump wherever the join lies in its 3-period window,
         # weighted by join_read_weight: graded stations within 1.5 periods' travel (at the join's
@@ -270,7 +271,9 @@ class Piece:
             # cap, which they bound from either side.  Without them b chatters at the cap (±b at
             # alternate stations lifts each middle by |b|Δ/2): the samples at T read F_max 1 + 4e-4
             # along spiral_cone_kossel's cruise.  (A scaled-down feed keeps them: never infeasible.)
-            C = self.cap2 * f[:, 3] ** 2
+            # The caps are the path's (F_max, the chord error): a G1 join's read caps its own
+            # stations only, and its mean with a neighbour's cap slowed cam_dense_keops by 0.5 %
+            C = self.path_cap2 * f[:, 3] ** 2
             d, ones = np.diff(self.grid)[:, None], np.ones((len(self.grid) - 1, 1))
             rob.constraints.add_constraint_2nd(ones, 2 * d / 3, ((2 * C[:-1] + C[1:]) / 3)[:, None], 0)
             rob.constraints.add_constraint_2nd(ones, -2 * d / 3, ((C[:-1] + 2 * C[1:]) / 3)[:, None], 1)
