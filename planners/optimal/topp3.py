@@ -271,8 +271,8 @@ class Piece:
             # cap, which they bound from either side.  Without them b chatters at the cap (±b at
             # alternate stations lifts each middle by |b|Δ/2): the samples at T read F_max 1 + 4e-4
             # along spiral_cone_kossel's cruise.  (A scaled-down feed keeps them: never infeasible.)
-            # The caps are the path's (F_max, the chord error): a G1 join's read caps its own
-            # stations only, and its mean with a neighbour's cap slowed cam_dense_keops by 0.5 %
+            # The caps are the path's (F_max, the chord error): a G1 join's read is a limit of its
+            # own stations' samples at T, not of the cells beside them
             C = self.path_cap2 * f[:, 3] ** 2
             d, ones = np.diff(self.grid)[:, None], np.ones((len(self.grid) - 1, 1))
             rob.constraints.add_constraint_2nd(ones, 2 * d / 3, ((2 * C[:-1] + C[1:]) / 3)[:, None], 0)
