@@ -13,7 +13,7 @@ The base class adds shape handling, stroke/reach checks, errors and findings.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -52,6 +52,11 @@ class MachineLimits:
     cartesian: Limits
     feed_max: float          # F_max, mm/s (the programmed feed ceiling)
     chord_error_mm: float    # ε of the chord-error feed cap
+
+    def joint_scaled(self, factor: float) -> "MachineLimits":
+        """These limits with the joint v, a and j each × ``factor`` (a planner's margin or slack)."""
+        J = self.joint
+        return replace(self, joint=Limits(J.v * factor, J.a * factor, J.j * factor))
 
 
 @dataclass(frozen=True)

@@ -219,10 +219,8 @@ def test_read_slack_spares_the_reads_inside_the_planners_margin(monkeypatch):
     tightening chases them (on rose3_keops_tilted eight rounds crept along a plateau and cost
     0.08 %); with it none is made, and the profile, no slower, is within the machine's limits."""
     from planners.optimal.planner import CHAIN_MARGIN, GRID_MM, STATION_RADII
-    path, lim = short_path(KEOPS), KEOPS.limits
-    J = lim.joint
-    inner = MachineLimits(Limits(*(x * (1 - CHAIN_MARGIN) for x in (J.v, J.a, J.j))), lim.cartesian,
-                          lim.feed_max, lim.chord_error_mm)
+    path = short_path(KEOPS)
+    inner = KEOPS.limits.joint_scaled(1 - CHAIN_MARGIN)
     reads, real = [], topp3.reads_above
     monkeypatch.setattr(topp3, "reads_above", lambda *a: reads.append(real(*a)) or reads[-1])
     runs = {}

@@ -238,8 +238,7 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     than REPAIR_COST ends the search.  Never another planner's profile: without a profile
     within the limits a PlanningError names the path and the limit."""
     why, best = [], None
-    J = limits.joint
-    inner = dataclasses.replace(limits, joint=type(J)(*(x * (1 - CHAIN_MARGIN) for x in (J.v, J.a, J.j))))
+    inner = limits.joint_scaled(1 - CHAIN_MARGIN)
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
         settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, join_grading=True,

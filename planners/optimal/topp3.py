@@ -500,11 +500,7 @@ def reads_above(prof, machine, path, limits):
 def _read_limits(limits, slack: float):
     """The limits the samples at T are read against: the joint limits 1 + ``slack`` × wider
     (Settings.read_slack), F_max as it is."""
-    if not slack:
-        return limits
-    J = limits.joint
-    return dataclasses.replace(limits, joint=dataclasses.replace(J, v=J.v * (1 + slack), a=J.a * (1 + slack),
-                                                                 j=J.j * (1 + slack)))
+    return limits.joint_scaled(1 + slack) if slack else limits
 
 
 def _tighten(prof, pieces, above, extra) -> None:
