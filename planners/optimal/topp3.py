@@ -35,8 +35,9 @@ ends) the check at T can read above them: the profile is sampled at T and checke
 difference window reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at
 the stations under the window and one either side, and only a window of stations around
 those is solved again, its ends held at the last solution's a and b (a window's solve is a
-fraction of a whole piece's), up to MAX_REPAIRS rounds; pieces still above a limit then are
-stretched uniformly in time.
+fraction of a whole piece's), up to MAX_REPAIRS rounds; where a limit still reads above then,
+the time is stretched around those reads by whole periods (timewarp.py), and where that
+does not converge each piece still above is stretched uniformly.
 A profile still above a limit after that is returned as it is (info["above_at_T"] counts
 its windows): the harness's check reports it.
 """
@@ -52,6 +53,7 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, Plann
                                   check_limits, check_path, cross_norm, curvature_splits, feed_cap,
                                   interior_knots, join_jumps, join_read_weight, joint_derivs, rest_pieces,
                                   station_grid)
+from planners.optimal import timewarp
 from planners.profile import Profile
 from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
@@ -70,12 +72,16 @@ KNOT_SIDE_MM = 1e-7
 GRADED_MIN_MM = 1e-6
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
 # read, doubled each round (windows next to a G1 join read above again by less each time);
-# then up to MAX_STRETCHES uniform time stretches of the pieces still above a limit (a stretch
-# moves every later piece's samples at T, so a piece not stretched yet can read above next:
-# long programs of many pieces need many)
+# then up to MAX_STRETCHES rounds of local time stretches (_stretch_locally) or, where they do
+# not converge, of uniform ones of the pieces still above a limit (a uniform stretch moves
+# every later piece's samples at T, so a piece not stretched yet can read above next: long
+# programs of many pieces need many)
 MAX_REPAIRS = 8
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 24
+# a local stretch (timewarp.py) with more bumps than this gives way to the uniform one
+# (reads above all along a piece: a bump per τ of it)
+MAX_BUMPS = 4000
 # a stretch is by the worst need and this much more: it moves every sample at T, so it cannot
 # aim at 1 exactly, but TIGHTEN_EXTRA's 1e-3 cost 0.1 % of the piece's time for reads of 1 + 1e-6
 STRETCH_EXTRA = 1e-5
@@ -445,11 +451,10 @@ class _Topp3Span:
         self.prof, self.tu, self.ts = prof, piece.tu, ts
         self.s0, self.s = piece.s0, piece.grid - piece.s0
         self.a, self.b, self.ns = prof.a, prof.b, prof.num_stationary
-        self.lam = 1.0                                   # a uniform time stretch (_stretch)
 
     @property
     def duration(self):
-        return float(self.ts[-1]) * self.tu * self.lam
+        return float(self.ts[-1]) * self.tu
 
     def _cubic(self, i_node, s_end, tau):
         """ṡ, s̈, s⃛ of s = s_end + C·τ³ reaching station i_node at its a."""
@@ -457,7 +462,7 @@ class _Topp3Span:
         return 3 * C * tau ** 2, 6 * C * tau, np.full_like(tau, 6 * C)
 
     def at(self, tt):
-        tu = self.tu * self.lam
+        tu = self.tu
         u = np.clip(np.asarray(tt, float) / tu, 0.0, self.ts[-1])       # scaled time
         uu, inv = np.unique(u, return_inverse=True)                      # copp wants them increasing
         s = copp.interpolation.t_to_s_topp3_samples(self.s, self.prof, self.ts, uu)[inv]
@@ -522,23 +527,64 @@ def _tighten(prof, pieces, above, extra) -> None:
 
 
 def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
-    """The last resort when tightening left windows above a limit: each piece with a sample
-    above stretched uniformly in time by the worst need there (planners.verify.stretch_need:
-    velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up to MAX_STRETCHES times."""
+    """The last resort when tightening left windows above a limit: the faster of the time
+    stretched locally around the reads (_stretch_locally) and each piece with a read above
+    stretched uniformly (_stretch_uniformly), of those that bring every read within the
+    limits (the uniform one where neither does: the harness's check reports it).  A bump of the
+    local stretch adds whole periods, so where a few reads need little on a short piece the
+    uniform stretch is the cheaper."""
+    uniform = _stretch_uniformly(prof, pieces, machine, path, limits, info, name)
+    local = _stretch_locally(prof, pieces, machine, path, limits, info, name)
+    if local is None or (not reads_above(uniform, machine, path, limits)
+                         and uniform.info["continuous_time_s"] <= local.info["continuous_time_s"]):
+        return uniform
+    return local
+
+
+def _stretch_locally(prof, pieces, machine, path, limits, info, name) -> Profile | None:
+    """The pieces' time stretched around each read above by sech bumps of whole periods
+    (timewarp.Local), round by round until every sample reads within the limits; None
+    where MAX_STRETCHES rounds or MAX_BUMPS bumps did not.  info["local_stretch"]: the bumps
+    and the time they added."""
     T = prof.T
+    spans = [timewarp.Local(p.span, timewarp.bump_width(limits.joint)) for p in pieces]
     for _ in range(MAX_STRETCHES):
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
-        starts = np.concatenate([[0.0], np.cumsum([p.span.duration for p in pieces])])
-        g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(pieces) - 1)
-        worst = np.zeros(len(pieces))
+        above = np.nonzero(need > 1 + FEASIBLE_TOL)[0]
+        if len(above) == 0:
+            prof.info["local_stretch"] = {"bumps": int(sum(len(w.c) for w in spans)),
+                                          "added_s": round(sum(w.added_s for w in spans), 9)}
+            return prof
+        starts = np.concatenate([[0.0], np.cumsum([w.duration for w in spans])])
+        g = np.clip(np.searchsorted(starts, prof.t[above], side="right") - 1, 0, len(spans) - 1)
+        for k in np.unique(g):
+            sel = above[g == k]
+            spans[k].add(*timewarp.bumps_for(spans[k], prof.t[sel] - starts[k], need[sel], T, STRETCH_EXTRA))
+        if sum(len(w.c) for w in spans) > MAX_BUMPS:
+            return None
+        prof = Profile.from_pieces(name, T, spans, path, info)
+    return None
+
+
+def _stretch_uniformly(prof, pieces, machine, path, limits, info, name) -> Profile:
+    """Each piece with a sample above stretched uniformly in time by the worst need there
+    (planners.verify.stretch_need: velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up
+    to MAX_STRETCHES times.  info["stretch"]: each piece's λ."""
+    T = prof.T
+    spans = [timewarp.Uniform(p.span) for p in pieces]
+    for _ in range(MAX_STRETCHES):
+        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
+        starts = np.concatenate([[0.0], np.cumsum([w.duration for w in spans])])
+        g = np.clip(np.searchsorted(starts, prof.t, side="right") - 1, 0, len(spans) - 1)
+        worst = np.zeros(len(spans))
         np.maximum.at(worst, g, need)
         if worst.max() <= 1 + FEASIBLE_TOL:
             break
-        for p, w in zip(pieces, worst):
-            if w > 1 + FEASIBLE_TOL:
-                p.span.lam *= w * (1 + STRETCH_EXTRA)
-        prof = Profile.from_pieces(name, T, [p.span for p in pieces], path, info)
-    prof.info["stretch"] = [round(p.span.lam, 6) for p in pieces]
+        for w, r in zip(spans, worst):
+            if r > 1 + FEASIBLE_TOL:
+                w.lam *= r * (1 + STRETCH_EXTRA)
+        prof = Profile.from_pieces(name, T, spans, path, info)
+    prof.info["stretch"] = [round(w.lam, 6) for w in spans]
     return prof
 
 
