@@ -9,7 +9,9 @@ import ruckig
 import planners.optimal.topp3 as topp3
 from kins import Limits, MachineLimits, load_machine
 from planners import PlanningError, plan
-from planners.paths import Line, SegmentPath, resolve_path
+from planners.constraints import PathTable
+from planners.optimal import planner as optimal
+from planners.paths import Arc, Line, SegmentPath, resolve_path
 from planners.verify import command_metrics
 from test_planner_claims import short_path
 
@@ -263,3 +265,23 @@ def test_midpoint_cap_stops_the_feed_chattering_at_F_max():
     assert first[True][1] == []
     assert first[True][0] == pytest.approx(first[False][0], rel=1e-5)
     assert exact <= first[True][0] <= exact * 1.003
+
+
+def test_station_floor_lets_a_micron_tip_have_its_stations():
+    """A 90° arc of 2 µm radius between two lines: at 0.05 radii the arc needs ~31 cells.
+    copp's floor of STATION_MIN_MM (1 µm) leaves it ≤ 4; optimal's (planner.STATION_MIN_MM)
+    gives it its ~31 (the stations alone were 1.6 % above T_ref at cusp_trochoid_lcnc's
+    1.8 µm tips with the 1 µm floor)."""
+    r, c = 2e-3, KEOPS.home
+    path = SegmentPath([Line(c + [-5, -r, 0], c + [0, -r, 0]),
+                        Arc(c + [0, -r, 0], c, [0, 0, 1], math.pi / 2),
+                        Line(c + [r, 0, 0], c + [r, 5, 0])])
+    table = PathTable(path, KEOPS)
+    s_arc = (5.0, 5.0 + r * math.pi / 2)
+
+    def cells_on_arc(min_mm):
+        g = topp3.grid_of(path, table, [], 0.0, path.length, 0.05, 0.05, min_mm=min_mm)
+        return int(np.sum((g > s_arc[0] + 1e-9) & (g < s_arc[1] - 1e-9))) + 1
+
+    assert cells_on_arc(topp3.STATION_MIN_MM) <= 4
+    assert cells_on_arc(optimal.STATION_MIN_MM) >= 30

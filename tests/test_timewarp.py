@@ -96,11 +96,6 @@ def test_last_resort_stretches_locally_where_one_stretch_of_the_line_reads_above
     fast = Local(span, 0.05)
     fast.add([2.5], [-0.01])                        # 1 % faster around t = 2.5 s: reads above there
 
-    class Piece:
-        pass
-
-    pc = Piece()
-    pc.span = fast
     prof = Profile.from_pieces("copp", T, [fast], path, {})
     # read against the limits the unstretched profile keeps (copp's cruise reads F_max 1 + 2e-4)
     base = Profile.from_pieces("copp", T, [span], path, {})
@@ -110,12 +105,14 @@ def test_last_resort_stretches_locally_where_one_stretch_of_the_line_reads_above
     need = stretch_need(KOSSEL.ik(path.point(prof.s)), prof.s, T, lim)
     above = np.nonzero(need > 1 + 1e-6)[0]
     assert len(above) and abs(prof.t[above] - 2.5).max() < 0.5
-    local = topp3._stretch_locally(prof, [pc], KOSSEL, path, lim, {}, "copp")
-    uniform = topp3._stretch_uniformly(prof, [pc], KOSSEL, path, lim, {}, "copp")
-    out = topp3._stretch(prof, [pc], KOSSEL, path, lim, {}, "copp")
+    local = topp3._stretch_locally(prof, [fast], KOSSEL, path, lim, {}, "copp")
+    uniform = topp3._stretch_uniformly(prof, [fast], KOSSEL, path, lim, {}, "copp")
     assert not topp3.reads_above(local, KOSSEL, path, lim)
+    assert not topp3.reads_above(uniform, KOSSEL, path, lim)
     assert local.execution_time_s < uniform.execution_time_s
-    assert out.execution_time_s == local.execution_time_s and "local_stretch" in out.info
+    # the last resort: the fastest within the limits, here the local stretch of the last round
+    out = topp3._stretch(prof, [[fast]], KOSSEL, path, lim, {}, "copp")
+    assert out.execution_time_s == local.execution_time_s and out.info["local_stretch"]["round"] == 0
     # before the bumps the samples move by no more than their tails' offset, ≤ 2τ·Σδ·e^(−d/τ)
     # at a distance d (a time), times the speed
     tau = bump_width(KOSSEL.limits.joint)

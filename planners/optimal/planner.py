@@ -4,16 +4,18 @@ The constraint set is the planners' shared one (joint v, a, j; F_max; the chord-
 cap; the G1-join reads).  Two transcriptions:
 
 * COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel): stations
-  ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s) and graded 2×
-  outward from every G1 join (topp3.Settings.join_grading: the SOCP's chord time is the
-  profile's time also where the feed falls near 0 at a G64 corner), the feed cap held at every
-  cell's middle too (topp3.Settings.midpoint_cap), the jerk limit linearised by tangents (a
-  restriction: the time never grows from one linearisation to the next), checked at T and
-  repaired in windows where a difference reads above a limit (a joint read within half of
-  CHAIN_MARGIN is left: Settings.read_slack).  Where a limit still reads above 1 after the
-  repairs the path is solved again on finer stations (_socp_within_limits).  No other
-  planner's profile is ever returned: without a profile within the limits `optimal` raises a
-  PlanningError naming the path and the limit;
+  ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s, down to
+  STATION_MIN_MM at µm tips) and graded 2× outward from every G1 join
+  (topp3.Settings.join_grading: the SOCP's chord time is the profile's time also where the feed
+  falls near 0 at a G64 corner), the feed cap held at every cell's middle too
+  (topp3.Settings.midpoint_cap), the jerk limit linearised by tangents (a restriction: the time
+  never grows from one linearisation to the next), checked at T and repaired in windows where a
+  difference reads above a limit (a joint read within half of CHAIN_MARGIN is left:
+  Settings.read_slack); where 8 rounds of that leave reads above, the fastest of the rounds'
+  profiles stretched in time around their reads (topp3._stretch).  Where a limit still reads
+  above 1 after the repairs the path is solved again on finer stations (_socp_within_limits).
+  No other planner's profile is ever returned: without a profile within the limits `optimal`
+  raises a PlanningError naming the path and the limit;
 * the time-domain NLP (CasADi + IPOPT, planners/optimal/nlp.py): direct multiple shooting with
   constant jerk on each interval, the limits at the nodes, started from the SOCP's profile.  It
   runs with ``polish=True`` and, by default, where its nodes resolve every piece
@@ -66,6 +68,10 @@ REPAIR_COST = 3e-3
 # the converged reference on keops's paths, at half that spacing ≤ 0.2 % (docs/TUNING.md)
 GRID_MM = 0.05
 STATION_RADII = 0.05
+# ... and no closer than this (copp's floor, 1 µm, is 0.05 radii of a 20 µm radius: at
+# cusp_trochoid_lcnc's 1.8 µm tips it left ~2 stations a tip and the stations alone 1.6 % above
+# T_ref, at any spacing in mm; docs/TUNING.md); the floor of the join grading
+STATION_MIN_MM = topp3.GRADED_MIN_MM
 # the SOCP plans to the joint limits less this fraction: its repairs stop at a read of
 # 1 + FEASIBLE_TOL, and the FMU chain's command read the joints up to 1e-6 above the planner's
 # samples (keops/bird: jerk 1.0000006 → 1.0000014, "breaks the limit"); 1e-5 costs ~3e-6 of the time.
@@ -241,8 +247,9 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     inner = limits.joint_scaled(1 - CHAIN_MARGIN)
     for level in range(REFINE_LEVELS + 1):
         f = STATION_REFINEMENT ** level
-        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, join_grading=True,
-                                   read_slack=CHAIN_MARGIN / 2, midpoint_cap=True)
+        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f,
+                                  station_min_mm=STATION_MIN_MM, join_grading=True,
+                                  read_slack=CHAIN_MARGIN / 2, midpoint_cap=True)
         try:
             prof = topp3.solve(path, machine, inner, settings)
         except PlanningError as e:

@@ -58,8 +58,9 @@ from planners.profile import Profile
 from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
 # stations ≤ STATION_RADII curvature radii apart (the jerk between stations at lobe tips and
-# blend arcs read above the limit where they were sparser), no closer than STATION_MIN_MM
-# (closer, Clarabel stopped on insufficient progress)
+# blend arcs read above the limit where they were sparser), by default no closer than
+# STATION_MIN_MM (closer, Clarabel stopped on insufficient progress before it was accepted and
+# its last iterate checked at T; `optimal` resolves µm tips below it: Settings.station_min_mm)
 STATION_RADII = 0.5
 STATION_MIN_MM = 1e-3
 # knot stations (Settings.knot_stations) this far either side of the knot: one-sided derivatives
@@ -106,7 +107,8 @@ class Settings:
     gained).  ``kkt_refinement``: Clarabel refines each solve of its KKT system iteratively
     (copp-py's default, kept for every planner on the engine): without, the profiles move
     under other numpy SIMD paths more than the reproducibility contract allows (docs/TUNING.md).
-    ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default).
+    ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default),
+    none closer than ``station_min_mm`` (STATION_MIN_MM by default).
     ``knot_stations``: a station a hair either side of every interior NURBS knot (grid_of).
     ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM).
     ``read_slack``: the samples at T are repaired only where they read a joint limit above
@@ -120,6 +122,7 @@ class Settings:
     max_linearisations: int = 4
     kkt_refinement: bool = True
     station_radii: float = STATION_RADII
+    station_min_mm: float = STATION_MIN_MM
     knot_stations: bool = False
     join_grading: bool = False
     read_slack: float = 0.0
@@ -134,12 +137,12 @@ class Settings:
         return opts
 
 
-def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=False):
+def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=False, min_mm=STATION_MIN_MM):
     """planners.constraints.station_grid with every segment end and G1 join of the piece on it,
-    then cells split to ≤ ``radii`` curvature radii (at their ends), none below
-    STATION_MIN_MM.  ``knots``: also a station KNOT_SIDE_MM either side of every interior NURBS
-    knot, where P‴ jumps: a rational NURBS's q‴ can peak right after a knot and fall back between
-    two stations (docs/TUNING.md)."""
+    then cells split to ≤ ``radii`` curvature radii (at their ends), none below ``min_mm``.
+    ``knots``: also a station KNOT_SIDE_MM either side of every interior NURBS knot, where P‴
+    jumps: a rational NURBS's q‴ can peak right after a knot and fall back between two stations
+    (docs/TUNING.md)."""
     inner = [sj for sj, _ in joins if s0 + 1e-6 < sj < s1 - 1e-6]
     edges = np.unique(np.concatenate([table.edges[(table.edges > s0) & (table.edges < s1)],
                                       inner, [s0, s1]]))
@@ -152,8 +155,7 @@ def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=Fals
     for _ in range(6):
         _, P1, P2, _ = cartesian_derivs(path, np.clip(grid, s0 + 1e-9, s1 - 1e-9))
         h = np.diff(grid)
-        need, parts = curvature_splits(h, cross_norm(P1, P2), radii,
-                                       STATION_MIN_MM, 16)
+        need, parts = curvature_splits(h, cross_norm(P1, P2), radii, min_mm, 16)
         if len(need) == 0:
             break
         new = np.concatenate([grid[i] + h[i] * np.arange(1, k) / k for i, k in zip(need, parts)])
@@ -198,7 +200,7 @@ class Piece:
         self.tu = J.a / J.j
         self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
         self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii,
-                            settings.knot_stations)
+                            settings.knot_stations, settings.station_min_mm)
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         travel = []
         if settings.join_grading and self.joins:
@@ -526,28 +528,32 @@ def _tighten(prof, pieces, above, extra) -> None:
             p.changed |= moved
 
 
-def _stretch(prof, pieces, machine, path, limits, info, name) -> Profile:
-    """The last resort when tightening left windows above a limit: the faster of the time
-    stretched locally around the reads (_stretch_locally) and each piece with a read above
-    stretched uniformly (_stretch_uniformly), of those that bring every read within the
-    limits (the uniform one where neither does: the harness's check reports it).  A bump of the
-    local stretch adds whole periods, so where a few reads need little on a short piece the
-    uniform stretch is the cheaper."""
-    uniform = _stretch_uniformly(prof, pieces, machine, path, limits, info, name)
-    local = _stretch_locally(prof, pieces, machine, path, limits, info, name)
-    if local is None or (not reads_above(uniform, machine, path, limits)
-                         and uniform.info["continuous_time_s"] <= local.info["continuous_time_s"]):
-        return uniform
-    return local
+def _stretch(prof, rounds, machine, path, limits, info, name) -> Profile:
+    """The last resort when MAX_REPAIRS rounds of tightening left windows above a limit
+    (``prof``: the last round's samples; ``rounds``: each round's solved pieces): the fastest,
+    of those that bring every read within the limits, of each round's profile stretched locally
+    around its reads (_stretch_locally: a round's tightening costs time everywhere under its
+    windows, and a few reads left after round k can cost less to stretch than rounds k + 1 …
+    cost to repair) and of the last one's pieces stretched uniformly (_stretch_uniformly; where
+    none brings every read within, that one: the harness's check reports it)."""
+    best = _stretch_uniformly(prof, rounds[-1], machine, path, limits, info, name)
+    fits = not reads_above(best, machine, path, limits)
+    for k, spans in enumerate(rounds):
+        start = prof if k == len(rounds) - 1 else Profile.from_pieces(name, prof.T, spans, path, info)
+        local = _stretch_locally(start, spans, machine, path, limits, info, name)
+        if local is not None and (not fits or local.info["continuous_time_s"] < best.info["continuous_time_s"]):
+            best, fits = local, True
+            best.info["local_stretch"]["round"] = k
+    return best
 
 
-def _stretch_locally(prof, pieces, machine, path, limits, info, name) -> Profile | None:
-    """The pieces' time stretched around each read above by sech bumps of whole periods
-    (timewarp.Local), round by round until every sample reads within the limits; None
-    where MAX_STRETCHES rounds or MAX_BUMPS bumps did not.  info["local_stretch"]: the bumps
-    and the time they added."""
+def _stretch_locally(prof, spans, machine, path, limits, info, name) -> Profile | None:
+    """The pieces' time (their solved ``spans``) stretched around each read above by sech bumps
+    of whole periods (timewarp.Local), round by round until every sample reads within the
+    limits; None where MAX_STRETCHES rounds or MAX_BUMPS bumps did not.
+    info["local_stretch"]: the bumps and the time they added."""
     T = prof.T
-    spans = [timewarp.Local(p.span, timewarp.bump_width(limits.joint)) for p in pieces]
+    spans = [timewarp.Local(w, timewarp.bump_width(limits.joint)) for w in spans]
     for _ in range(MAX_STRETCHES):
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         above = np.nonzero(need > 1 + FEASIBLE_TOL)[0]
@@ -566,12 +572,12 @@ def _stretch_locally(prof, pieces, machine, path, limits, info, name) -> Profile
     return None
 
 
-def _stretch_uniformly(prof, pieces, machine, path, limits, info, name) -> Profile:
-    """Each piece with a sample above stretched uniformly in time by the worst need there
-    (planners.verify.stretch_need: velocity scales by 1/λ, acceleration 1/λ², jerk 1/λ³), up
-    to MAX_STRETCHES times.  info["stretch"]: each piece's λ."""
+def _stretch_uniformly(prof, spans, machine, path, limits, info, name) -> Profile:
+    """Each piece (its solved ``spans``) with a sample above stretched uniformly in time by the
+    worst need there (planners.verify.stretch_need: velocity scales by 1/λ, acceleration 1/λ²,
+    jerk 1/λ³), up to MAX_STRETCHES times.  info["stretch"]: each piece's λ."""
     T = prof.T
-    spans = [timewarp.Uniform(p.span) for p in pieces]
+    spans = [timewarp.Uniform(w) for w in spans]
     for _ in range(MAX_STRETCHES):
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
         starts = np.concatenate([[0.0], np.cumsum([w.duration for w in spans])])
@@ -611,6 +617,7 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
     info = {"pieces": len(pieces), "stations": int(sum(len(p.grid) for p in pieces)),
             "g1_joins": sum(len(p.joins) for p in pieces), "tightened": []}
     read = _read_limits(limits, settings.read_slack)
+    rounds = []                 # each round's solved pieces, for the last resort
     for rnd in range(MAX_REPAIRS + 1):
         prof = _sample(pieces, T, path, info, settings)
         if rnd == 0:
@@ -618,8 +625,9 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
         above = reads_above(prof, machine, path, read)
         if not above:
             break
+        rounds.append([p.span for p in pieces])
         if rnd == MAX_REPAIRS:
-            prof = _stretch(prof, pieces, machine, path, read, info, settings.name)
+            prof = _stretch(prof, rounds, machine, path, read, info, settings.name)
             above = reads_above(prof, machine, path, read)
             break
         # what the round read above: windows per limit, the time before tightening
