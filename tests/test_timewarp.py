@@ -11,7 +11,7 @@ import planners.optimal.topp3 as topp3
 from kins import Limits, load_machine
 from planners.paths import Line, SegmentPath
 from planners.profile import Profile
-from planners.optimal.timewarp import REACH, Local, Uniform, bump_width
+from planners.optimal.timewarp import REACH, Local, Uniform, bump_width, bumps_for
 from planners.verify import stretch_need
 
 KOSSEL = load_machine("kossel")
@@ -121,3 +121,15 @@ def test_last_resort_stretches_locally_where_one_stretch_of_the_line_reads_above
     heights = local.info["local_stretch"]["added_s"] / (math.pi * tau)
     bound = KOSSEL.limits.feed_max * 2 * tau * heights * np.exp(-d / tau) + 1e-12
     assert np.all(np.abs(local.s[:1500] - prof.s[:1500]) <= bound)
+
+
+def test_bumps_cover_each_cell_of_reads_by_whole_periods():
+    """One bump per τ-cell of reads, at its worst read, as high as that read needs, its added
+    time a whole number of periods (at least one)."""
+    T, tau = 2.5e-4, 0.1
+    w = Local(Quintic(D=3.0), tau)
+    c, d = bumps_for(w, np.array([0.51, 0.52, 0.58, 1.43]), np.array([1.001, 1.02, 1.0000001, 1.003]), T, 1e-5)
+    assert np.allclose(c, [0.52, 1.43], rtol=0, atol=1e-12)
+    periods = d * math.pi * tau / T
+    assert np.allclose(periods, np.round(periods), rtol=0, atol=1e-9) and periods.min() >= 1
+    assert d[0] >= 0.02 * (1 + 1e-5) and d[0] - 0.02 < T / (math.pi * tau) + 1e-5
