@@ -66,9 +66,10 @@ class Local:
 
     def add(self, c, delta) -> None:
         """Bumps of heights ``delta`` centred at the piece's own times ``c`` (s)."""
-        order = np.argsort(np.concatenate([self.c, np.atleast_1d(np.asarray(c, float))]), kind="stable")
-        self.c = np.concatenate([self.c, np.atleast_1d(np.asarray(c, float))])[order]
-        self.d = np.concatenate([self.d, np.atleast_1d(np.asarray(delta, float))])[order]
+        c = np.concatenate([self.c, np.atleast_1d(np.asarray(c, float))])
+        d = np.concatenate([self.d, np.atleast_1d(np.asarray(delta, float))])
+        order = np.argsort(c, kind="stable")
+        self.c, self.d = c[order], d[order]
 
     @property
     def added_s(self) -> float:

@@ -36,8 +36,9 @@ difference window reads a limit r > 1, that limit is held to its fraction / (r·
 the stations under the window and one either side, and only a window of stations around
 those is solved again, its ends held at the last solution's a and b (a window's solve is a
 fraction of a whole piece's), up to MAX_REPAIRS rounds; where a limit still reads above then,
-the time is stretched around those reads by whole periods (timewarp.py), and where that
-does not converge each piece still above is stretched uniformly.
+the last resort returns the fastest, of those within the limits, of every round's profile
+stretched in time around its reads by whole periods (timewarp.Local) and of the last round's
+pieces stretched uniformly (timewarp.Uniform).
 A profile still above a limit after that is returned as it is (info["above_at_T"] counts
 its windows): the harness's check reports it.
 """
@@ -73,10 +74,9 @@ KNOT_SIDE_MM = 1e-7
 GRADED_MIN_MM = 1e-6
 # rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
 # read, doubled each round (windows next to a G1 join read above again by less each time);
-# then up to MAX_STRETCHES rounds of local time stretches (_stretch_locally) or, where they do
-# not converge, of uniform ones of the pieces still above a limit (a uniform stretch moves
-# every later piece's samples at T, so a piece not stretched yet can read above next: long
-# programs of many pieces need many)
+# then the last resort's time stretches (_stretch), each up to MAX_STRETCHES rounds (a uniform
+# stretch moves every later piece's samples at T, so a piece not stretched yet can read above
+# next: long programs of many pieces need many)
 MAX_REPAIRS = 8
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 24
