@@ -84,14 +84,14 @@ def test_bump_width_keeps_the_first_order_terms_within_half_the_relief(V, A, J, 
 
 
 def test_last_resort_stretches_locally_where_one_stretch_of_the_line_reads_above():
-    """The kossel vertical line (copp's profile), sped up by a negative bump around t = 1 s: its
+    """The kossel vertical line (copp's profile), sped up by a negative bump around t = 2.5 s: its
     reads above lie there only.  The last resort brings every read within the limits by bumps
     there, for less than the uniform stretch of the piece costs, and leaves the samples before
     the bumps as they were."""
     path = SegmentPath([Line([0, 0, -300], [0, 0, -200])])
     T = KOSSEL.servo_period_s
     piece = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, topp3.Settings("copp"))[0]
-    prof_c, _, ts = piece._timed(piece.solve(topp3.Settings("copp"))[0])
+    prof_c, ts = piece.solve(topp3.Settings("copp"))
     span = topp3._Topp3Span(piece, prof_c, ts)
     fast = Local(span, 0.05)
     fast.add([2.5], [-0.01])                        # 1 % faster around t = 2.5 s: reads above there

@@ -550,8 +550,9 @@ def _stretch(prof, rounds, machine, path, limits, info, name) -> Profile:
 def _stretch_locally(prof, spans, machine, path, limits, info, name) -> Profile | None:
     """The pieces' time (their solved ``spans``) stretched around each read above by sech bumps
     of whole periods (timewarp.Local), round by round until every sample reads within the
-    limits; None where MAX_STRETCHES rounds or MAX_BUMPS bumps did not.
-    info["local_stretch"]: the bumps and the time they added."""
+    limits; None where MAX_STRETCHES rounds or MAX_BUMPS bumps did not (or the stretched time
+    could not be inverted: timewarp.Local.original).  info["local_stretch"]: the bumps and the
+    time they added."""
     T = prof.T
     spans = [timewarp.Local(w, timewarp.bump_width(limits.joint)) for w in spans]
     for _ in range(MAX_STRETCHES):
@@ -568,7 +569,10 @@ def _stretch_locally(prof, spans, machine, path, limits, info, name) -> Profile 
             spans[k].add(*timewarp.bumps_for(spans[k], prof.t[sel] - starts[k], need[sel], T, STRETCH_EXTRA))
         if sum(len(w.c) for w in spans) > MAX_BUMPS:
             return None
-        prof = Profile.from_pieces(name, T, spans, path, info)
+        try:
+            prof = Profile.from_pieces(name, T, spans, path, info)
+        except ArithmeticError:             # the stretched time's inverse did not converge
+            return None
     return None
 
 
