@@ -296,6 +296,9 @@ def test_costly_repairs_are_solved_again_on_finer_stations_and_the_faster_kept(m
         return dataclasses.replace(prof, info=info)
     first = with_cost(slow if refined_faster else fast, 10 * optimal.REPAIR_COST if costly else 0.0)
     refined = with_cost(fast if refined_faster else slow, 0.0)
+    # the halvings' own rule aside (the two profiles' station times are far apart):
+    # test_stations_are_halved_while_the_last_halving_moved_their_time
+    monkeypatch.setattr(optimal, "SPACING_GAIN", math.inf)
     grids = []
 
     def solve(path_, machine, limits, settings, pieces=None):
@@ -406,3 +409,31 @@ def test_the_faster_of_the_solution_and_its_start_within_the_limits():
     with pytest.raises(PlanningError, match="IPOPT failed"):
         optimal._faster_of(None, over, KOSSEL, path, PlanningError("optimal: IPOPT failed on piece …"))
     assert optimal._faster_of(slow, over, KOSSEL, path, None) is slow
+
+
+@pytest.mark.parametrize("coarse, relaxations, grids_run", [
+    (1.010, [1.000, 0.999], 2),     # the halving to grid_mm gained 1 %: once finer; that one 0.1 %: done
+    (1.010, [1.000, 0.996, 0.995], 3),   # ... and the next 0.4 %: finer again, up to REFINE_LEVELS
+    (1.001, [1.000], 1),            # 0.1 %: grid_mm's stations are kept
+    (0.990, [1.000, 0.999], 2),     # the station time grew by 1 % (the limits between stations): finer
+])
+def test_stations_are_halved_while_the_last_halving_moved_their_time(monkeypatch, coarse, relaxations, grids_run):
+    """The stations are solved again STATION_REFINEMENT times closer while the last halving moved
+    their time (station_relaxation_s) by more than SPACING_GAIN either way, also where the
+    repairs cost nothing; the fastest profile is returned with the gain it was refined for."""
+    path = vertical(10.0)
+    base = optimal.topp3.solve(path, KOSSEL, KOSSEL.limits, optimal.topp3.Settings("optimal"))
+    monkeypatch.setattr(optimal.topp3, "station_time", lambda pieces, settings: coarse)
+    grids, out = [], []
+
+    def solve(path_, machine, limits, settings, pieces=None):
+        r = relaxations[len(grids)]
+        grids.append(settings.grid_mm)
+        out.append(dataclasses.replace(base, info=dict(base.info, station_relaxation_s=r, continuous_time_s=r)))
+        return out[-1]
+    monkeypatch.setattr(optimal.topp3, "solve", solve)
+    p = optimal.plan(path, KOSSEL, polish=False)
+    assert grids == [optimal.GRID_MM / optimal.STATION_REFINEMENT ** k for k in range(grids_run)]
+    assert p.info["grid_mm"] == grids[-1]
+    previous = ([coarse] + relaxations)[grids_run - 1]
+    assert p.info["spacing_gain"] == pytest.approx(1 - relaxations[grids_run - 1] / previous)

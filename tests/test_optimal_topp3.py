@@ -156,6 +156,33 @@ def test_a_reference_at_the_fixed_point_ends_the_linearisations_after_one_solve(
     assert np.allclose(prof.a, first.a, rtol=1e-6, atol=1e-9 * first.a.max())
 
 
+def test_a_finer_grid_linearised_around_a_coarser_solution_reaches_its_fixed_point_in_fewer_solves(monkeypatch):
+    """A line, a G1 arc, a line and a corner on kossel: stations twice as close, their first
+    linearisation around the coarse grid's solution (topp3.linearise_around), reach the time
+    the same stations reach from TOPP2-RA's profile within lin_tol, in fewer SOCP solves;
+    station_time is that solution's time."""
+    path = short_path(KOSSEL)
+    coarse, fine = topp3.Settings("copp", 0.2), topp3.Settings("copp", 0.1)
+    solves = []
+    real = topp3.Piece._socp
+    monkeypatch.setattr(topp3.Piece, "_socp", lambda self, *a, **k: solves.append(1) or real(self, *a, **k))
+    cold = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, fine)
+    t_cold = topp3.station_time(cold, fine)
+    n_cold = len(solves)
+    first = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, coarse)
+    t_coarse = topp3.station_time(first, coarse)
+    warm = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, fine)
+    topp3.linearise_around(warm, first)
+    solves.clear()
+    t_warm = topp3.station_time(warm, fine)
+    assert len(solves) < n_cold
+    assert t_warm == pytest.approx(t_cold, rel=fine.lin_tol)
+    assert t_warm < t_coarse
+    # station_time is the time solve() reports for the stations alone
+    prof = topp3.solve(path, KOSSEL, KOSSEL.limits, fine)
+    assert prof.info["station_relaxation_s"] == pytest.approx(t_cold, rel=1e-12)
+
+
 def test_join_grading_makes_the_socp_time_the_profiles_time(tmp_path):
     """Three G64 P0.01 corners (33°, 90°, 127°) on keops, where the feed falls near 0: without
     graded stations the line's 0.05 mm cell beside each blend left a(s) one quadratic from ~0,

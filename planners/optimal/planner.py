@@ -12,8 +12,11 @@ cap; the G1-join reads).  Two transcriptions:
   never grows from one linearisation to the next), checked at T and repaired in windows where a
   difference reads above a limit (a joint read within half of CHAIN_MARGIN is left:
   Settings.read_slack); where 8 rounds of that leave reads above, the fastest of the rounds'
-  profiles stretched in time around their reads (topp3._stretch).  Where a limit still reads
-  above 1 after the repairs the path is solved again on finer stations (_socp_within_limits).
+  profiles stretched in time around their reads (topp3._stretch).  The stations are solved
+  twice as coarse first (the first linearisation of the finer solve, and the time the halving
+  moved); the path is solved again on finer stations where a halving moved it by more than
+  SPACING_GAIN, where a limit still reads above 1 after the repairs, or where they cost more
+  than REPAIR_COST (_socp_within_limits).
   No other planner's profile is ever returned: without a profile within the limits `optimal`
   raises a PlanningError naming the path and the limit;
 * the time-domain NLP (CasADi + IPOPT, planners/optimal/nlp.py): direct multiple shooting with
@@ -62,6 +65,14 @@ REFINE_LEVELS = 2
 # at 0.05 mm cost 2.4 % of the time, at 0.025 mm 0.01 %; at 0.1 % most kossel paths took 5× the
 # time for 0.03 % (docs/TUNING.md)
 REPAIR_COST = 3e-3
+# ... and where the last halving of the stations moved their time by more than this fraction
+# (info["spacing_gain"]), either way: TOPP3's b linear in s between stations is a restriction
+# (finer stations are faster; its excess shrinks ~3× a halving, order ~1.6 on rand_edge_lcnc:
+# 0.60 % from 0.1 to 0.05 mm, 0.20 % from 0.05 to 0.025), the limits held at the stations only a
+# relaxation (finer stations are slower: meander_lcnc 6.539 → 6.582 s from 0.1 to 0.05 mm, and
+# 6.597 → 6.577 s after the repairs at 0.025 mm).  The repairs' rule alone never refines where the
+# repairs cost nothing
+SPACING_GAIN = 2e-3
 # stations ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (copp's engine: 0.1 mm and 0.5 radii).
 # TOPP3's b is linear in s between stations, a restriction whose time excess shrinks about in
 # proportion to the spacing: at 0.1 mm / 0.1 radii the stations alone kept optimal 0.2–0.46 % above
@@ -234,29 +245,48 @@ def _within(machine, path, prof, limits) -> tuple[bool, str]:
     return False, f"feed {feed:.6g} × F_max"
 
 
+def _settings(grid_mm, f) -> topp3.Settings:
+    """optimal's engine settings on stations ``f`` times closer than grid_mm / STATION_RADII."""
+    return topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, station_min_mm=STATION_MIN_MM,
+                          join_grading=True, read_slack=CHAIN_MARGIN / 2, midpoint_cap=True)
+
+
 def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
-    """The TOPP3-SOCP's profile, checked at T.  Where the engine's repairs (tightened windows,
-    then stretches) still leave a limit above 1, or where they cost more than REPAIR_COST of the
-    time the stations alone allowed, the path is solved again on stations STATION_REFINEMENT
-    times closer (also in curvature radii), up to REFINE_LEVELS times: the limits hold at the
-    stations, so finer stations leave less to read between them and to repair.  The fastest
-    profile within the limits is returned; a refinement that has no solution or gains less
-    than REPAIR_COST ends the search.  Never another planner's profile: without a profile
-    within the limits a PlanningError names the path and the limit."""
+    """The TOPP3-SOCP's profile, checked at T.  The stations are first solved STATION_REFINEMENT
+    times coarser, for the first linearisation of the solve at grid_mm and for how much the
+    halving moved their time.  The path is solved again on stations STATION_REFINEMENT times closer
+    (also in curvature radii), up to REFINE_LEVELS times, each linearised around the last,
+    where the last halving of the stations moved their time by more than SPACING_GAIN, where
+    the engine's repairs (tightened windows, then stretches) still leave a limit above 1, or
+    where they cost more than REPAIR_COST of the time the stations alone allowed (and the last
+    refinement gained as much): the limits hold at the stations, so finer stations leave less
+    to read between them and to repair.  The fastest profile within the limits is returned; a
+    refinement that has no solution or is no faster ends the search.  Never another planner's
+    profile: without a profile within the limits a PlanningError names the path and the limit."""
     why, best = [], None
     inner = limits.joint_scaled(1 - CHAIN_MARGIN)
+    coarse = _settings(grid_mm, 1 / STATION_REFINEMENT)
+    try:
+        prev = topp3.pieces_of(path, machine, inner, coarse)
+        relax_prev = topp3.station_time(prev, coarse)
+    except PlanningError:           # the finer stations are solved from TOPP2-RA's profile
+        prev, relax_prev = None, None
     for level in range(REFINE_LEVELS + 1):
-        f = STATION_REFINEMENT ** level
-        settings = topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f,
-                                  station_min_mm=STATION_MIN_MM, join_grading=True,
-                                  read_slack=CHAIN_MARGIN / 2, midpoint_cap=True)
+        settings = _settings(grid_mm, STATION_REFINEMENT ** level)
         try:
-            prof = topp3.solve(path, machine, inner, settings)
+            pieces = topp3.pieces_of(path, machine, inner, settings)
+            if prev is not None:
+                topp3.linearise_around(pieces, prev)
+            prof = topp3.solve(path, machine, inner, settings, pieces)
         except PlanningError as e:
             why.append(f"stations ≤ {settings.grid_mm:g} mm: {e}")
             if best is not None:
                 break
+            prev, relax_prev = None, None
             continue
+        relax = prof.info["station_relaxation_s"]
+        spacing_gain = 0.0 if relax_prev is None else 1 - relax / relax_prev
+        prev, relax_prev = pieces, relax
         ok, worst = _within(machine, path, prof, limits)
         if not ok:
             why.append(f"stations ≤ {settings.grid_mm:g} mm: {worst}")
@@ -266,9 +296,10 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
         if best is not None and t_new >= best.info["continuous_time_s"]:
             break
         gain = 1.0 if best is None else 1 - t_new / best.info["continuous_time_s"]
-        prof.info.update(source="socp", grid_mm=settings.grid_mm)
+        prof.info.update(source="socp", grid_mm=settings.grid_mm, spacing_gain=spacing_gain)
         best = prof
-        if gain < REPAIR_COST or t_new <= (1 + REPAIR_COST) * prof.info["station_relaxation_s"]:
+        repairs_cost = t_new > (1 + REPAIR_COST) * relax and gain >= REPAIR_COST
+        if not (repairs_cost or abs(spacing_gain) > SPACING_GAIN):
             break
     if best is None:
         raise PlanningError(f"optimal: {getattr(path, 'source', 'the path')}: no profile within the limits at T; "

@@ -190,7 +190,10 @@ def _join_rows(machine, path, grid, joins, T_scaled):
 
 class Piece:
     """One rest-to-rest piece as a COPP problem in scaled time (t_u = A/J); ``reference``: the
-    profile (a at the stations) the first solve is linearised around, TOPP2-RA's where None."""
+    profile (a at the stations) the first solve is linearised around, TOPP2-RA's where None;
+    ``relaxed``: the first solve's profile (the limits at the stations only, before any
+    tightening); ``reference_is_coarser``: the reference is another grid's solution
+    (linearise_around), so the linearisations go on until one gains < lin_tol."""
 
     def __init__(self, k, table, path, machine, limits, s0, s1, settings, joins):
         self.k, self.s0, self.s1 = k, s0, s1
@@ -229,7 +232,8 @@ class Piece:
         # check at T reads the limit above 1 in a window over the station (tighten)
         self.factor = np.ones((len(self.grid), len(LIMIT_COLUMNS)))
         self.changed = np.zeros(len(self.grid), bool)
-        self.prof = self.span = self.reference = None
+        self.prof = self.span = self.reference = self.relaxed = None
+        self.reference_is_coarser = False
         self.stuck = False
         self.insufficient_progress = 0
 
@@ -305,8 +309,10 @@ class Piece:
             a_lin = np.minimum(self.topp2_ra() if self.reference is None else self.reference, self.cap2)
             # a reference (TOPP2-RA's profile is far above any jerk-limited one) counts as the
             # solve before the first: a first solve that moves its time by < lin_tol is the
-            # fixed point a second linearisation would only confirm
-            before = None if self.reference is None else self._chord_time(a_lin)
+            # fixed point a second linearisation would only confirm.  Not a coarser grid's
+            # solution: its first solve here moved < lin_tol and stopped 7e-5 above the fixed
+            # point on rand_3d_lcnc
+            before = None if self.reference is None or self.reference_is_coarser else self._chord_time(a_lin)
             best = None
             for _ in range(settings.max_linearisations):
                 prof, tf, ts = self._timed(self._socp(self._robot(a_lin), a_lin))
@@ -317,7 +323,7 @@ class Piece:
                 if done:
                     break
                 a_lin = prof.a
-            self.prof = best[1]
+            self.prof = self.relaxed = best[1]
         self.changed[:] = False
         self.prof, _, ts = self._timed(self.prof)
         return self.prof, ts
@@ -608,6 +614,30 @@ def pieces_of(path, machine, limits, settings: Settings) -> list[Piece]:
     table = PathTable(path, machine)
     joins = join_jumps(path, table, machine)
     return [Piece(k, table, path, machine, limits, s0, s1, settings, joins) for k, (s0, s1) in enumerate(rest_pieces(path))]
+
+
+def station_time(pieces, settings: Settings) -> float:
+    """The pieces solved on their stations alone (the linearisations, no check at T): their
+    time in s, what solve() reports as info["station_relaxation_s"] on these stations."""
+    total = 0.0
+    for p in pieces:
+        try:
+            _, ts = p.solve(settings)
+        except (copp.CoppError, ValueError) as e:
+            raise PlanningError(f"{settings.name}: no solution of {p.where()}: {type(e).__name__}: {e}") from None
+        total += float(ts[-1]) * p.tu
+    return total
+
+
+def linearise_around(pieces, solved) -> None:
+    """Each piece's first linearisation around the same piece of ``solved`` (on other stations,
+    its first solve's ṡ² interpolated): a coarser grid's solution is near the finer one's fixed
+    point, so the finer grid takes fewer linearisations than from TOPP2-RA's profile (half the
+    CPU of butterfly_lcnc's 0.05 mm solve, docs/TUNING.md)."""
+    for p, q in zip(pieces, solved, strict=True):
+        if q.relaxed is not None:
+            p.reference = np.interp(p.grid, q.grid, q.relaxed.a)
+            p.reference_is_coarser = True
 
 
 def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None = None) -> Profile:
