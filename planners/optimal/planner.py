@@ -101,8 +101,10 @@ THIN_GRID_FACTOR = 3.0
 # Where the path turns, a node at least every NODE_RADII curvature radii of travel (6° of turn;
 # the 24 nodes of MIN_PHASE_NODES on a 90° blend arc are 3.75° apart)
 NODE_RADII = 0.1
-# Where IPOPT fails from the warm start slowed by warm_stretch, it starts again from this (a
-# start further inside the constraints)
+# Where IPOPT fails from the warm start slowed by warm_stretch, or its solution reads above a limit
+# no faster than the start, it starts again from this (a start further inside the constraints:
+# on contour_keops from two SOCP profiles 1e-6 apart IPOPT's first solution read above at 2.545 s
+# from one and was 2.362 s from the other; from 1.05 or 1.1 × the first, 2.362 s)
 RETRY_STRETCH = 1.1
 # an NLP solution (or its slow-down) slower than this many times its start is no candidate
 # (_faster_of keeps the start) and is not sampled at T: the samples' memory stays bounded
@@ -309,9 +311,10 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
 
 def _polish(path, machine, limits, warm, margin=0.005, node_period_s=1e-3, max_nodes_per_piece=600,
             warm_stretch=1.02, retries=3) -> Profile:
-    """The NLP from ``warm`` slowed down by ``warm_stretch``; where IPOPT fails from there, once
-    more from RETRY_STRETCH (a start further inside the constraints).  The faster of the
-    solution and the start is returned, both checked at T."""
+    """The NLP from ``warm`` slowed down by ``warm_stretch``; where IPOPT fails from there or
+    its solution reads above a limit and is no faster than its start, once more from
+    RETRY_STRETCH (a start further inside the constraints).  The faster of the solution and the
+    start is returned, both checked at T."""
     T = machine.servo_period_s
     table = PathTable(path, machine, refine=True)
     cap = table_feed_cap(path, table, limits, T)
@@ -329,7 +332,7 @@ def _polish(path, machine, limits, warm, margin=0.005, node_period_s=1e-3, max_n
             break
         except PlanningError as e:          # IPOPT failed, or still above a limit when slowed down
             failure = e
-            if not isinstance(e, IpoptFailure):
+            if not isinstance(e, (IpoptFailure, NoFasterThanStart)):
                 break
     return _faster_of(prof, warm, machine, path, failure)
 
