@@ -280,6 +280,7 @@ def test_a_profile_above_a_limit_is_solved_on_finer_stations_then_refused(monkey
     over = optimal.topp3.solve(path, KOSSEL, double, optimal.topp3.Settings("optimal"))   # above KOSSEL's
     good = optimal.topp3.solve(path, KOSSEL, lim, optimal.topp3.Settings("optimal"))
     grids = []
+    monkeypatch.setattr(optimal, "SPACING_GAIN", math.inf)     # the halvings' own rule aside
 
     def solve(path_, machine, limits, settings, pieces=None):
         grids.append(settings.grid_mm)

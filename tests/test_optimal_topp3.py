@@ -183,6 +183,42 @@ def test_a_finer_grid_linearised_around_a_coarser_solution_reaches_its_fixed_poi
     assert prof.info["station_relaxation_s"] == pytest.approx(t_cold, rel=1e-12)
 
 
+def test_knot_cells_where_the_false_cap_binds_hold_each_sides_jerk():
+    """rand_3d_lcnc (a cubic NURBS: q‴ jumps at every knot) on 0.4 mm stations.  binding_knots
+    lists the knots where the solved speed reaches KNOT_CAP_SHARE of (2J/max|Δq‴|)^⅓, Δq‴ here
+    from second differences of q″ either side (a second method); with knot_cells each such knot
+    is a station with one KNOT_CELL_MM either side, and the cells beside those hold the jerk
+    with their own side's derivatives."""
+    from harness.corpus.run import CORPUS_DIR
+    from planners.constraints import interior_knots, joint_derivs
+    lcnc = load_machine("linuxcnc_delta")
+    path = resolve_path(str(CORPUS_DIR / "rand_3d_lcnc.json"), home=lcnc.home)
+    coarse = topp3.Settings("copp", 0.4)
+    pieces = topp3.pieces_of(path, lcnc, lcnc.limits, coarse)
+    topp3.station_time(pieces, coarse)
+    knots = np.array(topp3.binding_knots(pieces, path, lcnc, lcnc.limits))
+    assert 0 < len(knots) < len(interior_knots(path))
+    d = 1e-4
+    q2 = [joint_derivs(lcnc, path, knots + o, fit_scale=True)[2] for o in (-2 * d, -d, d, 2 * d)]
+    jump = np.abs((q2[3] - q2[2]) / d - (q2[1] - q2[0]) / d).max(axis=1)
+    cap = np.cbrt(2 * lcnc.limits.joint.j / jump)
+    p, = pieces
+    speed = np.sqrt(np.interp(knots, p.grid, p.relaxed.a)) / p.tu
+    assert np.all(speed >= topp3.KNOT_CAP_SHARE * cap * (1 - 1e-2))
+    cells = topp3.Settings("copp", 0.4, knot_cells=tuple(knots))
+    q, = topp3.pieces_of(path, lcnc, lcnc.limits, cells)
+    topp3.station_time([q], cells)
+    i = np.searchsorted(q.grid, knots)
+    assert np.allclose(q.grid[i], knots, atol=1e-12)
+    assert np.allclose(q.grid[i + 1] - q.grid[i], topp3.KNOT_CELL_MM) and np.allclose(q.grid[i] - q.grid[i - 1], topp3.KNOT_CELL_MM)
+    a, b = q.relaxed.a, q.relaxed.b
+    c = np.diff(b) / np.diff(q.grid)
+    _, d1, d2, d3 = q.deriv
+    for st, cell in [(k, cl) for j in i for k, cl in ((j - 1, j - 2), (j + 1, j + 1))]:
+        jerk = np.sqrt(a[st]) * (d3[st] * a[st] + 3 * d2[st] * b[st] + d1[st] * c[cell])
+        assert np.abs(jerk).max() <= q.lims[2] * (1 + 1e-6)
+
+
 def test_join_grading_makes_the_socp_time_the_profiles_time(tmp_path):
     """Three G64 P0.01 corners (33°, 90°, 127°) on keops, where the feed falls near 0: without
     graded stations the line's 0.05 mm cell beside each blend left a(s) one quadratic from ~0,

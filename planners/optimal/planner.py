@@ -13,10 +13,12 @@ cap; the G1-join reads).  Two transcriptions:
   difference reads above a limit (a joint read within half of CHAIN_MARGIN is left:
   Settings.read_slack); where 8 rounds of that leave reads above, the fastest of the rounds'
   profiles stretched in time around their reads (topp3._stretch).  The stations are solved
-  twice as coarse first (the first linearisation of the finer solve, and the time the halving
-  moved); the path is solved again on finer stations where a halving moved it by more than
-  SPACING_GAIN, where a limit still reads above 1 after the repairs, or where they cost more
-  than REPAIR_COST (_socp_within_limits).
+  twice as coarse first (the first linearisation of the finer solve, the time the halving
+  moved, and the NURBS knots whose false cap the coarse speed reaches: topp3.binding_knots,
+  a station at each without jerk rows, so each side's cell holds its own q‴); the path is
+  solved again on finer stations where a halving moved it by more than SPACING_GAIN, where a
+  limit still reads above 1 after the repairs, or where they cost more than REPAIR_COST
+  (_socp_within_limits).
   No other planner's profile is ever returned: without a profile within the limits `optimal`
   raises a PlanningError naming the path and the limit;
 * the time-domain NLP (CasADi + IPOPT, planners/optimal/nlp.py): direct multiple shooting with
@@ -247,16 +249,17 @@ def _within(machine, path, prof, limits) -> tuple[bool, str]:
     return False, f"feed {feed:.6g} × F_max"
 
 
-def _settings(grid_mm, f) -> topp3.Settings:
-    """optimal's engine settings on stations ``f`` times closer than grid_mm / STATION_RADII."""
+def _settings(grid_mm, f, knots=()) -> topp3.Settings:
+    """optimal's engine settings on stations ``f`` times closer than grid_mm / STATION_RADII,
+    with cells at ``knots`` (topp3.binding_knots)."""
     return topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, station_min_mm=STATION_MIN_MM,
-                          join_grading=True, read_slack=CHAIN_MARGIN / 2, midpoint_cap=True)
+                          join_grading=True, read_slack=CHAIN_MARGIN / 2, midpoint_cap=True, knot_cells=knots)
 
 
 def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     """The TOPP3-SOCP's profile, checked at T.  The stations are first solved STATION_REFINEMENT
-    times coarser, for the first linearisation of the solve at grid_mm and for how much the
-    halving moved their time.  The path is solved again on stations STATION_REFINEMENT times closer
+    times coarser, for the first linearisation of the solve at grid_mm, for how much the
+    halving moved their time and for the knots that get cells (topp3.binding_knots).  The path is solved again on stations STATION_REFINEMENT times closer
     (also in curvature radii), up to REFINE_LEVELS times, each linearised around the last,
     where the last halving of the stations moved their time by more than SPACING_GAIN, where
     the engine's repairs (tightened windows, then stretches) still leave a limit above 1, or
@@ -271,10 +274,11 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     try:
         prev = topp3.pieces_of(path, machine, inner, coarse)
         relax_prev = topp3.station_time(prev, coarse)
+        knots = topp3.binding_knots(prev, path, machine, inner)
     except PlanningError:           # the finer stations are solved from TOPP2-RA's profile
-        prev, relax_prev = None, None
+        prev, relax_prev, knots = None, None, ()
     for level in range(REFINE_LEVELS + 1):
-        settings = _settings(grid_mm, STATION_REFINEMENT ** level)
+        settings = _settings(grid_mm, STATION_REFINEMENT ** level, knots)
         try:
             pieces = topp3.pieces_of(path, machine, inner, settings)
             if prev is not None:

@@ -66,6 +66,19 @@ STATION_RADII = 0.5
 STATION_MIN_MM = 1e-3
 # knot stations (Settings.knot_stations) this far either side of the knot: one-sided derivatives
 KNOT_SIDE_MM = 1e-7
+# Settings.knot_cells: at every interior NURBS knot a station, and one this far either side.
+# The engine holds the jerk limit at both ends of every cell with the stations' derivatives, so a
+# cell across a knot, where q‴ jumps, held one c = ds̈/ds to both sides' q‴: a false cap
+# ṡ³ ≲ 2J/|Δq‴| (rand_3d_lcnc passed its knot at s = 567.39 mm at 143 mm/s, the reference at 157).
+# With the knot's own jerk rows left out, the cell either side holds the jerk with its side's q‴
+# only, and s⃛ jumps at the knot as the continuous optimum's does
+KNOT_CELL_MM = 1e-4
+# ... the knot station's jerk limit: this many times J (no row binds it)
+KNOT_JERK_FREE = 1e6
+# ... at the knots where a coarser solution passes at this share of the false cap or more: cells
+# at every knot cost keops's random NURBS paths 0.05–0.1 %, at 0.8 of it rand_3d_weights_keops
+# 0.03 %, at 0.9 nothing (docs/TUNING.md)
+KNOT_CAP_SHARE = 0.9
 # Settings.join_grading: either side of a G1 join, stations 2^k × the travel in one period at
 # the join's cap (a blend arc's cell where smaller), k ≥ 0, up to the next station; none
 # closer than GRADED_MIN_MM.  At a corner of a G64 program the feed falls to ~0.05 mm/s over
@@ -110,6 +123,8 @@ class Settings:
     ``station_radii``: stations ≤ this many curvature radii apart (STATION_RADII by default),
     none closer than ``station_min_mm`` (STATION_MIN_MM by default).
     ``knot_stations``: a station a hair either side of every interior NURBS knot (grid_of).
+    ``knot_cells``: arc lengths of NURBS knots (binding_knots) to hold as a station without jerk
+    rows and one KNOT_CELL_MM either side (KNOT_CELL_MM).
     ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM).
     ``read_slack``: the samples at T are repaired only where they read a joint limit above
     1 + read_slack (a planner that hands the engine its joint limits less a margin lets its
@@ -124,6 +139,7 @@ class Settings:
     station_radii: float = STATION_RADII
     station_min_mm: float = STATION_MIN_MM
     knot_stations: bool = False
+    knot_cells: tuple = ()
     join_grading: bool = False
     read_slack: float = 0.0
     midpoint_cap: bool = False
@@ -161,6 +177,30 @@ def grid_of(path, table, joins, s0, s1, grid_mm, radii=STATION_RADII, knots=Fals
         new = np.concatenate([grid[i] + h[i] * np.arange(1, k) / k for i, k in zip(need, parts)])
         grid = np.sort(np.concatenate([grid, new]))
     return grid
+
+
+def binding_knots(pieces, path, machine, limits, share=KNOT_CAP_SHARE) -> tuple:
+    """The interior NURBS knots (none at a G1 join, which has its own rows) where the solved
+    ``pieces`` pass at ≥ ``share`` of the false cap (2J/max|Δq‴|)^⅓ that one c across the knot's
+    cell puts on the speed: Settings.knot_cells for a finer solve (KNOT_CELL_MM)."""
+    sk = interior_knots(path)
+    if len(sk) == 0:
+        return ()
+    q3 = joint_derivs(machine, path, np.concatenate([sk - 1e-7, sk + 1e-7]), fit_scale=True)[3]
+    jump = np.abs(q3[len(sk):] - q3[:len(sk)]).max(axis=1)
+    with np.errstate(divide="ignore"):
+        cap = np.cbrt(2 * limits.joint.j / jump)
+    out = []
+    for p in pieces:
+        inside = (sk > p.s0 + 2 * KNOT_CELL_MM) & (sk < p.s1 - 2 * KNOT_CELL_MM)
+        joins = p.grid[[r[0] for r in p.joins]]
+        if len(joins):
+            inside &= np.abs(sk[:, None] - joins[None, :]).min(axis=1) > 2 * KNOT_CELL_MM
+        if p.relaxed is None or not inside.any():
+            continue
+        speed = np.sqrt(np.maximum(np.interp(sk[inside], p.grid, p.relaxed.a), 0.0)) / p.tu
+        out += [float(k) for k, v, c in zip(sk[inside], speed, cap[inside]) if v >= share * c]
+    return tuple(out)
 
 
 def _graded(grid, at, first):
@@ -204,12 +244,16 @@ class Piece:
         self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
         self.grid = grid_of(path, table, joins, s0, s1, settings.grid_mm, settings.station_radii,
                             settings.knot_stations, settings.station_min_mm)
+        sk = np.array([k for k in settings.knot_cells if s0 < k < s1], float)
+        if len(sk):
+            self.grid = np.unique(np.concatenate([self.grid, sk, sk - KNOT_CELL_MM, sk + KNOT_CELL_MM]))
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         travel = []
         if settings.join_grading and self.joins:
             travel = self._join_travel(path, limits, T)
             self.grid = _graded(self.grid, [r[0] for r in self.joins], travel)
             self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
+        self.knot_at = np.searchsorted(self.grid, sk)
         e = np.clip(self.grid, s0 + 1e-9, s1 - 1e-9)        # one-sided at the corners
         cart = cartesian_derivs(path, e)
         cap = feed_cap(path, self.grid, limits, T, kappa=cross_norm(cart[1], cart[2]))
@@ -262,6 +306,7 @@ class Piece:
         rob.set_q(q, d1, d2, 0, dddq=d3)
         f = self.factor
         v, a, j = (np.outer(f[:, m], np.full(3, lim)) for m, lim in enumerate(self.lims))
+        j[self.knot_at] = KNOT_JERK_FREE * self.lims[2]
         rob.add_velocity_limits(v, -v, start_idx_s=0, length=n)
         rob.add_acceleration_limits(a, -a, start_idx_s=0, length=n)
         rob.add_jerk_limits(j, -j, start_idx_s=0, length=n)
