@@ -259,9 +259,9 @@ def _settings(grid_mm, f, knots=()) -> topp3.Settings:
 def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     """The TOPP3-SOCP's profile, checked at T.  The stations are first solved STATION_REFINEMENT
     times coarser, for the first linearisation of the solve at grid_mm, for how much the
-    halving moved their time and for the knots that get cells (topp3.binding_knots).  The path is solved again on stations STATION_REFINEMENT times closer
-    (also in curvature radii), up to REFINE_LEVELS times, each linearised around the last,
-    where the last halving of the stations moved their time by more than SPACING_GAIN, where
+    halving moved their time and for the knots that get cells (topp3.binding_knots).  The path
+    is solved again on stations STATION_REFINEMENT times closer (also in curvature radii), up
+    to REFINE_LEVELS times, each linearised around the last, where the last halving of the stations moved their time by more than SPACING_GAIN, where
     the engine's repairs (tightened windows, then stretches) still leave a limit above 1, or
     where they cost more than REPAIR_COST of the time the stations alone allowed (and the last
     refinement gained as much): the limits hold at the stations, so finer stations leave less

@@ -535,14 +535,19 @@ class _Topp3Span:
         return s, sd / tu, sdd / tu ** 2, sddd / tu ** 3
 
 
+def _solved(piece, settings):
+    """piece.solve(settings), a solver's failure as a PlanningError naming the piece."""
+    try:
+        return piece.solve(settings)
+    except (copp.CoppError, ValueError) as e:
+        raise PlanningError(f"{settings.name}: no solution of {piece.where()}: {type(e).__name__}: {e}") from None
+
+
 def _sample(pieces, T, path, info, settings) -> Profile:
     """The pieces solved (those not solved since they were tightened) and sampled at T."""
     for p in pieces:
         if p.span is None:
-            try:
-                p.span = _Topp3Span(p, *p.solve(settings))
-            except (copp.CoppError, ValueError) as e:
-                raise PlanningError(f"{settings.name}: no solution of {p.where()}: {type(e).__name__}: {e}") from None
+            p.span = _Topp3Span(p, *_solved(p, settings))
     return Profile.from_pieces(settings.name, T, [p.span for p in pieces], path, info)
 
 
@@ -664,21 +669,14 @@ def pieces_of(path, machine, limits, settings: Settings) -> list[Piece]:
 def station_time(pieces, settings: Settings) -> float:
     """The pieces solved on their stations alone (the linearisations, no check at T): their
     time in s, what solve() reports as info["station_relaxation_s"] on these stations."""
-    total = 0.0
-    for p in pieces:
-        try:
-            _, ts = p.solve(settings)
-        except (copp.CoppError, ValueError) as e:
-            raise PlanningError(f"{settings.name}: no solution of {p.where()}: {type(e).__name__}: {e}") from None
-        total += float(ts[-1]) * p.tu
-    return total
+    return sum(float(_solved(p, settings)[1][-1]) * p.tu for p in pieces)
 
 
 def linearise_around(pieces, solved) -> None:
     """Each piece's first linearisation around the same piece of ``solved`` (on other stations,
     its first solve's ṡ² interpolated): a coarser grid's solution is near the finer one's fixed
-    point, so the finer grid takes fewer linearisations than from TOPP2-RA's profile (half the
-    CPU of butterfly_lcnc's 0.05 mm solve, docs/TUNING.md)."""
+    point, so the finer grid takes fewer linearisations than from TOPP2-RA's profile
+    (docs/TUNING.md)."""
     for p, q in zip(pieces, solved, strict=True):
         if q.relaxed is not None:
             p.reference = np.interp(p.grid, q.grid, q.relaxed.a)
