@@ -64,13 +64,14 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, break
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
-VERSION = 7                    # bump when the transcription changes: every cached entry is redone
+VERSION = 8                    # bump when the transcription changes: every cached entry is redone
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
 SLOW_FRACTION = 0.25           # a break whose speed cap is below this part of F_max is graded like a stop
 TURN_RAD = 0.1                 # level 0: a node at least every 0.1 rad of turn
 PEAK_PROMINENCE = 1e-9         # a curvature peak's prominence over κ below this is rounding
+MERGE_MM = 1e-6               # breaks and grading centres closer than this are one point
 SIDE = 1e-7                    # mm: one-sided derivatives either side of a join or knot
 CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2·SIDE is a steep q″, no jump
 # a join's read is imposed at the nodes within 2·READ_REACH periods of it at the start's node
@@ -110,29 +111,37 @@ class Map:
     """The monotone map σ ∈ [0, n] → s of one rest piece: nodes at σ = k/2^level, ``breaks`` at
     integer σ. Monitor w(s) = 1/h + (κ + √|P‴|)/TURN_RAD, and around each of ``slow`` (the rest ends and
     the G1 joins and the points where the speed cap falls low) the grading (ℓ/d)^(2/3)/h within ℓ
-    of it (ℓ at most half the way to the next): near a stop ṡ ∝ d^(2/3), which these nodes
+    of it (ℓ on each side at most half the way to the next): near a stop ṡ ∝ d^(2/3), which these nodes
     (d ∝ σ³) resolve as smoothly as the rest, and a join's read uses the one-sided da/ds of the
     cell next to it, which is then short."""
 
     def __init__(self, path, s0, s1, breaks, h, ell, slow=()):
         edges = np.concatenate([[s0], np.asarray(breaks, float), [s1]])
         centres = np.unique(np.concatenate([[s0, s1], np.asarray(slow, float)]))
-        # each centre's zone: ℓ, at most half the way to the next centre
-        gap = np.diff(centres)
-        ells = np.minimum(ell, 0.5 * np.minimum(np.concatenate([[np.inf], gap]), np.concatenate([gap, [np.inf]])))
+        # one centre per point: a join listed again from its rounded break (1e-13 mm off) had a
+        # zone of half that gap, so no grading (VERSION 7: meander_keops's joins had none)
+        centres = centres[np.concatenate([[True], np.diff(centres) > MERGE_MM])]
+        # each centre's zone on either side: ℓ, at most half the way to the next centre on that
+        # side (one zone for both sides took the nearer: a curvature peak 0.14 mm into a U-turn
+        # left the 50 mm braking on the leg before it ungraded, its last cell 0.5 mm long)
+        half = 0.5 * np.diff(centres)
+        left = np.minimum(ell, np.concatenate([[0.0], half]))
+        right = np.minimum(ell, np.concatenate([half, [0.0]]))
 
         def g(d, e):
             d = np.minimum(d, e)
             return (3 * e ** (2 / 3) * np.cbrt(d) - d) / h
 
-        # G(x) = Σ sgn(x − c)·g(|x − c|): increasing, so the map stays monotone
-        G = lambda x: sum(np.sign(x - c) * g(np.abs(x - c), e) for c, e in zip(centres, ells))
+        # G(x) = Σ ±g(|x − c|) (+ right of c, − left of it): increasing, so the map stays monotone
+        G = lambda x: sum(np.where(x >= c, g(np.maximum(x - c, 0.0), r), -g(np.maximum(c - x, 0.0), le))
+                          for c, le, r in zip(centres, left, right))
         cube = np.linspace(0, 1, 200) ** 3
         self.pieces = []                      # (σ at start, cells, s table, σ table)
         sig = 0
         for a, b in zip(edges[:-1], edges[1:]):
             m = int(min(4000, max(16, math.ceil((b - a) / (0.2 * h)))))
-            near = [c + sg * e * cube for c, e in zip(centres, ells) if a - e <= c <= b + e for sg in (-1, 1)]
+            near = [c + sg * e * cube for c, le, r in zip(centres, left, right) if a - r <= c <= b + le
+                    for sg, e in ((-1, le), (1, r))]
             x = np.unique(np.clip(np.concatenate([np.linspace(a, b, m)] + near), a, b))
             inner = np.clip(x, a + SIDE, b - SIDE) if b - a > 4 * SIDE else x
             # turn per node, and the length scale of the curvature's change (1/√|P‴|, as the
@@ -177,7 +186,7 @@ def slow_points(path, machine, limits, s, joins, frac=SLOW_FRACTION):
                                  limits.joint.v / np.abs(q[1]).max(axis=1),
                                  np.sqrt(limits.joint.a / np.abs(q[2]).max(axis=1))])
     for sj, dq2 in joins:
-        i = np.abs(s - sj) < 1e-6
+        i = np.abs(s - sj) < MERGE_MM
         cap[i] = np.minimum(cap[i], read_cap(machine, max(np.max(dq2), 1e-300)))
     return s[cap < frac * limits.feed_max]
 
@@ -247,7 +256,7 @@ class PieceData:
         self.kappa = {}                          # break node → the join's read κ per joint, scaled
         for sj, dq2 in joins:
             i = int(np.argmin(np.abs(s - sj)))
-            if abs(s[i] - sj) < 1e-6:
+            if abs(s[i] - sj) < MERGE_MM:
                 self.kappa[i] = JUMP_READ_FACTOR * np.asarray(dq2) * su / (T / tu)
         self.s, self.scale, self.period = s, (tu, vu), T / tu
 
@@ -473,20 +482,20 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
     joins = join_jumps(path, table, machine)
     brk_all = sorted(set(breakpoints(path)) | {sj for sj, _ in joins})
     knots = list(interior_knots(path))
-    joins += knot_jumps(path, machine, [k for k in knots if all(abs(k - sj) > 1e-6 for sj, _ in joins)])
+    joins += knot_jumps(path, machine, [k for k in knots if all(abs(k - sj) > MERGE_MM for sj, _ in joins)])
     pieces = rest_pieces(path)
     h = path.length / base_nodes
     # the rest ends' graded zone: the distance the jerk-limited start covers to reach ~F_max
     ell = (limits.feed_max ** 1.5) / math.sqrt(J.j) * 2
     maps = []
     for s0, s1 in pieces:
-        br = [b for b in brk_all + knots if s0 + 1e-6 < b < s1 - 1e-6]
+        br = [b for b in brk_all + knots if s0 + MERGE_MM < b < s1 - MERGE_MM]
         br += list(curvature_peaks(path, s0, s1))
         br = np.unique(np.round(np.array(br, float), 12))
         if len(br):
-            keep = np.concatenate([[True], np.diff(br) > 1e-6])
+            keep = np.concatenate([[True], np.diff(br) > MERGE_MM])
             br = br[keep]
-            br = br[(br > s0 + 1e-6) & (br < s1 - 1e-6)]
+            br = br[(br > s0 + MERGE_MM) & (br < s1 - MERGE_MM)]
         slow = np.concatenate([slow_points(path, machine, limits, br, joins),
                                [sj for sj, _ in joins if s0 < sj < s1]])
         maps.append(Map(path, s0, s1, br, h, ell, slow))
