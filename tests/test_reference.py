@@ -35,6 +35,26 @@ def test_richardson_recovers_a_second_order_limit():
     assert (Ts, err, math.isnan(p)) == (1.001, pytest.approx(0.003), True)
 
 
+def test_a_slow_point_is_graded_on_each_side_by_that_side_s_room():
+    """Map's grading around a slow point c: within its zone ℓ the map adds G = (3ℓ^⅔d^⅓ − d)/h
+    cells at d from c, so next to c the nodes lie at d ∝ σ³ (d₂/d₁ = 8, d₃/d₂ = 27/8) and the
+    zone holds ℓ/h + 2ℓ/h cells.  A second slow point 0.2 mm to the right limits the zone on that
+    side only, and the same point listed twice 1e-13 mm apart is one (VERSION 7 gave c one zone of
+    half the nearer gap on both sides: the braking before a U-turn's join was not graded)."""
+    R = _ref()
+    h, ell = 1.0, 20.0
+    path = SegmentPath([Line([0, 0, -300], [100, 0, -300])])
+    s, brk = R.Map(path, 0.0, 100.0, [50.0], h, ell, slow=[50.0, 50.0 + 1e-13, 50.2]).nodes(0)
+    k = int(np.argmin(np.abs(s - 50.0)))
+    assert s[k] == 50.0 and list(brk) == [k]
+    d = 50.0 - s[k - 3:k][::-1]
+    assert d[1] / d[0] == pytest.approx(8.0, rel=0.02)
+    assert d[2] / d[1] == pytest.approx(27 / 8, rel=0.02)
+    assert np.count_nonzero((s >= 50.0 - ell) & (s < 50.0)) == pytest.approx(3 * ell / h, abs=1)
+    # to the right the zone is 0.1 mm (half the way to 50.2): 0.2 cells, no node before 50.2
+    assert not np.any((s > 50.0) & (s < 50.2 - 1e-9))
+
+
 @pytest.mark.slow
 def test_a_line_driving_the_joints_one_to_one_is_the_closed_form():
     """q = z + const on kossel's three joints: the minimum time rest to rest is the 1-D
