@@ -78,9 +78,10 @@ CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2�
 # times widened by READ_SLACK; a solution with a node closer outside that set is solved again with it
 READ_SLACK = 1.2
 READ_ROUNDS = 8
-# max_cpu_time stops a solve that runs away, never shortens one that converges (a stop is an
-# error of the path; the largest CAM grids need up to ~1700 s: corpus README)
-IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 1500, "max_cpu_time": 3600.0, "print_level": 0,
+# max_cpu_time and max_iter stop a solve that runs away, never shorten one that converges (a stop
+# is an error of the path; the largest CAM grids need up to ~1700 s: corpus README; VERSION 8's
+# cold level 0 of cam_dense_lcnc ran out of 1500 iterations)
+IPOPT = {"tol": 1e-10, "acceptable_tol": 1e-8, "max_iter": 4000, "max_cpu_time": 3600.0, "print_level": 0,
          "mu_strategy": "adaptive", "linear_solver": "mumps", "bound_relax_factor": 0.0}
 
 # a refinement starts at the coarse optimum: kept where it is (IPOPT's default pushes of 1e-2
