@@ -33,7 +33,8 @@ it has no quadrature of 1/ṡ, so a slow node costs exactly the time its cells t
 path-parameter form before it, VERSION 5, weighted 1/ṡ by a five-point ds/dσ that went ≤ 0 at
 σ³-graded nodes: meander_keops's objective came out negative). Nodes: at every segment join,
 NURBS knot and curvature peak, equidistributed between them by a monitor that adds nodes per
-radian turned, graded towards the rest ends and slow points as s ∝ σ³. The grids are nested
+radian turned, graded towards the rest ends and slow points as s ∝ σ³ (each side of a point
+its own zone: VERSION 8). The grids are nested
 (each halves every cell of the one before); the times of the last three give the observed
 order p and the Richardson limit T* = T₃ + (T₃ − T₂)/(2^p − 1), and the error bar is the
 larger of |T* − T₃| and the change of T* from the previous triple. The finest profile is
