@@ -28,7 +28,8 @@ optimum (docs/TUNING.md).
 
 Stations: ≤ grid_mm apart, every segment end and G1 join on the grid, refined at curvature
 peaks (for `optimal` also graded 2× outward from every join, whose read the graded stations
-within 1.5 periods' travel hold too, weighted: Settings.join_grading); q′, q″, q‴ at each
+within 1.5 periods' travel hold too, weighted: Settings.join_grading, and split where a coarser
+solution's speed changes fast and toward the rest ends: speed_stations); q′, q″, q‴ at each
 station from the IK's stencil (constraints.joint_derivs), not interpolated.  The limits hold
 at the stations.  Between them (a(s) is quadratic there and bulges over a bound held at both
 ends) the check at T can read above them: the profile is sampled at T and checked; where a
@@ -79,6 +80,20 @@ KNOT_JERK_FREE = 1e6
 # at every knot cost keops's random NURBS paths 0.05–0.1 %, at 0.8 of it rand_3d_weights_keops
 # 0.03 %, at 0.9 nothing (docs/TUNING.md)
 KNOT_CAP_SHARE = 0.9
+# speed_stations: cells across which a coarser solution's speed ṡ changes by more than SPEED_STEP
+# of its lower end are split so that it changes by about that much on each.  b = s̈ is linear in s
+# on a cell, so s⃛ = ṡ·db/ds follows ṡ across it, and the jerk limit, held at both ends, binds at
+# the faster one only: from rest, where ṡ ∝ s^⅔ in the jerk-limited start, the cells of a uniform
+# grid held the jerk 0.6–0.9 J at their slow ends and a 5 mm move of contour_lcnc stayed 0.75 %
+# above its closed-form time at any spacing (0.1 % with this split at 0.01, 0.2 % at 0.02:
+# docs/TUNING.md)
+SPEED_STEP = 0.01
+# ... and the cell at a rest end graded geometrically (ratio 1 + 1.5·SPEED_STEP: ṡ ∝ s^⅔) down to
+# the travel of a jerk-limited start in REST_FIRST_TU time units t_u = A/J: COPP's cell from rest
+# has one constant path jerk, which the jerk at its far end (3q″ṡs̈ adds to q′s⃛) bounds
+REST_FIRST_TU = 0.05
+# ... a cell split into at most this many (a stop inside a piece has ṡ → 0 at one end)
+SPEED_SPLIT_MAX = 64
 # Settings.join_grading: either side of a G1 join, stations 2^k × the travel in one period at
 # the join's cap (a blend arc's cell where smaller), k ≥ 0, up to the next station; none
 # closer than GRADED_MIN_MM.  At a corner of a G64 program the feed falls to ~0.05 mm/s over
@@ -126,6 +141,7 @@ class Settings:
     ``knot_cells``: arc lengths of NURBS knots (binding_knots) to hold as a station without jerk
     rows and one KNOT_CELL_MM either side (KNOT_CELL_MM).
     ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM).
+    ``extra_stations``: arc lengths to hold as stations too (speed_stations).
     ``read_slack``: the samples at T are repaired only where they read a joint limit above
     1 + read_slack (a planner that hands the engine its joint limits less a margin lets its
     samples use part of it, rather than chase reads of a few 10⁻⁶ from window to window; F_max
@@ -141,6 +157,7 @@ class Settings:
     knot_stations: bool = False
     knot_cells: tuple = ()
     join_grading: bool = False
+    extra_stations: tuple = ()
     read_slack: float = 0.0
     midpoint_cap: bool = False
 
@@ -203,6 +220,46 @@ def binding_knots(pieces, path, machine, limits, share=KNOT_CAP_SHARE) -> tuple:
     return tuple(out)
 
 
+def speed_stations(pieces, step=SPEED_STEP, first_tu=REST_FIRST_TU) -> tuple:
+    """Stations (mm) for a finer solve: the solved ``pieces``' cells across which ṡ changes by
+    more than ``step`` of its slower end split evenly (≤ SPEED_SPLIT_MAX parts), and the cell at
+    each rest end graded geometrically toward it (SPEED_STEP, REST_FIRST_TU)."""
+    out = []
+    for p in pieces:
+        if p.relaxed is None:
+            continue
+        g = p.grid
+        v = np.sqrt(np.maximum(p.relaxed.a, 0.0))
+        lo, dv = np.minimum(v[:-1], v[1:]), np.abs(np.diff(v))
+        inner = np.arange(1, len(g) - 2)
+        split = inner[(lo[inner] > 0) & (dv[inner] > step * lo[inner])]
+        for i in split:
+            n = min(int(math.ceil(dv[i] / (step * lo[i]))), SPEED_SPLIT_MAX,
+                    int((g[i + 1] - g[i]) / GRADED_MIN_MM))
+            out.append(g[i] + (g[i + 1] - g[i]) * np.arange(1, n) / n)
+        ratio = 1 + 1.5 * step
+        for end, d, q1 in ((g[0], g[1] - g[0], p.deriv[1][0]), (g[-1], g[-2] - g[-1], p.deriv[1][-1])):
+            # the start from rest at the path jerk J/|q′| covers J/|q′|·t³/6 (scaled time)
+            first = max(p.lims[2] / max(float(np.abs(q1).max()), 1e-12) * first_tu ** 3 / 6, GRADED_MIN_MM)
+            k = np.arange(1, max(int(math.log(abs(d) / first) / math.log(ratio)), 0) + 1)
+            out.append(end + d * ratio ** -k)
+    return tuple(np.sort(np.concatenate(out)).tolist()) if out else ()
+
+
+def _with_stations(grid, extra):
+    """The grid with the ``extra`` stations inside it, less those nearer a station of the grid than
+    a third of their spacing to the next extra one (no sliver cells: Clarabel stopped on numerical
+    errors beside them)."""
+    x = extra[(extra > grid[0]) & (extra < grid[-1])]
+    if len(x) == 0:
+        return grid
+    gap = np.minimum(np.diff(x, prepend=-np.inf), np.diff(x, append=np.inf))
+    gap = np.minimum(gap, np.minimum(x - grid[0], grid[-1] - x))
+    i = np.clip(np.searchsorted(grid, x), 1, len(grid) - 1)
+    near = np.minimum(x - grid[i - 1], grid[i] - x)
+    return np.unique(np.concatenate([grid, x[near > gap / 3]]))
+
+
 def _graded(grid, at, first):
     """The grid with, either side of each station grid[i] for i in ``at``, stations h·2^k away
     (k ≥ 0, h: the smaller of its two cells and first[m], at least GRADED_MIN_MM) up to the
@@ -247,6 +304,8 @@ class Piece:
         sk = np.array([k for k in settings.knot_cells if s0 < k < s1], float)
         if len(sk):
             self.grid = np.unique(np.concatenate([self.grid, sk, sk - KNOT_CELL_MM, sk + KNOT_CELL_MM]))
+        if settings.extra_stations:
+            self.grid = _with_stations(self.grid, np.asarray(settings.extra_stations, float))
         self.joins = _join_rows(machine, path, self.grid, joins, T / self.tu)
         travel = []
         if settings.join_grading and self.joins:
@@ -387,6 +446,8 @@ class Piece:
         """(profile, its time, its node times) by copp's time map; where that is NaN, once more
         with s̈ = 0 at the profile's stops inside the piece (_stops_at_rest)."""
         s = self.grid - self.s0
+        if prof.a.min() < 0:        # Clarabel's round-off at a stop (a ≈ −1e-9 beside µm cells)
+            prof = copp.Profile3rd(np.maximum(prof.a, 0.0), prof.b, prof.num_stationary)
         try:
             tf, ts = copp.interpolation.s_to_t_topp3(s, prof)
         except copp.CoppError as e:
