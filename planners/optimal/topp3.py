@@ -747,9 +747,10 @@ def linearise_around(pieces, solved) -> None:
 def speed_squared_at(grid, prof, s):
     """a = ṡ² of a TOPP3 profile on ``grid`` at the arc lengths ``s``, by its own model: between
     stations a(x) = a_k + 2b_k·x + c·x², in the stationary blocks at the ends a ∝ x^(4/3) (copp's
-    constant-jerk start and stop, s − s_end = C·τ³).  Linear in a between a coarse grid's stations,
-    the finer grid's first linearisation sat below the speed where it changes fast and near
-    rest, and its jerk tangents held it 0.5 % above the coarse solution on trefoil_keops."""
+    constant-jerk start and stop, s − s_end = C·τ³), within the range of each cell's two stations
+    (a linearisation point no solve has reached is not taken).  Linear in a between a coarse
+    grid's stations, the finer grid's first solve started as far from its fixed point as from
+    TOPP2-RA where speed_stations split the cells and at rest (docs/TUNING.md)."""
     a, b = np.asarray(prof.a, float), np.asarray(prof.b, float)
     n = len(grid) - 1
     s = np.clip(np.asarray(s, float), grid[0], grid[-1])
