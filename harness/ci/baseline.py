@@ -45,18 +45,21 @@ DEFAULT_TOLERANCES: list[tuple[str, dict]] = [
     ("planning_time_ratio", {"max_factor": 1.5, "min_excess": 0.1}),
     ("execution_time_s", {"rel": 0.005}),
     ("feasible", {"exact": True}),
-    # optimal's (and pso's, polished by the same SOCP) Cartesian peaks are not limits they keep,
-    # and the solver-based profiles (Clarabel, IPOPT) moved them by 8.7e-5 relative under other
-    # numpy SIMD (kossel repro_part; tests/test_reproducibility.py): ±0.1 % there, their joint
-    # peaks stay at ±1e-6
+    # optimal's (and pso_socp's, polished by the same SOCP) Cartesian peaks are not limits they
+    # keep, and the solver-based profiles (Clarabel, IPOPT) moved them by 8.7e-5 relative under
+    # other numpy SIMD (kossel repro_part; tests/test_reproducibility.py): ±0.1 % there
     ("*/optimal*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
     ("*/pso*:cartesian_peak_ratio.*", {"abs": 1e-6, "rel": 1e-3}),
     # … and for the same reason the time their samples spend above a Cartesian limit: a sample
     # near one flips (on repro_part, stations 0.05 mm apart: 1.018 → 0.920 s of Cartesian jerk,
-    # −9.6 %). On those stations optimal's joint peaks moved too (velocity 0.99916847 →
-    # 0.99916163, 6.8e-6) where its time did not (issue 32)
+    # −9.6 %)
     ("*/optimal*:cartesian_violation_time_s.*", {"abs": 1e-6, "rel": 0.2}),
-    ("*/optimal*:joint_peak_ratio.*", {"abs": 5e-5}),
+    # optimal's joint peaks that do not bind sit on a flat optimum: Clarabel's fine solve (0.05 mm
+    # stations) ends 5.6e-6 apart in Σa under other SIMD, a repair round then reads 3 jerk windows
+    # above the limit instead of 2, and the joint acceleration peak of kossel moves by 1.9e-4
+    # (repro_part 0.88492 → 0.88512; bird_kossel 1.75e-4) at the same time. ~10× that; a binding
+    # peak moved by 7.6e-7 (keops/bird's joint jerk, 0.99999) and `feasible` is compared exactly
+    ("*/optimal*:joint_peak_ratio.*", {"abs": 2e-3}),
     # pso's swarm compares times whose last bits move with the SIMD path, so under other SIMD it
     # can take another path: the swarm alone (pso, issue 32) on repro_part 4.187 → 4.199 s
     # (+0.29 %), its joint acceleration peak 0.7493 → 0.7460 (−0.44 %); the hybrid (pso_socp)
