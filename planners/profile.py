@@ -26,6 +26,19 @@ class ProfileError(ValueError):
     """A profile is inconsistent (runs backwards, does not end at rest, NaN, …)."""
 
 
+class Rest:
+    """A piece of `Profile.from_pieces` at rest at s = 0 for ``duration`` s: put first, it
+    delays the motion's start, so its samples at T fall at another phase of the servo clock."""
+    s0 = 0.0
+
+    def __init__(self, duration: float):
+        self.duration = duration
+
+    def at(self, tt):
+        z = np.zeros(len(tt))
+        return z, z, z, z
+
+
 @dataclass
 class Profile:
     planner: str

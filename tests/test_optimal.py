@@ -460,3 +460,52 @@ def test_stations_are_halved_while_the_last_halving_moved_their_time(monkeypatch
     assert p.info["grid_mm"] == grids[-1]
     previous = ([coarse] + relaxations)[grids_run - 1]
     assert p.info["spacing_gain"] == pytest.approx(1 - relaxations[grids_run - 1] / previous)
+
+
+def _delayed_s(pieces, T, path, delay):
+    """Arc lengths at t = kT of ``pieces`` (Profile.from_pieces') started ``delay`` s late,
+    each evaluated at its own local time: the read of a servo clock at another phase."""
+    starts = np.concatenate([[0.0], np.cumsum([g.duration for g in pieces])])
+    t = np.arange(int(math.ceil((starts[-1] + delay) / T)) + 1) * T - delay
+    s = np.zeros(len(t))
+    k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(pieces) - 1)
+    for i, g in enumerate(pieces):
+        m = (k == i) & (t >= 0)
+        s[m] = g.s0 + g.at(np.minimum(t[m] - starts[i], g.duration))[0]
+    s = np.minimum(np.maximum.accumulate(s), path.length)
+    s[-1] = path.length
+    return s
+
+
+def test_read_phases_hold_the_joint_jerk_at_every_phase_they_read(monkeypatch):
+    """A G64 square's blend joins read at T at the one phase of the harness's clock are
+    repaired there only: with its start ¾ T late the same profile reads 1.04 × J. With
+    read_phases=4 the repairs read four phases and every one holds J, at the same time."""
+    from planners.paths.gcode import parse_gcode, program_path
+    from planners.profile import Profile
+    path = program_path(parse_gcode("G21 G90 G64 P0.04\nG0 X-25 Y-25 Z-250\nG1 X25 F1200\nY25\nX-25\n"))
+    made = []
+    original = Profile.from_pieces.__func__
+
+    def spy(cls, planner, T, pieces, path, info=None):
+        made.append((list(pieces), out := original(cls, planner, T, pieces, path, info)))
+        return out
+
+    monkeypatch.setattr(Profile, "from_pieces", classmethod(spy))
+    worst, times = {}, {}
+    for phases in (1, 4):
+        made.clear()
+        p = plan("optimal", path, KOSSEL, read_phases=phases)
+        pieces = next(pc for pc, out in reversed(made) if np.array_equal(out.s, p.s))
+        times[phases] = p.execution_time_s
+        worst[phases] = [command_metrics(KOSSEL, path.point(s), p.T, s)["joint_peak_ratio"]["jerk"]
+                         for s in (_delayed_s(pieces, p.T, path, d * p.T) for d in (0, 0.25, 0.5, 0.75))]
+    assert max(worst[1]) > 1.01, worst[1]              # the path exercises the phase
+    assert max(worst[4]) <= 1 + 1e-6, worst[4]
+    assert times[4] == pytest.approx(times[1], rel=1e-3)
+
+
+@pytest.mark.parametrize("bad", [0, 2.5, True, "4"])
+def test_read_phases_not_a_positive_integer_is_refused(bad):
+    with pytest.raises(PlanningError, match="read_phases"):
+        plan("optimal", vertical(), KOSSEL, read_phases=bad)

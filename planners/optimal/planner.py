@@ -209,17 +209,21 @@ def sample_cubic(pieces_sol, T, path, info) -> Profile:
 
 def plan(path, machine, limits=None, *, grid_mm: float = GRID_MM, polish: bool | None = None,
          margin: float = 0.005, node_period_s: float = 1e-3, max_nodes_per_piece: int = 600,
-         warm_stretch: float = 1.02, retries: int = 3) -> Profile:
+         warm_stretch: float = 1.02, retries: int = 3, read_phases: int = 1) -> Profile:
     """Minimum-time jerk-limited reference: the TOPP3-SOCP (stations ≤ ``grid_mm`` apart, finer
     where its profile breaks a limit at T), with ``polish`` the IPOPT NLP from there (module
     docstring); ``polish=None`` (the default): where the NLP's grid resolves every piece, a node
     per ``node_period_s`` within ``max_nodes_per_piece`` (_nlp_resolves).  info["lower_bound_s"]:
-    a bound of the continuous problem (bound.py), info["gap"] the time's excess over it."""
+    a bound of the continuous problem (bound.py), info["gap"] the time's excess over it.
+    ``read_phases``: the SOCP's repairs read the samples at T at that many phases of the
+    servo clock (topp3.Settings.read_phases); 1 reads the one the harness checks."""
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
     check_limits(limits, "optimal")
     check_path(path, "optimal")
-    prof = _socp_within_limits(path, machine, limits, grid_mm)
+    if isinstance(read_phases, bool) or not isinstance(read_phases, int) or read_phases < 1:
+        raise PlanningError(f"optimal: read_phases = {read_phases!r} must be an integer ≥ 1")
+    prof = _socp_within_limits(path, machine, limits, grid_mm, read_phases)
     if polish is None:
         polish = _nlp_resolves(prof, path, node_period_s, max_nodes_per_piece)
     if polish:
@@ -252,15 +256,15 @@ def _within(machine, path, prof, limits) -> tuple[bool, str]:
     return False, f"feed {feed:.6g} × F_max"
 
 
-def _settings(grid_mm, f, knots=(), extra=()) -> topp3.Settings:
+def _settings(grid_mm, f, knots=(), extra=(), read_phases=1) -> topp3.Settings:
     """optimal's engine settings on stations ``f`` times closer than grid_mm / STATION_RADII,
     with cells at ``knots`` (topp3.binding_knots) and the stations ``extra`` (topp3.speed_stations)."""
     return topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, station_min_mm=STATION_MIN_MM,
                           join_grading=True, read_slack=CHAIN_MARGIN / 2, midpoint_cap=True, knot_cells=knots,
-                          extra_stations=extra)
+                          extra_stations=extra, read_phases=read_phases)
 
 
-def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
+def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profile:
     """The TOPP3-SOCP's profile, checked at T.  The stations are first solved STATION_REFINEMENT
     times coarser, for the first linearisation of the solve at grid_mm, for the knots that get
     cells (topp3.binding_knots), for the stations its speed asks for (topp3.speed_stations) and,
@@ -286,7 +290,7 @@ def _socp_within_limits(path, machine, limits, grid_mm) -> Profile:
     except PlanningError:           # the finer stations are solved from TOPP2-RA's profile
         prev, relax_prev, knots, extra = None, None, (), ()
     for level in range(REFINE_LEVELS + 1):
-        settings = _settings(grid_mm, STATION_REFINEMENT ** level, knots, extra)
+        settings = _settings(grid_mm, STATION_REFINEMENT ** level, knots, extra, read_phases)
         try:
             pieces = topp3.pieces_of(path, machine, inner, settings)
             if prev is not None:

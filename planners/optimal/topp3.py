@@ -56,7 +56,7 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, Plann
                                   interior_knots, join_jumps, join_read_weight, joint_derivs, rest_pieces,
                                   station_grid)
 from planners.optimal import timewarp
-from planners.profile import Profile
+from planners.profile import Profile, Rest
 from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
 # stations ≤ STATION_RADII curvature radii apart (the jerk between stations at lobe tips and
@@ -146,7 +146,11 @@ class Settings:
     1 + read_slack (a planner that hands the engine its joint limits less a margin lets its
     samples use part of it, rather than chase reads of a few 10⁻⁶ from window to window; F_max
     has no margin and keeps no slack).
-    ``midpoint_cap``: the feed cap also at the middle of every cell (Piece._robot)."""
+    ``midpoint_cap``: the feed cap also at the middle of every cell (Piece._robot).
+    ``read_phases``: the repairs read the samples at T with the motion's start delayed by
+    k·T/read_phases, k = 0 … read_phases − 1, not only at k = 0: a join's jump of q″ reads
+    differently at each phase, and a profile repaired at one phase read up to 1.09 × J at
+    another (docs/TUNING.md, "the phase of the samples"). The last resort (stretches) reads k = 0."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
@@ -160,6 +164,7 @@ class Settings:
     extra_stations: tuple = ()
     read_slack: float = 0.0
     midpoint_cap: bool = False
+    read_phases: int = 1
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -627,14 +632,24 @@ def _read_limits(limits, slack: float):
     return limits.joint_scaled(1 + slack) if slack else limits
 
 
-def _tighten(prof, pieces, above, extra) -> None:
-    """Each limit read above at the stations under its window (Piece.tighten); the pieces
-    whose factors changed are to be solved again."""
-    s = prof.s
+def phase_reads(prof, spans, machine, path, limits, phases: int) -> list:
+    """[(limit column, s_lo, s_hi, ratio)]: the windows that read a limit above 1 at T
+    (reads_above) in ``prof`` and in its ``spans`` sampled with the start delayed by k·T/phases,
+    k = 1 … phases − 1, each as the arc lengths it spans."""
+    out = []
+    for k in range(phases):
+        p = prof if k == 0 else Profile.from_pieces(prof.planner, prof.T, [Rest(k * prof.T / phases), *spans], path)
+        s = p.s
+        out += [(col, s[i], s[min(i + width, len(s) - 1)], r) for col, i, width, r in reads_above(p, machine, path, limits)]
+    return out
+
+
+def _tighten(pieces, above, extra) -> None:
+    """Each limit read above at the stations under its window (Piece.tighten; ``above`` as
+    phase_reads gives it); the pieces whose factors changed are to be solved again."""
     new = [p.factor.copy() for p in pieces]
     starts = np.array([p.s0 for p in pieces])
-    for col, i, width, ratio in above:
-        lo, hi = s[i], s[min(i + width, len(s) - 1)]
+    for col, lo, hi, ratio in above:
         for g in range(max(int(np.searchsorted(starts, lo, side="right")) - 1, 0),
                        int(np.searchsorted(starts, hi, side="right"))):
             pieces[g].tighten(col, lo, hi, ratio, new[g], extra)
@@ -784,7 +799,7 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
         prof = _sample(pieces, T, path, info, settings)
         if rnd == 0:
             info["station_relaxation_s"] = float(sum(p.span.duration for p in pieces))
-        above = reads_above(prof, machine, path, read)
+        above = phase_reads(prof, [p.span for p in pieces], machine, path, read, settings.read_phases)
         if not above:
             break
         rounds.append([p.span for p in pieces])
@@ -795,7 +810,7 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
         # what the round read above: windows per limit, the time before tightening
         info["tightened"].append({"time_s": prof.execution_time_s,
                                   **{c: sum(1 for a in above if a[0] == m) for m, c in enumerate(LIMIT_COLUMNS)}})
-        _tighten(prof, pieces, above, TIGHTEN_EXTRA * 2 ** rnd)
+        _tighten(pieces, above, TIGHTEN_EXTRA * 2 ** rnd)
     prof.info["station_relaxation_s"] = info["station_relaxation_s"]
     prof.info["above_at_T"] = len(above)
     prof.info["insufficient_progress"] = sum(p.insufficient_progress for p in pieces)
