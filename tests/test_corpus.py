@@ -372,3 +372,29 @@ def test_one_performance_profile():
                 if not calls:
                     found.append(f"{rel}:{node.lineno} {node.name}")
     assert not found, f"a second performance profile: {found}"
+
+
+def _diagnose():
+    spec = importlib.util.spec_from_file_location("corpus_diagnose", CORPUS_DIR / "diagnose.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_diagnose_phases_a_whole_period_late_reads_as_on_time(capsys):
+    """A start delayed by exactly one period T is one more rest sample, which the rest padding
+    of the metrics already holds: the same peaks as the harness's own phase. A half period
+    reads other samples of the same pieces: other peaks (scurve plans Cartesian limits, so its
+    joint peaks need not be within them)."""
+    diagnose = _diagnose()
+    diagnose.main(["phases", "rand_planar_kossel", "--planner", "scurve", "--delays", "0,1,0.5"])
+    reads = re.findall(r"start (\S+) T late: joint v/a/j (\S+) / (\S+) / (\S+)", capsys.readouterr().out)
+    assert [r[0] for r in reads] == ["0", "1", "0.5"]
+    on_time, late, half = ([float(x) for x in r[1:]] for r in reads)
+    assert late == on_time
+    assert half != on_time and all(x > 0 for x in on_time)
+
+
+def test_diagnose_a_name_not_in_the_corpus_is_refused():
+    with pytest.raises(SystemExit, match="'no_such_path' is not a corpus path"):
+        _diagnose().main(["phases", "no_such_path"])
