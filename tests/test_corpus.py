@@ -18,7 +18,7 @@ from harness.cli import main as cli_main
 from harness.corpus import (CORPUS_DIR, QUICK_PATHS, Row, load_manifest, performance_profile, ratios, seed_spread,
                             run_corpus, summary)
 from kins import load_machine
-from planners.constraints import PathTable, check_path_in_workspace, joint_derivs
+from planners.constraints import PathTable, check_path_in_workspace, join_jumps, joint_derivs
 from planners.paths import load_path
 from planners.paths.blend import blend_corners
 from planners.paths.segments import Arc, Line, SegmentPath
@@ -398,3 +398,26 @@ def test_diagnose_phases_a_whole_period_late_reads_as_on_time(capsys):
 def test_diagnose_a_name_not_in_the_corpus_is_refused():
     with pytest.raises(SystemExit, match="'no_such_path' is not a corpus path"):
         _diagnose().main(["phases", "no_such_path"])
+
+
+def test_join_jumps_into_a_micron_arc_are_the_ik_jacobian_times_its_curvature():
+    # at a line → arc join P and P′ are continuous and P″ jumps by n/ρ, so q″ = J(P)·P″ + (a term
+    # in P, P′) jumps by J(P)·n/ρ; the IK's Jacobian along n here by a central difference. The
+    # 0.02 mm stencil of the local cubic read pocket_keops's 0.2 µm blends 13 × too high
+    m = load_machine("kossel")
+    rho = 0.002
+    c = np.array([-13.0, -10.0, -252.0])
+    a = Line(c + [-5.0, rho, 0.0], c + [0.0, rho, 0.0])
+    arc = Arc(a.end, c, [0.0, 0.0, -1.0], math.pi / 2)      # clockwise: tangent to the line
+    path = SegmentPath([a, arc, Line(arc.end, arc.end + [0.0, -5.0, 0.0])], "line-arc-line")
+    assert len(path.corners()) == 0
+    got = dict(join_jumps(path, PathTable(path, m), m))
+    assert len(got) == 2
+    P, P1 = path.point(np.array([5.0]))[0], path.derivs(np.array([5.0 - 1e-9]))[1][0]
+    n = np.array([0.0, -1.0, 0.0])                          # toward the arc's centre
+    assert abs(n @ P1) < 1e-9
+    eps = 1e-6
+    jac_n = (m.ik((P + eps * n)[None]) - m.ik((P - eps * n)[None]))[0] / (2 * eps)
+    s_join = min(got, key=lambda s: abs(s - 5.0))
+    assert s_join == pytest.approx(5.0, abs=1e-9)
+    assert got[s_join] == pytest.approx(np.abs(jac_n) / rho, rel=1e-3)

@@ -285,7 +285,7 @@ def _join_rows(machine, path, grid, joins, T_scaled):
     for sj, dq2 in joins:
         i = int(np.searchsorted(grid, sj))
         if 0 < i < len(grid) - 1 and abs(grid[i] - sj) < 1e-9:
-            _, D1, D2, D3 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]))
+            _, D1, D2, D3 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]), fit_scale=True)
             out.append((i, D1, D2, D3, JUMP_READ_FACTOR * np.asarray(dq2) / T_scaled))
     return out
 

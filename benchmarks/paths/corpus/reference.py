@@ -65,7 +65,9 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, break
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
-VERSION = 8                    # bump when the transcription changes: every cached entry is redone
+# bump when the transcription or its inputs change: every cached entry is redone (VERSION 9: the
+# joins' Δq″ by the stencil fitted to the curve, constraints.join_jumps)
+VERSION = 9
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
