@@ -237,8 +237,8 @@ def table_feed_cap(path, table, limits, T: float) -> np.ndarray:
 
 def join_jumps(path, table, machine):
     """[(s, Δq″ per joint)] at the G1 joins where q″ jumps (second_derivative_jumps). The stencil
-    is fitted to the curve: next to a µm blend the 0.02 mm one read pocket_keops's Δq″ 12.5 × too
-    high and pocket_lcnc's 5 % too low (against J(P)·ΔP″; fitted: within 3e-7)."""
+    is fitted to the curve: next to a µm blend the fixed 0.02 mm one reads Δq″ far from J(P)·ΔP″,
+    too high or too low (docs/TUNING.md, twenty-third session)."""
     out = []
     for sj, _ in second_derivative_jumps(path, table, machine, corner_list(path)):
         q2 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]), fit_scale=True)[2]
