@@ -1,5 +1,6 @@
 """copp reference (COPP's TOPP3-SOCP): the 1-D jerk-limited closed form where every joint moves
 like s, feasibility at T and the order against toppra (the jerk-free lower bound), errors."""
+import dataclasses
 import math
 
 import numpy as np
@@ -154,6 +155,45 @@ def test_a_reference_at_the_fixed_point_ends_the_linearisations_after_one_solve(
     prof, _ = again.solve(settings)
     assert len(solves) == 1
     assert np.allclose(prof.a, first.a, rtol=1e-6, atol=1e-9 * first.a.max())
+
+
+@pytest.mark.parametrize("machine", [KEOPS, KOSSEL], ids=["keops", "kossel"])
+def test_linearisation_cost_predicts_the_next_solves_gain(machine, monkeypatch):
+    """short_path (a line, a G1 arc, a line, a corner), five linearisations from TOPP2-RA's
+    profile with no stop: the gain of each solve lies within 0.1–3 × linearisation_cost of the
+    solve before it (where that predicts ≥ 1e-5).  Its ε is the tangent's shortfall: J/√a
+    against f(a_lin) + f′(a_lin)(a − a_lin), f = 1/√a, by derivative.  With lin_predicted the
+    linearisations stop at the first solve predicting less, within 3 × that of the time the five reach."""
+    r = np.array([0.5, 0.9, 1.0, 1.1, 2.0])
+    tangent = 1 + (-0.5) * (r - 1)                      # f(1) + f′(1)(r − 1), a_lin = 1
+    eps = 1 - tangent * np.sqrt(r)
+    ts = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    w = np.array([1, 2, 2, 2, 1.0]) / 8
+    assert topp3.linearisation_cost(np.ones(5), r, ts) == pytest.approx(np.sum(eps * w) / 3, rel=1e-12)
+    path = short_path(machine)
+    full = topp3.Settings("copp", 0.1, lin_tol=0.0, max_linearisations=5)
+    log = []
+    real = topp3.Piece._socp
+
+    def logged(self, rob, a_lin, *a, **k):
+        prof = real(self, rob, a_lin, *a, **k)
+        _, tf, ts = self._timed(prof)
+        log.append((self.k, tf, topp3.linearisation_cost(a_lin, prof.a, ts)))
+        return prof
+
+    monkeypatch.setattr(topp3.Piece, "_socp", logged)
+    t_full = topp3.station_time(topp3.pieces_of(path, machine, machine.limits, full), full)
+    checked = 0
+    for (k0, t0, predicted), (k1, t1, _) in zip(log, log[1:]):
+        if k0 == k1 and predicted >= 1e-5:
+            assert 0.1 * predicted <= (t0 - t1) / t1 <= 3 * predicted
+            checked += 1
+    assert checked >= 4
+    log.clear()
+    stop = dataclasses.replace(full, lin_predicted=1e-4)
+    t_stop = topp3.station_time(topp3.pieces_of(path, machine, machine.limits, stop), stop)
+    assert len(log) < 5 * len(topp3.rest_pieces(path))
+    assert t_full <= t_stop <= t_full * (1 + 3e-4)
 
 
 def test_speed_stations_hold_the_jerk_limited_start_from_rest():

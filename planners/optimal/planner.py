@@ -9,7 +9,8 @@ cap; the G1-join reads).  Two transcriptions:
   (topp3.Settings.join_grading: the SOCP's chord time is the profile's time also where the feed
   falls near 0 at a G64 corner), the feed cap held at every cell's middle too
   (topp3.Settings.midpoint_cap), the jerk limit linearised by tangents (a restriction: the time
-  never grows from one linearisation to the next), checked at T and repaired in windows where a
+  never grows from one linearisation to the next; they stop where the next is predicted to gain
+  < LIN_PREDICTED: topp3.linearisation_cost), checked at T and repaired in windows where a
   difference reads above a limit (a joint read within half of CHAIN_MARGIN is left:
   Settings.read_slack); where 8 rounds of that leave reads above, the fastest of the rounds'
   profiles stretched in time around their reads (topp3._stretch).  The stations are solved
@@ -95,6 +96,11 @@ STATION_MIN_MM = topp3.GRADED_MIN_MM
 # inner limits, reads of a few 10⁻⁶ crept along rose3_keops_tilted's acceleration plateaus from
 # window to window, and 8 rounds of ever larger tightenings cost 0.08 % (docs/TUNING.md)
 CHAIN_MARGIN = 1e-5
+# the linearisations stop where the next one is predicted to gain less than this share of the
+# time (topp3.linearisation_cost), without the solve that would confirm it: a finer grid's second
+# solve, linearised around its first, is ~⅓ of the planning time on keops's NURBS paths and
+# gained a few 1e-6 there (docs/TUNING.md)
+LIN_PREDICTED = 5e-5
 # Nodes per phase (between G1 joins) at least: the limits hold at the nodes only, and on a
 # short G64 blend arc the joint derivatives turn through 90° (docs/TUNING.md).
 MIN_PHASE_NODES = 24
@@ -261,7 +267,7 @@ def _settings(grid_mm, f, knots=(), extra=(), read_phases=1) -> topp3.Settings:
     with cells at ``knots`` (topp3.binding_knots) and the stations ``extra`` (topp3.speed_stations)."""
     return topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, station_min_mm=STATION_MIN_MM,
                           join_grading=True, read_slack=CHAIN_MARGIN / 2, midpoint_cap=True, knot_cells=knots,
-                          extra_stations=extra, read_phases=read_phases)
+                          extra_stations=extra, read_phases=read_phases, lin_predicted=LIN_PREDICTED)
 
 
 def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profile:

@@ -17,10 +17,11 @@ tangent of J/√a, which lies below it: a solution of the linearised problem kee
 limit at the stations, and stays feasible when the next problem is linearised around it, so
 the time never grows from one linearisation to the next (sequential convex programming).  The
 first reference is TOPP2-RA's jerk-free profile; the linearisations go on until a solve gains
-< lin_tol of the time.  The feed caps are bounds a ≤ cap² at the stations.  At a G1 join (a
-station) |jerk| + κṡ² ≤ J with κ = JUMP_READ_FACTOR·Δq″/T, for the one-sided derivatives
-either side: κa = √a·κ√a, and −κ√a is replaced by its tangent at a_lin (√a is concave, so the
-tangent row is the stricter).
+< lin_tol of the time (or, with Settings.lin_predicted, until the tangents' shortfall at the
+solution predicts the next would gain less: linearisation_cost).  The feed caps are bounds
+a ≤ cap² at the stations.  At a G1 join (a station) |jerk| + κṡ² ≤ J with
+κ = JUMP_READ_FACTOR·Δq″/T, for the one-sided derivatives either side: κa = √a·κ√a, and −κ√a
+is replaced by its tangent at a_lin (√a is concave, so the tangent row is the stricter).
 
 Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s the
 magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile far from the
@@ -125,6 +126,8 @@ STOP_A = 1e-6
 WINDOW_TU = 3.0
 WINDOW_STATIONS = 40
 WINDOW_GROWTH = 2
+# copp's floor of a_lin in the jerk rows' tangent (Topp3Problem's a_linearization_floor)
+LIN_FLOOR = 1e-10
 
 
 @dataclasses.dataclass(frozen=True)
@@ -150,7 +153,10 @@ class Settings:
     ``read_phases``: the repairs read the samples at T with the motion's start delayed by
     k·T/read_phases, k = 0 … read_phases − 1, not only at k = 0: a join's jump of q″ reads
     differently at each phase, and a profile repaired at one phase read up to 1.09 × J at
-    another (docs/TUNING.md, "the phase of the samples"). The last resort (stretches) reads k = 0."""
+    another (docs/TUNING.md, "the phase of the samples"). The last resort (stretches) reads k = 0.
+    ``lin_predicted``: the linearisations also stop where the next one is predicted to gain less
+    than this fraction of the time (linearisation_cost), without the solve that would confirm
+    it; None: only a solve's own gain stops them (COPP's rule)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
@@ -165,6 +171,7 @@ class Settings:
     read_slack: float = 0.0
     midpoint_cap: bool = False
     read_phases: int = 1
+    lin_predicted: float | None = None
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -403,7 +410,7 @@ class Piece:
     def solve(self, settings):
         """(TOPP3 profile, node times in scaled time).  The first time: linearised around
         TOPP2-RA's profile (or the ``reference``), then around each solution (settings.lin_tol,
-        .max_linearisations);
+        .lin_predicted, .max_linearisations);
         after a tightening (``changed``: the stations whose factors moved), the windows around
         them only, from the last solution."""
         if self.prof is not None and not self.stuck:
@@ -426,7 +433,8 @@ class Piece:
             for _ in range(settings.max_linearisations):
                 prof, tf, ts = self._timed(self._socp(self._robot(a_lin), a_lin))
                 done = (best is not None and (best[0] - tf) / tf < settings.lin_tol) or \
-                    (best is None and before is not None and abs(before - self._chord_time(prof.a)) < settings.lin_tol * tf)
+                    (best is None and before is not None and abs(before - self._chord_time(prof.a)) < settings.lin_tol * tf) or \
+                    (settings.lin_predicted is not None and linearisation_cost(a_lin, prof.a, ts) < settings.lin_predicted)
                 if best is None or tf < best[0]:
                     best = (tf, prof, ts)
                 if done:
@@ -521,6 +529,21 @@ class Piece:
         i1 = min(int(np.searchsorted(g, s_hi, side="left")) + 2, len(g))
         want = self.factor[i0:i1, col] / (ratio * (1 + extra))
         new[i0:i1, col] = np.minimum(new[i0:i1, col], want)
+
+
+def linearisation_cost(a_lin, a, ts) -> float:
+    """The share of a solution's time the next linearisation is predicted to gain: its jerk rows
+    held J/√a by the tangent at a_lin, which lies below J/√a by ε = 1 − √r(3 − r)/2, r = a/a_lin
+    (ε ≈ ⅜(r − 1)²; 1 where the tangent is ≤ 0), and a jerk-limited time growing as J^(−⅓): ⅓ of
+    ε averaged over the solution's time (its node times ``ts``), as if every station's jerk bound
+    (docs/TUNING.md compares it with the next solve's gain)."""
+    a_lin, a = np.asarray(a_lin, float), np.asarray(a, float)
+    r = np.maximum(a, 0.0) / np.maximum(a_lin, LIN_FLOOR)
+    eps = np.clip(1 - np.sqrt(r) * (3 - r) / 2, 0.0, 1.0)
+    eps[(a <= 0) | (a_lin <= 0)] = 0.0        # at rest: no jerk row linearised there
+    dt = np.diff(np.asarray(ts, float))
+    w = np.concatenate([dt, [0.0]]) + np.concatenate([[0.0], dt])
+    return float(np.sum(eps * w) / max(3 * np.sum(w), 1e-300))
 
 
 def _stops_at_rest(prof):
