@@ -134,6 +134,40 @@ def test_the_read_envelope_covers_every_third_difference_whatever_its_phase():
         assert e[window].min() >= join_read_weight(c) - 1e-12
 
 
+def test_signed_reads_keep_every_third_difference_whatever_its_phase():
+    """VERSION 10's rows at the nodes near a join, |jerk| ≤ J and |jerk + w·κṡ²| ≤ J with κ
+    signed and w = read_envelope of the node's time from it, keep every window centred c within J:
+    its read ∫jerk·K(t − c)dt + κṡ²·join_read_weight(c) (K the third difference's kernel, mass 1)
+    averages jerk + join_read_weight(c)·κṡ², each between jerk and jerk + w·κṡ² where the window
+    reaches.  A jerk opposite to the jump is left to it: VERSION 9's |jerk| + w·|κ|ṡ² ≤ J held
+    that jerk to J − |κ|ṡ² there too."""
+    import casadi as ca
+    from planners.constraints import READ_REACH, join_read_weight, third_difference_weight
+    R = _ref()
+    u = ca.SX.sym("u")
+    env = ca.Function("env", [u], [R.read_envelope(u)])
+    t = np.linspace(-5.0, 5.0, 4001)                 # periods, the join at 0
+    w = np.array([float(env(abs(x))) for x in t])
+    centres = np.linspace(-2 * READ_REACH, 2 * READ_REACH, 121)
+    tdw = np.vectorize(third_difference_weight)
+    K = tdw(t[None, :] - centres[:, None] + READ_REACH)      # each window's kernel over t
+    jump = np.array([join_read_weight(c) for c in centres])
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for read in (0.9, -0.6, 0.3):                     # κṡ² (J = 1), either sign
+        for _ in range(20):
+            # a jerk at the rows' limits: a random smooth curve clipped into them
+            f = np.cumsum(rng.normal(size=len(t)))
+            f = np.convolve(f, np.ones(80) / 80, "same")
+            j = 1.6 * (f - f.mean()) / (np.abs(f - f.mean()).max() + 1e-12)
+            j = np.clip(j, -1.0, 1.0)
+            j = np.clip(j, -1.0 - np.minimum(w * read, 0.0), 1.0 - np.maximum(w * read, 0.0))
+            assert (np.abs(j) <= 1 + 1e-12).all() and (np.abs(j + w * read) <= 1 + 1e-12).all()
+            r = K @ j / K.sum(axis=1) + read * jump
+            worst = max(worst, float(np.abs(r).max()))
+    assert worst <= 1 + 1e-9
+
+
 # the head of cam_dense_keops.ngc: 9 chords of 0.15–0.6 mm under G64 P0.01 on keops
 CAM_LINES = 12
 
@@ -141,15 +175,26 @@ CAM_LINES = 12
 @pytest.mark.slow
 def test_a_g64_program_s_reference_keeps_the_jerk_at_t_by_the_nodes_near_its_joins(monkeypatch):
     """Short chords blended under G64: with the joins' reads at the nodes near them, the finest
-    profile sampled at T keeps J (to 0.5 %); with the join's node alone (VERSION 6:
-    read_nodes finds none) the same grid reads 1.64 × J next to the joins."""
+    profile sampled at T keeps J (to 0.5 %) at four phases of the servo clock; with the join's
+    node alone (VERSION 6: read_nodes finds none) the same grid reads 1.64 × J next to the joins."""
     from planners.paths.gcode import parse_gcode, program_path
     R = _ref()
     m = load_machine("keops")
     text = "\n".join((CORPUS_DIR / "cam_dense_keops.ngc").read_text().splitlines()[:CAM_LINES]) + "\nM2\n"
     path = program_path(parse_gcode(text, "cam_dense_keops_head.ngc"))
+    finest = {}
+    check = R.check_at_T
+    monkeypatch.setattr(R, "check_at_T", lambda p, machine, prof: (finest.setdefault("prof", prof),
+                                                                      check(p, machine, prof))[1])
     r = R.reference(path, m, levels=2)
     assert r["check_at_T"]["joint_peak_ratio"]["jerk"] <= 1.005
+    # the reads hold whatever the servo clock's phase (the joins' reads are signed: VERSION 10)
+    from planners.verify import command_metrics
+    T = m.servo_period_s
+    for d in (0.25, 0.5, 0.75):
+        s = R.sample_profile(finest["prof"], T, delay=d * T)
+        assert command_metrics(m, path.point(s), T, s)["joint_peak_ratio"]["jerk"] <= 1.005
+    monkeypatch.setattr(R, "check_at_T", check)
     monkeypatch.setattr(R, "read_nodes", lambda D, dt, reach=1.0: {i: set() for i in D.kappa})
     alone = R.reference(path, m, levels=2)
     assert alone["check_at_T"]["joint_peak_ratio"]["jerk"] > 1.3

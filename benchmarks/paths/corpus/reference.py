@@ -15,12 +15,15 @@ chord-error term, the jerk a G1 join's jump of q″ reads as at T) and the path'
 The problem (the planners' constraint set): per rest-to-rest piece (split at exact-stop
 corners, ṡ = s̈ = 0 at its ends), minimise the time subject to |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A,
 |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J per joint, ṡ ≤ min(F_max, programmed F, chord-error cap) and, at a
-G1 join and at a NURBS knot where q″ jumps (knot_jumps), |jerk| + κṡ² ≤ J (κ =
-JUMP_READ_FACTOR·Δq″/T) on either side: the jump reads at T as that jerk.  The third
-differences at T read it over 3 periods, so the nodes within 2·READ_REACH periods of the join
-hold |jerk| + w·κṡ² ≤ J too, w = read_envelope of their time from it (1 within READ_REACH):
-enough for every third difference whatever the samples' phase (VERSION 7; VERSION 6 held the
-join's node alone and its profiles read up to 1.99 × J at T on the CAM programs).
+G1 join and at a NURBS knot where q″ jumps (knot_jumps), |jerk + κṡ²| ≤ J (κ =
+JUMP_READ_FACTOR·Δq″/T, Δq″ signed from the left side to the right) on either side: the jump
+reads at T as that jerk.  The third differences at T read it over 3 periods, so the nodes within
+2·READ_REACH periods of the join hold |jerk + w·κṡ²| ≤ J too, w = read_envelope of their time
+from it (1 within READ_REACH): with |jerk| ≤ J there, enough for every third difference whatever
+the samples' phase (VERSION 7; VERSION 6 held the join's node alone and its profiles read up to
+1.99 × J at T on the CAM programs; VERSION 7–9 held |jerk| + w·|κ|ṡ², which also charged the
+jump to a jerk of the other sign, and lay up to 0.6 % above `optimal`'s profiles on the joins'
+paths).
 
 The transcription: per rest piece, nodes fixed along the arc length and s(t) a cubic on every
 cell between two of them (a constant path jerk s⃛ over the cell's own duration Δt): at the
@@ -65,9 +68,9 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, break
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
-# bump when the transcription or its inputs change: every cached entry is redone (VERSION 9: the
-# joins' Δq″ by the stencil fitted to the curve, constraints.join_jumps)
-VERSION = 9
+# bump when the transcription or its inputs change: every cached entry is redone (VERSION 10: the
+# joins' reads signed, |jerk + w·κṡ²| ≤ J with κ the jump's sign, not |jerk| + w·|κ|ṡ²)
+VERSION = 10
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
@@ -257,11 +260,14 @@ class PieceData:
         if np.isnan(self.vmax).any():
             i = int(np.flatnonzero(np.isnan(self.vmax))[0])
             raise RuntimeError(f"s = {s[i]:.9g} mm: the joint derivatives there are not finite")
-        self.kappa = {}                          # break node → the join's read κ per joint, scaled
+        # break node → the join's read κ per joint, scaled and signed: the jump of q″ from the
+        # left to the right side (a third difference reads q″ṡ² jumping up as a positive jerk)
+        self.kappa = {}
         for sj, dq2 in joins:
             i = int(np.argmin(np.abs(s - sj)))
             if abs(s[i] - sj) < MERGE_MM:
-                self.kappa[i] = JUMP_READ_FACTOR * np.asarray(dq2) * su / (T / tu)
+                sign = np.sign(self.right[1][i] - self.left[1][i])
+                self.kappa[i] = JUMP_READ_FACTOR * sign * np.asarray(dq2) * su / (T / tu)
         self.s, self.scale, self.period = s, (tu, vu), T / tu
 
 
@@ -323,9 +329,10 @@ def solve_piece(D: PieceData, warm=None, reads=None):
         add(v[1:] * (l3[1:, k] * b[1:] + 3 * l2[1:, k] * a[1:]) + l1[1:, k] * j, -1.0, 1.0)
     # ṡ ≥ 0 inside a cell too (at its half time)
     add(v[:-1] + 0.5 * a[:-1] * dt + j * dt * dt / 8, 0.0, np.inf)
-    # a G1 join: |jerk| + κṡ² ≤ J either side, with that side's cell (TII 2022's read at T),
-    # and at each node c of ``reads`` |jerk| + w·κṡ² ≤ J, ṡ the join's, w = read_envelope of c's
-    # time from it: the third differences whose window holds c read the jump too
+    # a G1 join: |jerk + κṡ²| ≤ J either side, with that side's cell (TII 2022's read at T), κ
+    # signed, and at each node c of ``reads`` |jerk + w·κṡ²| ≤ J, ṡ the join's, w = read_envelope
+    # of c's time from it: the third differences whose window holds c read the jump too, with
+    # a weight between 0 and w whatever the phase, and both ends hold (|jerk| ≤ J: the rows above)
     timed = any(reads.values()) if reads else False
     if timed:
         # the nodes' times as variables, tied by their cells: a read's weight then depends on
@@ -340,7 +347,7 @@ def solve_piece(D: PieceData, warm=None, reads=None):
                 if 0 <= cell < m:
                     for k in range(3):
                         jerk = v[c] * (q3[c, k] * b[c] + 3 * q2[c, k] * a[c]) + q1[c, k] * j[cell]
-                        add(ca.vertcat(jerk + w * kap[k] * b[i], -jerk + w * kap[k] * b[i]), -np.inf, 1.0)
+                        add(jerk + w * kap[k] * b[i], -1.0, 1.0)
     vmax = np.minimum(D.vmax, 1e6)
     lbx = np.concatenate([np.zeros(n), np.full(n, -np.inf), np.zeros(m), np.full(m, -np.inf)])
     ubx = np.concatenate([vmax, np.full(n, np.inf), np.full(m, np.inf), np.full(m, np.inf)])
@@ -528,9 +535,10 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
             "check_at_T": check_at_T(path, machine, prof)}
 
 
-def sample_profile(prof, T):
+def sample_profile(prof, T, delay=0.0):
     """Arc lengths at t = kT of the piecewise-cubic profile [(s, ṡ, s̈ at the nodes, each cell's
-    jerk and duration) per rest piece], evaluated exactly."""
+    jerk and duration) per rest piece], evaluated exactly; ``delay``: the motion starts that
+    long after a sample (a servo clock at another phase), at rest before."""
     S, V, A, Jk, t0 = [], [], [], [], []
     t_off = 0.0
     for s, v, a, j, dt in prof:
@@ -538,8 +546,8 @@ def sample_profile(prof, T):
         t0.append(t_off + np.concatenate([[0.0], np.cumsum(dt)[:-1]]))
         t_off += float(np.sum(dt))
     S, V, A, Jk, t0 = (np.concatenate(x) for x in (S, V, A, Jk, t0))
-    tq = np.arange(int(math.ceil(t_off / T)) + 1) * T
-    tq[-1] = min(tq[-1], t_off)
+    tq = np.arange(int(math.ceil((t_off + delay) / T)) + 1) * T - delay
+    tq = np.clip(tq, 0.0, t_off)
     i = np.clip(np.searchsorted(t0, tq, side="right") - 1, 0, len(t0) - 1)
     u = tq - t0[i]
     s = S[i] + V[i] * u + A[i] * u * u / 2 + Jk[i] * u ** 3 / 6
