@@ -160,8 +160,11 @@ def test_a_reference_at_the_fixed_point_ends_the_linearisations_after_one_solve(
 @pytest.mark.parametrize("machine", [KEOPS, KOSSEL], ids=["keops", "kossel"])
 def test_linearisation_cost_predicts_the_next_solves_gain(machine, monkeypatch):
     """short_path (a line, a G1 arc, a line, a corner), five linearisations from TOPP2-RA's
-    profile with no stop: the gain of each solve lies within 0.1–3 × linearisation_cost of the
-    solve before it (where that predicts ≥ 1e-5).  Its ε is the tangent's shortfall: J/√a
+    profile with no stop: the gain of each solve lies within 0.1–4 × linearisation_cost of the
+    solve before it (where that predicts ≥ 1e-5; measured 0.94–2.31 ×, and 1.5–3.2 × since the
+    G1 joins' reads are signed: their rows' tangent of κ√a, on the side the read adds to the
+    jerk, is a linearisation the prediction leaves out, and the arc's joins are now passed
+    faster).  Its ε is the tangent's shortfall: J/√a
     against f(a_lin) + f′(a_lin)(a − a_lin), f = 1/√a, by derivative.  With lin_predicted the
     linearisations stop at the first solve predicting less, within 3 × that of the time the five reach."""
     r = np.array([0.5, 0.9, 1.0, 1.1, 2.0])
@@ -186,7 +189,7 @@ def test_linearisation_cost_predicts_the_next_solves_gain(machine, monkeypatch):
     checked = 0
     for (k0, t0, predicted), (k1, t1, _) in zip(log, log[1:]):
         if k0 == k1 and predicted >= 1e-5:
-            assert 0.1 * predicted <= (t0 - t1) / t1 <= 3 * predicted
+            assert 0.1 * predicted <= (t0 - t1) / t1 <= 4 * predicted
             checked += 1
     assert checked >= 4
     log.clear()
@@ -318,7 +321,7 @@ def test_join_grading_makes_the_socp_time_the_profiles_time(tmp_path):
     up to 66 % in a cell; with them (Settings.join_grading) the two agree within 0.5 % over the
     piece and 5 % in any cell, and the profile is faster.  The graded stations: the cells either
     side of a join no wider than the travel in one period at its cap or its smaller cell, and
-    each cell of a graded run ≤ 2 × the one before."""
+    each cell of a graded run ≤ 2 × the one before (the last ≤ 2 × it + the first's half)."""
     f = tmp_path / "corners.ngc"
     f.write_text("G21 G90 G17 G64 P0.01\nG0 X-10 Y-6 Z-400\nF60000\nG1 X-8 Y-6\nG1 X1 Y0\nG1 X1 Y8\n"
                  "G1 X-5 Y0\nM2\n")
@@ -347,11 +350,39 @@ def test_join_grading_makes_the_socp_time_the_profiles_time(tmp_path):
             run = np.sort(np.abs(p.grid[(p.grid >= min(sj, end)) & (p.grid <= max(sj, end))] - sj))
             cells = np.diff(run)
             assert cells[0] <= max(v, topp3.GRADED_MIN_MM) * (1 + 1e-9)
-            assert np.all(cells[1:] <= 2 * cells[:-1] * (1 + 1e-9))
+            # doubling offsets h·2^k kept while < room − h/2: every cell ≤ 2 × the one before,
+            # the last (to the old station) ≤ 2 × it + h/2, so ≤ 2.5 × it
+            assert np.all(cells[1:-1] <= 2 * cells[:-2] * (1 + 1e-9))
+            assert len(cells) == 1 or cells[-1] <= 2 * cells[-2] + cells[0] / 2 + 1e-12
     # the join's read, weighted, at every other station within 1.5 periods' travel of it
     near = {(i, k) for (i, *_), v in zip(p.joins, travel) for k in range(len(p.grid))
             if 0 < abs(p.grid[k] - p.grid[i]) < 1.5 * v}
     assert len(p.join_reads) == len(p.joins) + len(near) > len(p.joins)
+
+
+def test_a_join_s_read_carries_the_sign_of_its_jump():
+    """At a line → arc join P and P′ are continuous and P″ jumps by n/ρ, so q″ jumps by J(P)·n/ρ
+    (J(P) the IK's Jacobian, here along n by a central difference); at the arc → line join by
+    minus that.  A third difference at T reads the jump with its sign, so each join's κ per joint
+    is JUMP_READ_FACTOR·Δq″/T (scaled time) with that sign, not its size alone."""
+    from planners.constraints import JUMP_READ_FACTOR
+    rho = 0.5
+    c = np.array([-13.0, -10.0, -252.0])
+    a = Line(c + [-5.0, rho, 0.0], c + [0.0, rho, 0.0])
+    arc = Arc(a.end, c, [0.0, 0.0, -1.0], math.pi / 2)      # clockwise: tangent to the line
+    path = SegmentPath([a, arc, Line(arc.end, arc.end + [0.0, -5.0, 0.0])], "line-arc-line")
+    st = optimal._settings(optimal.GRID_MM, 1)
+    (p,) = topp3.pieces_of(path, KOSSEL, KOSSEL.limits, st)
+    assert len(p.joins) == 2
+    T_scaled = KOSSEL.servo_period_s / p.tu
+    eps = 1e-6
+    for (i, *_, kappa), s_join, sign in zip(p.joins, (5.0, 5.0 + rho * math.pi / 2), (1.0, -1.0)):
+        assert p.grid[i] == pytest.approx(s_join, abs=1e-9)
+        P = path.point(np.array([s_join]))[0]
+        n = (c - P) * [1, 1, 0] / rho                        # toward the arc's centre
+        jac_n = (KOSSEL.ik((P + eps * n)[None]) - KOSSEL.ik((P - eps * n)[None]))[0] / (2 * eps)
+        np.testing.assert_allclose(kappa, sign * JUMP_READ_FACTOR * jac_n / rho / T_scaled, rtol=1e-3)
+        assert (np.sign(kappa) == sign * np.sign(jac_n)).all()
 
 
 def test_read_weight_is_the_third_difference_of_a_second_derivative_jump():

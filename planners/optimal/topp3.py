@@ -19,9 +19,12 @@ the time never grows from one linearisation to the next (sequential convex progr
 first reference is TOPP2-RA's jerk-free profile; the linearisations go on until a solve gains
 < lin_tol of the time (or, with Settings.lin_predicted, until the tangents' shortfall at the
 solution predicts the next would gain less: linearisation_cost).  The feed caps are bounds
-a ≤ cap² at the stations.  At a G1 join (a station) |jerk| + κṡ² ≤ J with
-κ = JUMP_READ_FACTOR·Δq″/T, for the one-sided derivatives either side: κa = √a·κ√a, and −κ√a
-is replaced by its tangent at a_lin (√a is concave, so the tangent row is the stricter).
+a ≤ cap² at the stations.  At a G1 join (a station) |jerk + κṡ²| ≤ J with
+κ = JUMP_READ_FACTOR·Δq″/T, Δq″ signed from the left side to the right (a third difference at T
+reads the jump with its sign), for the one-sided derivatives either side: κa = √a·κ√a; on the
+side where the read adds to the jerk, κ√a is replaced by its tangent at a_lin (√a is concave,
+so the tangent row is the stricter), on the other the row is |jerk| ≤ J (the read dropped: a
+restriction too).
 
 Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s the
 magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile far from the
@@ -287,13 +290,15 @@ def _graded(grid, at, first):
 
 def _join_rows(machine, path, grid, joins, T_scaled):
     """[(station, q′, q″, q‴ either side (2, 3), κ per joint)] of the G1 joins on the grid,
-    T in scaled time: the jump Δq″ reads at T as a jerk κṡ², κ = JUMP_READ_FACTOR·Δq″/T."""
+    T in scaled time: the jump Δq″ reads at T as a jerk κṡ², κ = JUMP_READ_FACTOR·Δq″/T, signed
+    (q″ from the left side to the right; join_jumps gives its size)."""
     out = []
     for sj, dq2 in joins:
         i = int(np.searchsorted(grid, sj))
         if 0 < i < len(grid) - 1 and abs(grid[i] - sj) < 1e-9:
             _, D1, D2, D3 = joint_derivs(machine, path, np.array([sj - 1e-7, sj + 1e-7]), fit_scale=True)
-            out.append((i, D1, D2, D3, JUMP_READ_FACTOR * np.asarray(dq2) / T_scaled))
+            sign = np.sign(D2[1] - D2[0])
+            out.append((i, D1, D2, D3, JUMP_READ_FACTOR * sign * np.asarray(dq2) / T_scaled))
     return out
 
 
@@ -341,8 +346,8 @@ class Piece:
             near = np.nonzero((d > 0) & (d < READ_REACH))[0]
             self.join_reads += [(k, *(D[k][None, :] for D in self.deriv[1:]),
                                  kappa * join_read_weight(d[k])) for k in near]
-        for i, *_, kappa in self.join_reads:   # the read κṡ² alone within J
-            self.cap2[i] = min(self.cap2[i], self.lims[2] / kappa.max())
+        for i, *_, kappa in self.join_reads:   # |κ|ṡ² ≤ 2J, which |jerk| ≤ J and |jerk + κṡ²| ≤ J imply
+            self.cap2[i] = min(self.cap2[i], 2 * self.lims[2] / np.abs(kappa).max())
         # per station the fraction of each limit (LIMIT_COLUMNS) it is held to: 1 until the
         # check at T reads the limit above 1 in a window over the station (tighten)
         self.factor = np.ones((len(self.grid), len(LIMIT_COLUMNS)))
@@ -354,14 +359,14 @@ class Piece:
 
     def _join_travel(self, path, limits, T):
         """Per G1 join (self.joins) the travel in one servo period T at its cap (the feed cap
-        either side, and the jump's read κṡ² ≤ J alone), in mm."""
+        either side, and the jump's read |κ|ṡ² ≤ 2J alone), in mm."""
         out = []
         for i, *_, kappa in self.joins:
             sj = self.grid[i] + np.array([-1e-7, 1e-7])
             _, P1, P2, _ = cartesian_derivs(path, sj)
             v = float(feed_cap(path, sj, limits, T, kappa=cross_norm(P1, P2)).min())
-            if kappa.max() > 0:
-                v = min(v, math.sqrt(self.lims[2] / kappa.max()) / self.tu)
+            if np.abs(kappa).max() > 0:
+                v = min(v, math.sqrt(2 * self.lims[2] / np.abs(kappa).max()) / self.tu)
             out.append(v * T)
         return out
 
@@ -383,11 +388,12 @@ class Piece:
         rob.add_jerk_limits(j, -j, start_idx_s=0, length=n)
         rob.constraints.add_constraint_1st((self.cap2 * f[:, 3] ** 2)[:, None], 0)
         for i, D1, D2, D3, kappa in (self.join_reads if a_lin is not None else ()):
-            # ±(q‴a + 3q″b + q′c) + κ√a ≤ J/√a with κ√a ≥ its tangent at r² = a_lin (≤ the cap)
+            # ±(q‴a + 3q″b + q′c + κ√a) ≤ J/√a: where ±κ > 0, ±κ√a ≥ its tangent at r² = a_lin
+            # (≤ the cap); where ±κ ≤ 0, the read is dropped (±jerk ≤ J/√a, the stricter)
             r = math.sqrt(max(min(a_lin[i], self.cap2[i]), 1e-12))
             rows = [(sg * d3 + kap / (2 * r), sg * 3 * d2, sg * d1, kap * r / 2)
-                    for d1, d2, d3, kap in zip(D1.ravel(), D2.ravel(), D3.ravel(), np.tile(kappa, len(D1)))
-                    for sg in (1.0, -1.0)]
+                    for d1, d2, d3, kap_signed in zip(D1.ravel(), D2.ravel(), D3.ravel(), np.tile(kappa, len(D1)))
+                    for sg in (1.0, -1.0) for kap in [max(sg * kap_signed, 0.0)]]
             ga, gb, gc, gd = (np.array([[row[m] for row in rows]]) for m in range(4))
             rob.constraints.add_constraint_3rd(ga, gb, gc, gd, np.full_like(ga, j[i, 0]), i)
         if a_lin is not None and self.midpoint_cap:

@@ -207,8 +207,8 @@ class FeedSpline:
     def reads(self, C):
         """(interval times (n − 1, P), per-station need (n, P)): the need is the time stretch that
         would bring the station within every limit (held to 1 − margin and to the station's
-        factors): max of v/V, √(a/A), ∛(j/J), ṡ/cap, and at a G1 join ∛((|j| + κṡ²)/J) for
-        either side's derivatives.  In chunks of CHUNK stations (their temporaries stay small)."""
+        factors): max of v/V, √(a/A), ∛(j/J), ṡ/cap, and at a G1 join ∛(max(|j|, |j + κṡ²|)/J)
+        (κ signed) for either side's derivatives.  In chunks of CHUNK stations (their temporaries stay small)."""
         C = np.asarray(C, float)
         if C.ndim == 1:
             C = C[:, None]
@@ -231,7 +231,9 @@ class FeedSpline:
             for side in range(len(D1)):
                 for m in range(3):
                     jerk = D3[side, m] * sd ** 3 + 3 * D2[side, m] * sd * sdd + D1[side, m] * sddd
-                    need[i] = np.maximum(need[i], np.cbrt((np.abs(jerk) + kappa[m] * sd * sd) * self.q_j[i, 0]))
+                    # the read signed (topp3._join_rows): |jerk| ≤ J and |jerk + κṡ²| ≤ J
+                    read = np.maximum(np.abs(jerk), np.abs(jerk + kappa[m] * sd * sd))
+                    need[i] = np.maximum(need[i], np.cbrt(read * self.q_j[i, 0]))
         return interval_time(self.dx[:, None], sd_all[:-1], sd_all[1:]), need
 
     def _limits(self):
