@@ -35,6 +35,17 @@ def run_ci(tmp: Path, suite_file: Path, *extra: str) -> int:
                 "--store", str(tmp / "store"), *extra])
 
 
+def test_store_none_appends_to_no_store(tmp_path, capsys, monkeypatch):
+    """--store none: no results store, as for corpus and sweep (it made a folder named 'none')."""
+    monkeypatch.chdir(tmp_path)
+    good = suite(tmp_path, "feed_mm_s = 500.0")
+    assert cli(["ci", "--suite", str(good), "--baseline", str(tmp_path / "baseline.json"), "--out",
+                str(tmp_path / "ci"), "--task", LINE_TASK, "--workers", "1", "--store", "none",
+                "--update-baseline"]) == 0
+    assert "no results store (--store none)" in capsys.readouterr().out
+    assert not (tmp_path / "none").exists() and (tmp_path / "baseline.json").exists()
+
+
 def test_ci_passes_unchanged_and_fails_on_slower_or_worse_planner(tmp_path, capsys):
     good = suite(tmp_path, "feed_mm_s = 500.0")
     assert run_ci(tmp_path, good, "--update-baseline") == 0

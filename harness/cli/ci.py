@@ -36,7 +36,8 @@ def add_arguments(p) -> None:
     p.add_argument("--junit", help="JUnit XML file (default OUT/junit.xml)")
     p.add_argument("--markdown", help="Markdown summary file (default OUT/summary.md)")
     p.add_argument("--store", default=None,
-                   help="results store folder the run is appended to (default: $PKMBENCH_STORE or results/store)")
+                   help="results store folder the run is appended to (default: $PKMBENCH_STORE or results/store; "
+                        "'none' = do not append, as for corpus and sweep)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="local worker processes (0 = serial, no Dask)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing dask cluster")
@@ -80,15 +81,17 @@ def main(args) -> int:
     from harness.sweep import user_fmus_info
     info |= user_fmus_info(tasks) or {}         # only with user FMUs: the other runs' info as it was
     try:
-        with ResultStore(args.store) as st:
-            run_id = st.append(rows, kind="ci", suite=args.suite, code_version=version, run_info=info)
-            store_dir = st.folder
+        if args.store != "none":
+            with ResultStore(args.store) as st:
+                run_id = st.append(rows, kind="ci", suite=args.suite, code_version=version, run_info=info)
+                store_dir = st.folder
     except StoreError as e:
         raise CliError(f"{e} (junit {junit} and summary {mdfile} are written)") from None
     if not args.update_baseline:
         # the head and the regressions table of the summary: the metric is named on stdout
         print(md.split("## Tolerances")[0].rstrip())
-    print(f"ci: JUnit {junit}, summary {mdfile}, results store {store_dir} run {run_id}")
+    stored = f"results store {store_dir} run {run_id}" if args.store != "none" else "no results store (--store none)"
+    print(f"ci: JUnit {junit}, summary {mdfile}, {stored}")
     return 0 if passed else 1
 
 
@@ -134,7 +137,8 @@ def _check_outputs(args, baseline_file: Path):
     junit = output_file(args.junit or out / "junit.xml", "JUnit file")
     mdfile = output_file(args.markdown or out / "summary.md", "summary file")
     try:
-        ResultStore(args.store).close()          # a store that cannot be read fails now, not after the suite
+        if args.store != "none":
+            ResultStore(args.store).close()      # a store that cannot be read fails now, not after the suite
     except StoreError as e:
         raise CliError(str(e)) from None
     if args.update_baseline:
