@@ -94,6 +94,7 @@ class FeedSpline:
         # a join's read at T as rows: at the join either side, and (graded stations) weighted
         # at the stations within READ_REACH periods' travel of it (topp3.Piece.join_reads)
         self.join_reads = piece.join_reads
+        self._join_rows()
         # per station the fraction of each limit (v, a, j, feed) it is held to: 1 until the
         # samples at T read the limit above 1 over the station (tighten)
         self.factor = np.ones((len(self.x), 4))
@@ -226,15 +227,23 @@ class FeedSpline:
                 qj = np.maximum(qj, np.abs(d3 * sd3 + 3 * d2 * sd * sdd + d1 * sddd))
             need[lo:hi] = np.maximum(np.maximum(self.q_v[lo:hi] * sd, self.q_feed[lo:hi] * sd),
                                      np.maximum(np.sqrt(qa * self.q_a[lo:hi]), np.cbrt(qj * self.q_j[lo:hi])))
-        for i, D1, D2, D3, kappa in self.join_reads:
-            sd, sdd, sddd = (x[0] for x in self.motion(C, [B[i:i + 1] for B in self.bases]))
-            for side in range(len(D1)):
-                for m in range(3):
-                    jerk = D3[side, m] * sd ** 3 + 3 * D2[side, m] * sd * sdd + D1[side, m] * sddd
-                    # the read signed (topp3._join_rows): |jerk| ≤ J and |jerk + κṡ²| ≤ J
-                    read = np.maximum(np.abs(jerk), np.abs(jerk + kappa[m] * sd * sd))
-                    need[i] = np.maximum(need[i], np.cbrt(read * self.q_j[i, 0]))
+        if len(self.jr_at):
+            sd, sdd, sddd = (x[:, None, :] for x in self.motion(C, self.jr_bases))     # (R, 1, P)
+            jerk = self.jr_d3 * sd ** 3 + 3 * self.jr_d2 * sd * sdd + self.jr_d1 * sddd    # (R, 3, P)
+            # the read signed (topp3._join_rows): |jerk| ≤ J and |jerk + κṡ²| ≤ J
+            read = np.maximum(np.abs(jerk), np.abs(jerk + self.jr_kappa * sd * sd)).max(axis=1)
+            np.maximum.at(need, self.jr_at, np.cbrt(read * self.q_j[self.jr_at]))
         return interval_time(self.dx[:, None], sd_all[:-1], sd_all[1:]), need
+
+    def _join_rows(self):
+        """The join reads as one row per station and side: the station (R,), q′, q″, q‴ and κ
+        (R, 3, 1), and the bases' rows there, so reads() takes them all in one product."""
+        rows = [(i, D1[side], D2[side], D3[side], kappa) for i, D1, D2, D3, kappa in self.join_reads
+                for side in range(len(D1))]
+        self.jr_at = np.array([r[0] for r in rows], np.intp)
+        self.jr_d1, self.jr_d2, self.jr_d3, self.jr_kappa = (
+            np.array([r[m] for r in rows], float).reshape(len(rows), 3, 1) for m in range(1, 5))
+        self.jr_bases = [sparse.csr_matrix(B[self.jr_at]) for B in self.bases]
 
     def _limits(self):
         """Per station the reciprocal limits (n, 1) under the factors: v, feed, a, j."""
