@@ -91,6 +91,35 @@ def test_time_scaling_law_of_the_reads():
         np.testing.assert_allclose(dt2, dt * lam, rtol=1e-10)
 
 
+def test_join_reads_are_the_signed_read_of_the_spline_at_each_row():
+    """At each join row (the join either side, and the graded stations near it, weighted) the need
+    is the larger of the station's own limits and ∛(max(|jerk|, |jerk + κṡ²|)/J), the jerk
+    evaluated here from scipy's BSpline derivatives of w (not the basis matrices), each column of
+    the coefficients on its own."""
+    piece = topp3.pieces_of(PATH, KEOPS, KEOPS.limits, topp3.Settings("pso", join_grading=True))[0]
+    feed = FeedSpline(piece, 0.0)
+    assert len(feed.join_reads) > len(feed.joins) >= 2          # graded rows too
+    c = feed.fit(np.sqrt(feed.a_ra))
+    C = np.column_stack([c, c * 0.7, c * 1.3])
+    _, need = feed.reads(C)
+    bare = FeedSpline.__new__(FeedSpline)
+    bare.__dict__.update(feed.__dict__, jr_at=np.empty(0, np.intp))     # no join rows
+    _, own = bare.reads(C)
+    J = feed.lims[2]
+    want = own.copy()
+    for p in range(C.shape[1]):
+        spl = feed.spline(C[:, p])
+        for i, D1, D2, D3, kappa in feed.join_reads:
+            x = feed.x[i]
+            w, w1, w2 = (float(spl.derivative(k)(x)) if k else float(spl(x)) for k in range(3))
+            sd, sdd, sddd = w ** (2 / 3), 2 / 3 * w ** (1 / 3) * w1, 2 / 9 * w1 ** 2 + 2 / 3 * w * w2
+            for side in range(len(D1)):
+                jerk = D3[side] * sd ** 3 + 3 * D2[side] * sd * sdd + D1[side] * sddd
+                read = np.maximum(np.abs(jerk), np.abs(jerk + kappa * sd * sd)).max()
+                want[i, p] = max(want[i, p], np.cbrt(read / J))
+    np.testing.assert_allclose(need, want, rtol=1e-9)
+
+
 def test_knots_follow_the_limits_not_the_seed():
     """The knots come from the jerk-free optimum's time on the piece's stations, one per
     KNOT_STEP_TU of it (to the station they are moved to): the same for any seed profile."""
