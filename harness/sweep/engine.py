@@ -218,6 +218,10 @@ def _user_fmu_payload(tasks) -> dict[str, bytes]:
     return out
 
 
+def _same(x):
+    return x
+
+
 def _connect(scheduler: str | None, workers: int, processes: bool):
     from distributed import Client, LocalCluster
     if scheduler:
@@ -307,8 +311,10 @@ def _run_on_dask(todo, task_fn: str, scheduler: str | None, workers: int, proces
         if scheduler:
             _check_workers(client, scheduler)
         fmus = _fmu_payload()
-        fmus_ref = client.scatter([fmus], broadcast=True)[0] if fmus else None
-        user_ref = client.scatter([user], broadcast=True)[0] if user else None
+        # held as tasks, not scattered: scattered data dies with the worker holding it and
+        # cancels every task that needs it; a task's result the scheduler computes again
+        fmus_ref = client.submit(_same, fmus, pure=False) if fmus else None
+        user_ref = client.submit(_same, user, pure=False) if user else None
         futures, labels = {}, {}
         # dask re-runs the tasks of a worker that died without telling the client:
         # the scheduler's remove-worker event names them, so the user hears of it
