@@ -253,6 +253,24 @@ def test_a_killed_worker_is_reported_with_its_task_and_the_sweep_completes(tmp_p
                             "dask runs that task again on another worker")
 
 
+def _malloc_env():
+    import os
+    return os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS")
+
+
+def test_local_workers_keep_glibc_s_adaptive_mmap_threshold():
+    """dask's workers get MALLOC_TRIM_THRESHOLD_=65536, which makes glibc map and unmap every
+    large array (pso planned 2 x slower); ours run without it, still one BLAS thread each."""
+    from harness.sweep.engine import _connect
+    client, cluster = _connect(None, 2, True)
+    try:
+        seen = client.run(_malloc_env)
+    finally:
+        client.close()
+        cluster.close()
+    assert len(seen) == 2 and set(seen.values()) == {(None, "1")}, seen
+
+
 def test_a_local_sweep_ends_without_a_traceback_on_the_console(tmp_path):
     # the worker-loss subscription once made the scheduler log a CRITICAL CommClosedError
     # traceback at every close: a clean sweep prints none

@@ -229,9 +229,16 @@ def _connect(scheduler: str | None, workers: int, processes: bool):
             return Client(scheduler, timeout=CONNECT_TIMEOUT), None
         except (OSError, TimeoutError) as e:
             raise SweepError(f"cannot reach the dask scheduler at {scheduler}: {e}") from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           host="127.0.0.1", dashboard_address=None,
-                           silence_logs=logging.CRITICAL)   # worker heartbeats racing the shutdown
+    import dask
+    # dask sets MALLOC_TRIM_THRESHOLD_ in its workers; glibc then stops adapting its mmap
+    # threshold and maps and unmaps every array ≥ 128 KiB: pso and optimal planned 2 × slower
+    # (kossel/bird_kossel pso 44 → 88 s, 36 s of it in the kernel)
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
+               if k != "MALLOC_TRIM_THRESHOLD_"}
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                               host="127.0.0.1", dashboard_address=None,
+                               silence_logs=logging.CRITICAL)   # worker heartbeats racing the shutdown
     return Client(cluster), cluster
 
 
