@@ -46,6 +46,39 @@ def test_store_none_appends_to_no_store(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "none").exists() and (tmp_path / "baseline.json").exists()
 
 
+def drifting_task(task, out_dir):
+    """A "planner" whose execution time grows by a servo period at every call (a counter file)."""
+    counter = Path(task["planner_options"]["counter"])
+    n = len(counter.read_text()) if counter.exists() else 0
+    counter.write_text("x" * (n + 1))
+    return {"execution_time_s": 1.0 + 250e-6 * n, "feasible": True, "planning_time_s": 0.01}
+
+
+@pytest.mark.parametrize("timing, runs", [(True, ci.CI_REPEAT), (False, ci.CI_REPEAT_NO_TIMING)])
+def test_a_planner_that_is_not_deterministic_fails_by_name(tmp_path, capsys, timing, runs):
+    """Each task runs more than once (three times to time it, twice under --no-timing) and its
+    runs must agree: the first and the last differing fail the task, naming the metric."""
+    counter = tmp_path / "calls"
+    s = suite(tmp_path, f'counter = "{counter}"')
+    code = cli(["ci", "--suite", str(s), "--baseline", str(tmp_path / "baseline.json"), "--out",
+                str(tmp_path / "ci"), "--task", f"{__name__}:drifting_task", "--workers", "0",
+                "--store", "none", "--update-baseline", *([] if timing else ["--no-timing"])])
+    out = capsys.readouterr().out
+    assert len(counter.read_text()) == ci.CI_REPEAT          # --update-baseline always times
+    assert code == 1 and "not deterministic: execution_time_s differ" in out, out
+    assert not (tmp_path / "baseline.json").exists()
+    (tmp_path / "baseline.json").write_text(json.dumps(
+        {"format": ci.FORMAT, "suite": str(s), "task_fn": LINE_TASK, "code_version": "x",
+         "reference_s": 0.05, "entries": {ENTRY: {"execution_time_s": 1.0}}}))
+    counter.unlink()
+    code = cli(["ci", "--suite", str(s), "--baseline", str(tmp_path / "baseline.json"), "--out",
+                str(tmp_path / "ci"), "--task", f"{__name__}:drifting_task", "--workers", "0",
+                "--store", "none", *([] if timing else ["--no-timing"])])
+    out = capsys.readouterr().out
+    assert len(counter.read_text()) == runs
+    assert code == 1 and "not deterministic: execution_time_s differ" in out, out
+
+
 def test_ci_passes_unchanged_and_fails_on_slower_or_worse_planner(tmp_path, capsys):
     good = suite(tmp_path, "feed_mm_s = 500.0")
     assert run_ci(tmp_path, good, "--update-baseline") == 0

@@ -157,7 +157,8 @@ def _run_suite(args, tasks, task_fn: str, out: Path):
     run_dir = out / "run"
     shutil.rmtree(run_dir, ignore_errors=True)            # CI measures afresh: nothing skipped
     try:
-        tasks = [t | {"ci_inner_task": task_fn} for t in tasks]
+        repeat = ci.CI_REPEAT_NO_TIMING if args.no_timing and not args.update_baseline else ci.CI_REPEAT
+        tasks = [t | {"ci_inner_task": task_fn, "ci_repeat": repeat} for t in tasks]
         run_sweep(tasks, run_dir, task_fn="harness.ci.baseline:reference_timed_task", workers=args.workers,
                   scheduler=args.scheduler, force=True, progress=sys.stderr.isatty())
     except SweepError as e:
