@@ -29,21 +29,28 @@ OTHER_SIMD = "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
 pytestmark = [pytest.mark.slow, pytest.mark.skipif(not (FMU_DIR / "Drive.fmu").exists(), reason="make fmus")]
 
 
-def _run(out: Path, disable: str) -> dict:
+def _start(out: Path, disable: str) -> subprocess.Popen:
     env = dict(os.environ, NPY_DISABLE_CPU_FEATURES=disable)
-    r = subprocess.run([sys.executable, "-m", "harness.cli", "run", "--machine", "kossel",
-                        "--path", str(PROGRAM), "--planners", ",".join(PLANNERS), "--out", str(out),
-                        # at F_max: the contract is about SIMD, and scurve_joint breaks its jerk limit
-                        # at a programmed-F change (an open defect) where the profile must be feasible
-                        "--no-recordings", "--max-feed"], env=env, cwd=REPO, capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
+    return subprocess.Popen([sys.executable, "-m", "harness.cli", "run", "--machine", "kossel",
+                             "--path", str(PROGRAM), "--planners", ",".join(PLANNERS), "--out", str(out),
+                             # at F_max: the contract is about SIMD, and scurve_joint breaks its jerk limit
+                             # at a programmed-F change (an open defect) where the profile must be feasible
+                             "--no-recordings", "--max-feed"], env=env, cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _summary(proc: subprocess.Popen, out: Path) -> dict:
+    _, err = proc.communicate()
+    assert proc.returncode == 0, err
     return json.loads((out / "summary.json").read_text())
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     base = tmp_path_factory.mktemp("repro")
-    return base, _run(base / "native", ""), _run(base / "other", OTHER_SIMD)
+    # side by side: one process each, as many as make test's two cores
+    native, other = _start(base / "native", ""), _start(base / "other", OTHER_SIMD)
+    return base, _summary(native, base / "native"), _summary(other, base / "other")
 
 
 def test_metrics_agree_within_the_contract_under_other_simd(runs):
