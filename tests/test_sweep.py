@@ -149,16 +149,17 @@ def test_sweep_through_a_real_scheduler_with_two_worker_processes(tmp_path, caps
                                       "--no-dashboard"], cwd=REPO,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
-        for _ in range(2):
+        for nanny in ("--no-nanny", "--nanny"):     # a nanny's worker gets MALLOC_TRIM_THRESHOLD_
             procs.append(subprocess.Popen(dask + ["worker", addr, "--nthreads", "1", "--no-dashboard",
-                                                  "--no-nanny"], cwd=REPO,
+                                                  nanny], cwd=REPO,
                                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         from distributed import Client
         with Client(addr, timeout="20s") as c:                 # wait until both workers joined
             c.wait_for_workers(2, timeout=30)
         code = cli(["sweep", str(suite), "--scheduler", addr, "--task", LINE_TASK,
                     "--out", str(tmp_path / "out"), "--no-progress"])
-        out = capsys.readouterr().out
+        out, err = capsys.readouterr()
+        assert "sweep: warning: 1 worker(s) (tcp://127.0.0.1:" in err and "MALLOC_TRIM_THRESHOLD_" in err, err
         assert code == 1                                     # the bogus tasks failed …
         assert "3 run, 0 already done, 3 failed" in out      # … and the others finished
         rows = TaskTable(tmp_path / "out/results.sqlite").to_rows()

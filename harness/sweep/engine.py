@@ -150,6 +150,10 @@ def _worker_code_version() -> str:
     return code_version()
 
 
+def _worker_malloc_trim() -> str | None:
+    return os.environ.get("MALLOC_TRIM_THRESHOLD_")
+
+
 # -- client side ---------------------------------------------------------------------------
 class Progress:
     """A one-line progress bar on a terminal; a line per 10 % otherwise (logs stay short)."""
@@ -317,6 +321,11 @@ def _run_on_dask(todo, task_fn: str, scheduler: str | None, workers: int, proces
     try:
         if scheduler:
             _check_workers(client, scheduler)
+            trimmed = sorted(w for w, v in client.run(_worker_malloc_trim).items() if v is not None)
+            if trimmed:
+                log(f"sweep: warning: {len(trimmed)} worker(s) ({', '.join(trimmed)}) run with MALLOC_TRIM_THRESHOLD_ set "
+                    f"(dask's nanny sets it): pso plans ~2 × slower there; start them with --no-nanny "
+                    f"(docs/TUNING.md)")
         fmus = _fmu_payload()
         # held as tasks, not scattered: scattered data dies with the worker holding it and
         # cancels every task that needs it; a task's result the scheduler computes again
