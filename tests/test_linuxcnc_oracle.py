@@ -311,9 +311,14 @@ def test_linuxcnc_runs_a_program_placed_by_var_file_tool_table_and_offset(tmp_pa
 
 def _rests(p, min_s=0.0):
     """The stretches at rest between the first and the last motion of a profile, seconds."""
+    return [d for _, d in _rests_at(p, min_s)]
+
+
+def _rests_at(p, min_s=0.0):
+    """(arc length, seconds) of each stretch at rest between the first and the last motion."""
     still = np.r_[False, p.sd[1:-1] == 0.0, False]
     edges = np.flatnonzero(np.diff(still.astype(int)))
-    return [(b - a) * p.T for a, b in zip(edges[::2], edges[1::2]) if (b - a) * p.T > min_s]
+    return [(float(p.s[b]), (b - a) * p.T) for a, b in zip(edges[::2], edges[1::2]) if (b - a) * p.T > min_s]
 
 
 @needs_linuxcnc
@@ -386,14 +391,22 @@ def test_trapezoid_takes_task_time_at_every_queue_sync_as_linuxcnc(tmp_path, kos
     text = "G21 G90 G17 G64\nG0 X-5 Y0 Z-250\nG1 X-5 F1200\nM3 S500\n" + 4 * body + "G1 X5\nM2\n"
     path = gcode_path(tmp_path, "syncs.ngc", text)
     lc, tz = plan("linuxcnc", path, kossel), plan("trapezoid", path, kossel)
-    rests_lc, rests_tz = np.array(_rests(lc)), np.array(_rests(tz))
-    assert len(rests_tz) == len(rests_lc) == 16
+    at_lc, at_tz = _rests_at(lc), _rests_at(tz)
+    assert len(at_tz) == 16
     assert sum(tz.info["queue_waits_s"].values()) == pytest.approx(16 * 0.002 + 16 * 0.001, abs=1e-12)
+    # each of trapezoid's stops is LinuxCNC's at the same place (they end at a line's end); a
+    # loaded host once rested LinuxCNC a 17th time (4 ms, CI): at most two such extra rests, the host's
+    rests_tz = np.array([d for _, d in at_tz])
+    mine = [min(range(len(at_lc)), key=lambda k: abs(at_lc[k][0] - s_tz)) for s_tz, _ in at_tz]
+    assert all(abs(at_lc[k][0] - s_tz) < 0.01 for k, (s_tz, _) in zip(mine, at_tz)), (at_lc, at_tz)
+    assert len(set(mine)) == 16 and len(at_lc) - 16 <= 2, (at_lc, at_tz)
+    rests_lc = np.array([at_lc[k][1] for k in mine])
+    extra = sum(d for k, (_, d) in enumerate(at_lc) if k not in mine)
     # LinuxCNC's speeds are its positions' differences, half a period behind trapezoid's samples
     # (…0.375, 0.125, 0, 0, 0.125 of the feed at a stop against …0.5, 0.25, 0, 0, 0, 0.25): its
     # rests count a period fewer (−1 ms at 11–15 of the 16 stops in three runs, the others 0, one −2)
     later = rests_lc - rests_tz
     typical = np.median(later)
     assert -0.0015 <= typical <= 0.0005, later
-    host = np.clip(later - typical - tz.T, 0.0, None).sum()
+    host = np.clip(later - typical - tz.T, 0.0, None).sum() + extra
     assert abs(tz.execution_time_s - (lc.execution_time_s - host)) <= 0.010, (later, host)
