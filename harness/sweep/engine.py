@@ -235,7 +235,7 @@ def _connect(scheduler: str | None, workers: int, processes: bool):
             raise SweepError(f"cannot reach the dask scheduler at {scheduler}: {e}") from None
     import dask
     # dask sets MALLOC_TRIM_THRESHOLD_ in its workers; glibc then stops adapting its mmap
-    # threshold and maps and unmaps every array ≥ 128 KiB: pso and optimal planned 2 × slower
+    # threshold and maps and unmaps every array ≥ 128 KiB: pso planned 2 × slower
     # (kossel/bird_kossel pso 44 → 88 s, 36 s of it in the kernel)
     environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
                if k != "MALLOC_TRIM_THRESHOLD_"}
