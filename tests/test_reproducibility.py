@@ -36,7 +36,7 @@ def _start(out: Path, disable: str) -> subprocess.Popen:
                              # at F_max: the contract is about SIMD, and scurve_joint breaks its jerk limit
                              # at a programmed-F change (an open defect) where the profile must be feasible
                              "--no-recordings", "--max-feed"], env=env, cwd=REPO,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
 def _summary(proc: subprocess.Popen, out: Path) -> dict:
