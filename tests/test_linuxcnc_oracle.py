@@ -17,6 +17,8 @@ from planners.linuxcnc import runner
 
 WHY = runner.missing()
 needs_linuxcnc = pytest.mark.skipif(WHY is not None, reason=f"LinuxCNC absent: {WHY}")
+# LinuxCNC runs in realtime beside these tests: `make test` runs them alone (pyproject markers)
+pytestmark = pytest.mark.realtime
 
 
 def gcode_path(tmp_path, name, text):

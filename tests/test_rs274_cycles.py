@@ -406,6 +406,7 @@ def test_debug_formats_as_linuxcnc(tmp_path):
 
 # ---------------------------------------------------------------- the real LinuxCNC (slow)
 @pytest.mark.slow
+@pytest.mark.realtime
 @pytest.mark.parametrize("name, text, closed_form_s", [
     # after G21, "G20 F6" is 6 mm/min: 0.254 mm at 0.1 mm/s (the ramps at 250 mm/s² add 0.4 ms)
     ("f6", "G21 G90 G64\nG0 X0 Y0 Z-200\nG20 F6\nG1 X0.01\nM2\n", 2.54),
