@@ -170,9 +170,7 @@ def test_signed_reads_keep_every_third_difference_whatever_its_phase():
 
 # the head of cam_dense_keops.ngc: 9 chords of 0.15–0.6 mm under G64 P0.01 on keops
 CAM_LINES = 12
-# half the corpus's BASE_NODES: the two grids hold 910 and 1819 nodes and show the same contrast
-# (J 1.0 against 1.87 × J node-alone) at a third of the CPU time (IPOPT's cold first grid: 884
-# iterations on 910 nodes, 1257 on 1810)
+# half the corpus's BASE_NODES: the same contrast at a third of the CPU (docs/TUNING.md, twenty-eighth session)
 CAM_BASE_NODES = 300
 
 
@@ -180,7 +178,7 @@ CAM_BASE_NODES = 300
 def test_a_g64_program_s_reference_keeps_the_jerk_at_t_by_the_nodes_near_its_joins(monkeypatch):
     """Short chords blended under G64: with the joins' reads at the nodes near them, the finest
     profile sampled at T keeps J (to 0.5 %) at four phases of the servo clock; with the join's
-    node alone (VERSION 6: read_nodes finds none) the same grid reads 1.64 × J next to the joins."""
+    node alone (VERSION 6: read_nodes finds none) the same grid reads 1.87 × J next to the joins."""
     from planners.paths.gcode import parse_gcode, program_path
     R = _ref()
     m = load_machine("keops")
