@@ -92,9 +92,14 @@ def test_bad_grid(grid):
 
 
 def test_solver_failure_names_the_piece(monkeypatch):
-    """A failure of COPP's solver is a PlanningError naming the rest-to-rest piece and the cause."""
+    """A failure of the engine's solvers (the IPM, then Clarabel on the same rows) is a
+    PlanningError naming the rest-to-rest piece and the cause."""
+    def no_solution(*_a, **_k):
+        raise topp3.ipm.NoSolution("no convergence")
+
     def fail(*_a, **_k):
         raise topp3.copp.CoppError("topp3_socp reported a failure in Clarabel solver with status MaxIterations")
+    monkeypatch.setattr(topp3.ipm, "solve", no_solution)
     monkeypatch.setattr(topp3.copp.solver.topp3_socp, "solve_expert", fail)
     c = KEOPS.home
     path = SegmentPath([Line(c, c + np.array([10.0, 0, 0])), Line(c + np.array([10.0, 0, 0]), c + np.array([10.0, 8, 0]))])

@@ -1,5 +1,6 @@
 """`copp` — jerk-limited time-optimal path parametrisation by COPP's TOPP3-SOCP, at COPP's
-settings: a second, independent jerk-limited reference on the planners' constraint set.
+settings and by its own solver (copp-py's Clarabel, not the engine's banded IPM that `optimal`
+uses): a second, independent jerk-limited reference on the planners' constraint set.
 
 Wang, Hu, Li, Yu, Yan, Liang & Jin, Int. J. Machine Tools and Manufacture 215 (2026) 104355;
 the `copp-py` package.  The transcription, its check at T and its repairs: planners/optimal/topp3.py.
@@ -18,6 +19,6 @@ def plan(path, machine, limits=None, *, grid_mm: float = 0.1):
     """COPP TOPP3-SOCP: joint v, a, j limits and the feed caps, checked and repaired at T."""
     t0 = time.perf_counter()
     limits = machine.limits if limits is None else limits
-    prof = topp3.solve(path, machine, limits, topp3.Settings("copp", grid_mm))
+    prof = topp3.solve(path, machine, limits, topp3.Settings("copp", grid_mm, solver="clarabel"))
     prof.planning_time_s = time.perf_counter() - t0
     return prof

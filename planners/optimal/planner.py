@@ -3,7 +3,8 @@
 The constraint set is the planners' shared one (joint v, a, j; F_max; the chord-error feed
 cap; the G1-join reads).  Two transcriptions:
 
-* COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py, copp-py + Clarabel): stations
+* COPP's TOPP3-SOCP over arc length (planners/optimal/topp3.py; its rows solved by the banded
+  interior-point method of planners/optimal/ipm.py, copp-py's Clarabel where that has none): stations
   ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s, down to
   STATION_MIN_MM at µm tips) and graded 2× outward from every G1 join
   (topp3.Settings.join_grading: the SOCP's chord time is the profile's time also where the feed

@@ -1,4 +1,5 @@
-"""TOPP3-SOCP on a station grid (COPP's transcription, copp-py + Clarabel), checked and repaired
+"""TOPP3-SOCP on a station grid (COPP's transcription, solved by ipm.py's banded interior-point
+method or copp-py's Clarabel: Settings.solver), checked and repaired
 at T: the engine of the planners `copp` and `optimal` (which adds scurve_joint's profile where
 faster, the NLP's polish on short pieces and the bound of the station relaxation).
 
@@ -59,7 +60,7 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, Plann
                                   check_limits, check_path, cross_norm, curvature_splits, feed_cap,
                                   interior_knots, join_jumps, join_read_weight, joint_derivs, rest_pieces,
                                   station_grid)
-from planners.optimal import timewarp
+from planners.optimal import ipm, timewarp
 from planners.profile import Profile, Rest
 from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
@@ -152,14 +153,16 @@ class Settings:
     1 + read_slack (a planner that hands the engine its joint limits less a margin lets its
     samples use part of it, rather than chase reads of a few 10⁻⁶ from window to window; F_max
     has no margin and keeps no slack).
-    ``midpoint_cap``: the feed cap also at the middle of every cell (Piece._robot).
+    ``midpoint_cap``: the feed cap also at the middle of every cell (Piece._rows).
     ``read_phases``: the repairs read the samples at T with the motion's start delayed by
     k·T/read_phases, k = 0 … read_phases − 1, not only at k = 0: a join's jump of q″ reads
     differently at each phase, and a profile repaired at one phase read up to 1.09 × J at
     another (docs/TUNING.md, "the phase of the samples"). The last resort (stretches) reads k = 0.
     ``lin_predicted``: the linearisations also stop where the next one is predicted to gain less
     than this fraction of the time (linearisation_cost), without the solve that would confirm
-    it; None: only a solve's own gain stops them (COPP's rule)."""
+    it; None: only a solve's own gain stops them (COPP's rule).
+    ``solver``: "ipm" (ipm.py: the banded interior-point method; where it stops without a
+    solution, Clarabel on the same rows) or "clarabel" (copp-py's own solve, COPP as published)."""
     name: str
     grid_mm: float = 0.1
     lin_tol: float = 1e-3
@@ -175,6 +178,7 @@ class Settings:
     midpoint_cap: bool = False
     read_phases: int = 1
     lin_predicted: float | None = None
+    solver: str = "ipm"
 
     def clarabel(self):
         """Clarabel's options: one solve accepts insufficient progress (Piece._socp)."""
@@ -313,6 +317,9 @@ class Piece:
         self.k, self.s0, self.s1 = k, s0, s1
         self.options = settings.clarabel()
         self.midpoint_cap = settings.midpoint_cap
+        if settings.solver not in ("ipm", "clarabel"):
+            raise PlanningError(f"{settings.name}: solver {settings.solver!r} is not 'ipm' or 'clarabel'")
+        self.solver = settings.solver
         J, T = limits.joint, machine.servo_period_s
         self.tu = J.a / J.j
         self.lims = (J.v * self.tu, J.a * self.tu ** 2, J.j * self.tu ** 3)
@@ -356,6 +363,7 @@ class Piece:
         self.reference_is_coarser = False
         self.stuck = False
         self.insufficient_progress = 0
+        self.ipm_fallbacks = 0
 
     def _join_travel(self, path, limits, T):
         """Per G1 join (self.joins) the travel in one servo period T at its cap (the feed cap
@@ -373,30 +381,42 @@ class Piece:
     def where(self) -> str:
         return f"piece {self.k} (s = {self.s0:.6g}…{self.s1:.6g} mm)"
 
-    def _robot(self, a_lin=None):
-        """The constraints; with a_lin, the G1 joins' rows linearised around it."""
+    def _robot(self):
+        """copp's constraint set of the piece without its G1 joins' rows: TOPP2-RA's problem."""
         n = len(self.grid)
         rob = copp.Robot(3, capacity=n)
         rob.append_s(self.grid - self.s0)
         q, d1, d2, d3 = self.deriv
         rob.set_q(q, d1, d2, 0, dddq=d3)
-        f = self.factor
-        v, a, j = (np.outer(f[:, m], np.full(3, lim)) for m, lim in enumerate(self.lims))
-        j[self.knot_at] = KNOT_JERK_FREE * self.lims[2]
+        v, a, j = self._limits()
         rob.add_velocity_limits(v, -v, start_idx_s=0, length=n)
         rob.add_acceleration_limits(a, -a, start_idx_s=0, length=n)
         rob.add_jerk_limits(j, -j, start_idx_s=0, length=n)
-        rob.constraints.add_constraint_1st((self.cap2 * f[:, 3] ** 2)[:, None], 0)
-        for i, D1, D2, D3, kappa in (self.join_reads if a_lin is not None else ()):
+        rob.constraints.add_constraint_1st((self.cap2 * self.factor[:, 3] ** 2)[:, None], 0)
+        return rob
+
+    def _limits(self):
+        """The joints' v, a, j limits at each station (n × 3), each held to its factor."""
+        f = self.factor
+        v, a, j = (np.outer(f[:, m], np.full(3, lim)) for m, lim in enumerate(self.lims))
+        j[self.knot_at] = KNOT_JERK_FREE * self.lims[2]
+        return v, a, j
+
+    def _rows(self, a_lin):
+        """The TOPP3-SOCP's rows (ipm.Rows), the G1 joins' linearised around a_lin."""
+        _, d1, d2, d3 = self.deriv
+        v, a, j = self._limits()
+        f = self.factor
+        rows = ipm.Rows(self.grid - self.s0, d1, d2, d3, v, a, j, self.cap2 * f[:, 3] ** 2)
+        for i, D1, D2, D3, kappa in self.join_reads:
             # ±(q‴a + 3q″b + q′c + κ√a) ≤ J/√a: where ±κ > 0, ±κ√a ≥ its tangent at r² = a_lin
             # (≤ the cap); where ±κ ≤ 0, the read is dropped (±jerk ≤ J/√a, the stricter)
             r = math.sqrt(max(min(a_lin[i], self.cap2[i]), 1e-12))
-            rows = [(sg * d3 + kap / (2 * r), sg * 3 * d2, sg * d1, kap * r / 2)
-                    for d1, d2, d3, kap_signed in zip(D1.ravel(), D2.ravel(), D3.ravel(), np.tile(kappa, len(D1)))
-                    for sg in (1.0, -1.0) for kap in [max(sg * kap_signed, 0.0)]]
-            ga, gb, gc, gd = (np.array([[row[m] for row in rows]]) for m in range(4))
-            rob.constraints.add_constraint_3rd(ga, gb, gc, gd, np.full_like(ga, j[i, 0]), i)
-        if a_lin is not None and self.midpoint_cap:
+            sg = np.array([1.0, -1.0])[None, :]
+            kap = np.maximum(sg * np.broadcast_to(kappa, D1.shape).ravel()[:, None], 0.0)
+            ga = sg * D3.ravel()[:, None] + kap / (2 * r)
+            rows.add_3rd(ga, sg * 3 * D2.ravel()[:, None], sg * D1.ravel()[:, None], kap * r / 2, j[i, 0], i)
+        if self.midpoint_cap:
             # between stations b is linear and a(x) = a_k + 2b_k·x + c·x², so a cell's middle is
             # (3a_k + a_k+1)/4 + b_k·Δ/2 = (a_k + 3a_k+1)/4 − b_k+1·Δ/2.  With the far station within
             # its cap C, the middle is within the mean of the caps either side where
@@ -408,10 +428,10 @@ class Piece:
             # The caps are the path's (F_max, the chord error): a G1 join's read is a limit of its
             # own stations' samples at T, not of the cells beside them
             C = self.path_cap2 * f[:, 3] ** 2
-            d, ones = np.diff(self.grid)[:, None], np.ones((len(self.grid) - 1, 1))
-            rob.constraints.add_constraint_2nd(ones, 2 * d / 3, ((2 * C[:-1] + C[1:]) / 3)[:, None], 0)
-            rob.constraints.add_constraint_2nd(ones, -2 * d / 3, ((C[:-1] + 2 * C[1:]) / 3)[:, None], 1)
-        return rob
+            d = np.diff(self.grid)
+            rows.add_2nd(np.ones(len(d)), 2 * d / 3, (2 * C[:-1] + C[1:]) / 3, 0)
+            rows.add_2nd(np.ones(len(d)), -2 * d / 3, (C[:-1] + 2 * C[1:]) / 3, 1)
+        return rows
 
     def solve(self, settings):
         """(TOPP3 profile, node times in scaled time).  The first time: linearised around
@@ -437,7 +457,7 @@ class Piece:
             before = None if self.reference is None or self.reference_is_coarser else self._chord_time(a_lin)
             best = None
             for _ in range(settings.max_linearisations):
-                prof, tf, ts = self._timed(self._socp(self._robot(a_lin), a_lin))
+                prof, tf, ts = self._timed(self._socp(self._rows(a_lin), a_lin))
                 done = (best is not None and (best[0] - tf) / tf < settings.lin_tol) or \
                     (best is None and before is not None and abs(before - self._chord_time(prof.a)) < settings.lin_tol * tf) or \
                     (settings.lin_predicted is not None and linearisation_cost(a_lin, prof.a, ts) < settings.lin_predicted)
@@ -486,7 +506,7 @@ class Piece:
         a, b = old.a.copy(), old.b.copy()
         ns = list(old.num_stationary)
         n = len(self.grid)
-        rob = self._robot(np.minimum(a, self.cap2 * self.factor[:, 3] ** 2))
+        rows = self._rows(np.minimum(a, self.cap2 * self.factor[:, 3] ** 2))
         # in scaled time √a is the travel per t_u
         margin = WINDOW_TU * math.sqrt(max(float(a[self.changed].max(initial=0.0)), 0.0))
         for lo, hi in _windows(self.changed, self.grid, a, margin, WINDOW_STATIONS):
@@ -495,14 +515,14 @@ class Piece:
                 try:
                     # at the piece's ends: the rest it starts and stops at
                     ends = [(a[lo], b[lo]) if lo > 0 else (0.0, 0.0), (a[hi], b[hi]) if hi < n - 1 else (0.0, 0.0)]
-                    prof = self._socp(rob, a_lin, lo, (ends[0][0], ends[1][0]), (ends[0][1], ends[1][1]),
+                    prof = self._socp(rows, a_lin, lo, (ends[0][0], ends[1][0]), (ends[0][1], ends[1][1]),
                                       (1 if lo == 0 else 0, 1 if hi == n - 1 else 0))
                     break
                 except copp.CoppError:
                     if lo == 0 and hi == n - 1:
                         # the whole piece, linearised around the last solution as it was
                         a0 = np.minimum(old.a, self.cap2 * self.factor[:, 3] ** 2)
-                        return self._socp(self._robot(a0), a0)
+                        return self._socp(self._rows(a0), a0)
                     w = WINDOW_GROWTH * (hi - lo)
                     lo, hi = max(lo - w, 0), min(hi + w, n - 1)
             a[lo:hi + 1], b[lo:hi + 1] = prof.a, prof.b
@@ -512,14 +532,21 @@ class Piece:
                 ns[1] = prof.num_stationary[1]
         return copp.Profile3rd(a, b, tuple(ns))
 
-    def _socp(self, rob, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=1):
-        """TOPP3-SOCP's profile over stations lo … lo + len(a_lin) − 1; where Clarabel stops on
-        insufficient progress (feeds orders of magnitude apart at µm blend arcs next to fast
-        stretches), its last iterate, which the check at T judges like any other."""
-        prob = copp.solver.topp3_socp.Problem(rob.constraints, a_lin, idx_s_start=lo, a_boundary=a_ends,
-                                              b_boundary=b_ends, num_stationary_max=stationary)
-        # one solve that accepts insufficient progress (a rejected one, then a second that
-        # accepts it, cost twice the time: docs/TUNING.md)
+    def _socp(self, rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=1):
+        """TOPP3-SOCP's profile over stations lo … lo + len(a_lin) − 1 of ``rows`` (_rows), by the
+        banded interior-point method (ipm.py; Settings.solver) or copp-py's Clarabel, which also
+        takes the rows where the IPM stops without a solution (info["ipm_fallbacks"]); Clarabel's
+        last iterate is accepted
+        where it stops on insufficient progress (feeds orders of magnitude apart at µm blend arcs
+        next to fast stretches): the check at T judges it like any other."""
+        if self.solver == "ipm":
+            try:
+                sol = ipm.solve(rows, a_lin, lo, a_ends, b_ends, stationary)
+                return copp.Profile3rd(sol.a, sol.b, sol.num_stationary)
+            except ipm.NoSolution:
+                self.ipm_fallbacks += 1
+        prob = copp.solver.topp3_socp.Problem(rows.copp_robot().constraints, a_lin, idx_s_start=lo,
+                                              a_boundary=a_ends, b_boundary=b_ends, num_stationary_max=stationary)
         res = copp.solver.topp3_socp.solve_expert(prob, self.options)
         if res.profile is None:
             raise copp.CoppError(f"topp3_socp stopped with Clarabel status {res.solver_status}")
@@ -843,5 +870,6 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
     prof.info["station_relaxation_s"] = info["station_relaxation_s"]
     prof.info["above_at_T"] = len(above)
     prof.info["insufficient_progress"] = sum(p.insufficient_progress for p in pieces)
+    prof.info["ipm_fallbacks"] = sum(p.ipm_fallbacks for p in pieces)
     prof.info["repair_failed"] = [p.k for p in pieces if p.stuck]
     return prof

@@ -1,0 +1,88 @@
+"""The engine's banded interior-point method (planners/optimal/ipm.py) against a second method on
+the same rows (copp-py's Clarabel), the principle of optimality on a window with held ends, and
+its failures."""
+import numpy as np
+import pytest
+
+import planners.optimal.topp3 as topp3
+from kins import load_machine
+from planners.optimal import ipm
+from test_planner_claims import short_path
+
+KEOPS = load_machine("keops")
+KOSSEL = load_machine("kossel")
+
+
+def optimal_piece(machine):
+    """The first rest-to-rest piece of the short path (a line, a tangent arc: a G1 join with its
+    read rows, a line) on `optimal`'s stations (graded at the join, midpoint caps), its rows
+    linearised around TOPP2-RA's profile as the engine's first solve is."""
+    settings = topp3.Settings("optimal", 0.1, join_grading=True, midpoint_cap=True)
+    piece = topp3.pieces_of(short_path(machine), machine, machine.limits, settings)[0]
+    a_lin = np.minimum(piece.topp2_ra(), piece.cap2)
+    return piece, piece._rows(a_lin), a_lin
+
+
+def clarabel(rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=1):
+    prob = topp3.copp.solver.topp3_socp.Problem(rows.copp_robot().constraints, a_lin, idx_s_start=lo,
+                                                a_boundary=a_ends, b_boundary=b_ends, num_stationary_max=stationary)
+    return topp3.copp.solver.topp3_socp.solve_expert(prob, topp3.Settings("copp").clarabel())
+
+
+@pytest.mark.parametrize("machine", [KEOPS, KOSSEL], ids=["keops", "kossel"])
+def test_the_banded_ipm_reaches_clarabels_optimum_on_the_same_rows(machine):
+    """The same problem (joint v, a, j, the feed caps, the join's read rows, the midpoint caps, the
+    rest ends' constant-jerk blocks) solved by the IPM and by Clarabel's conic form (copp-py):
+    the same objective Σ w/√a (Clarabel's η ≥ 1/√a at its optimum) and the same profile."""
+    piece, rows, a_lin = optimal_piece(machine)
+    assert len(piece.join_reads) > 0
+    sol = ipm.solve(rows, a_lin)
+    ref = clarabel(rows, a_lin)
+    assert ref.profile is not None
+    assert sol.num_stationary == tuple(ref.profile.num_stationary) == (1, 1)
+    assert sol.objective == pytest.approx(ref.obj_val, rel=1e-7)
+    scale = ref.profile.a.max()
+    assert np.max(np.abs(sol.a - ref.profile.a)) < 1e-5 * scale
+    assert np.max(np.abs(sol.b - ref.profile.b)) < 1e-5 * np.abs(ref.profile.b).max()
+
+
+def test_a_window_with_its_ends_held_returns_the_whole_solution_there():
+    """Principle of optimality: the objective is a sum over stations and every row couples
+    neighbours only, so with a window's ends held at the whole piece's optimum (a and b, no rest
+    block: copp's num_stationary 0) the window's optimum is that solution on the window."""
+    piece, rows, a_lin = optimal_piece(KEOPS)
+    whole = ipm.solve(rows, a_lin)
+    n = len(a_lin)
+    lo, hi = n // 4, n // 2
+    win = ipm.solve(rows, a_lin[lo:hi + 1], lo, (whole.a[lo], whole.a[hi]), (whole.b[lo], whole.b[hi]), (0, 0))
+    assert win.num_stationary == (0, 0)
+    assert win.a[0] == whole.a[lo] and win.b[-1] == whole.b[hi]
+    assert np.max(np.abs(win.a - whole.a[lo:hi + 1])) < 1e-5 * whole.a.max()
+
+
+def test_a_held_end_no_row_can_follow_is_no_solution():
+    """An end held at ten times the speed cap squared: the first-order rows at the next stations
+    cannot be met (b is continuous), so no solution, named with its stations."""
+    piece, rows, a_lin = optimal_piece(KEOPS)
+    lo, hi = 10, 60
+    a_end = 10 * float(rows.amax[lo])
+    with pytest.raises(ipm.NoSolution, match=rf"stations {lo}…{hi}"):
+        ipm.solve(rows, a_lin[lo:hi + 1], lo, (a_end, a_lin[hi]), (0.0, 0.0), (0, 0))
+
+
+def test_the_engine_solves_by_the_ipm_and_falls_back_to_clarabel(monkeypatch):
+    """The engine at COPP's settings on the short path: every solve by the IPM
+    (info["ipm_fallbacks"] 0) to the time of copp-py's own solve (`copp`: Settings.solver
+    "clarabel"); where the IPM has no solution, the same rows go to Clarabel, counted."""
+    path = short_path(KEOPS)
+    solve = lambda solver: topp3.solve(path, KEOPS, KEOPS.limits, topp3.Settings("engine", 0.1, solver=solver))
+    p, c = solve("ipm"), solve("clarabel")
+    assert p.info["ipm_fallbacks"] == 0 == c.info["ipm_fallbacks"]
+    assert p.execution_time_s == pytest.approx(c.execution_time_s, rel=2e-3)
+
+    def fail(*_a, **_k):
+        raise ipm.NoSolution("test")
+    monkeypatch.setattr(ipm, "solve", fail)
+    q = solve("ipm")
+    assert q.info["ipm_fallbacks"] > 0
+    assert q.execution_time_s == c.execution_time_s
