@@ -381,20 +381,6 @@ class Piece:
     def where(self) -> str:
         return f"piece {self.k} (s = {self.s0:.6g}…{self.s1:.6g} mm)"
 
-    def _robot(self):
-        """copp's constraint set of the piece without its G1 joins' rows: TOPP2-RA's problem."""
-        n = len(self.grid)
-        rob = copp.Robot(3, capacity=n)
-        rob.append_s(self.grid - self.s0)
-        q, d1, d2, d3 = self.deriv
-        rob.set_q(q, d1, d2, 0, dddq=d3)
-        v, a, j = self._limits()
-        rob.add_velocity_limits(v, -v, start_idx_s=0, length=n)
-        rob.add_acceleration_limits(a, -a, start_idx_s=0, length=n)
-        rob.add_jerk_limits(j, -j, start_idx_s=0, length=n)
-        rob.constraints.add_constraint_1st((self.cap2 * self.factor[:, 3] ** 2)[:, None], 0)
-        return rob
-
     def _limits(self):
         """The joints' v, a, j limits at each station (n × 3), each held to its factor."""
         f = self.factor
@@ -402,12 +388,15 @@ class Piece:
         j[self.knot_at] = KNOT_JERK_FREE * self.lims[2]
         return v, a, j
 
-    def _rows(self, a_lin):
-        """The TOPP3-SOCP's rows (ipm.Rows), the G1 joins' linearised around a_lin."""
+    def _rows(self, a_lin=None):
+        """The TOPP3-SOCP's rows (ipm.Rows), the G1 joins' linearised around a_lin; without
+        a_lin, the joints' limits and the caps only (TOPP2-RA's problem)."""
         _, d1, d2, d3 = self.deriv
         v, a, j = self._limits()
         f = self.factor
         rows = ipm.Rows(self.grid - self.s0, d1, d2, d3, v, a, j, self.cap2 * f[:, 3] ** 2)
+        if a_lin is None:
+            return rows
         for i, D1, D2, D3, kappa in self.join_reads:
             # ±(q‴a + 3q″b + q′c + κ√a) ≤ J/√a: where ±κ > 0, ±κ√a ≥ its tangent at r² = a_lin
             # (≤ the cap); where ±κ ≤ 0, the read is dropped (±jerk ≤ J/√a, the stricter)
@@ -478,7 +467,7 @@ class Piece:
 
     def topp2_ra(self):
         """a at the stations of the jerk-free time-optimal profile (TOPP2-RA)."""
-        prob2 = copp.solver.topp2_ra.Problem(self._robot().constraints, (0, len(self.grid) - 1), (0.0, 0.0))
+        prob2 = copp.solver.topp2_ra.Problem(self._rows().copp_robot().constraints, (0, len(self.grid) - 1), (0.0, 0.0))
         return copp.solver.topp2_ra.solve(prob2)
 
     def _timed(self, prof):
