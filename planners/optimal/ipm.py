@@ -1,23 +1,24 @@
 """TOPP3-SOCP's problem, solved by a primal-dual interior-point method on banded Newton systems:
 the engine's solver (topp3.Piece._socp), in place of copp-py's Clarabel call.
 
-The problem is COPP's (Wang et al., IJMTM 215 (2026) 104355; copp's topp3_socp.rs and
-clarabel_constraints.rs, read, not copied): on a window of stations k = 0 … n (s_k), a_k = ṡ² and
-b_k = s̈ with the ends held (a rest end: a = b = 0 and the first moving station tied to it by
-copp's constant-jerk block, a_1 = 1.5·(s_1 − s_0)·b_1), b linear between stations
-(a_{k+1} − a_k = Δs_k·(b_k + b_{k+1})), and minimise Σ w_k/√a_k (COPP's chord weights, its time):
+The problem is COPP's (Wang et al., IJMTM 215 (2026) 104355), as copp-py 0.2.3 builds it for
+Clarabel (its topp3_socp.rs, clarabel_constraints.rs and constraints.rs, read, not copied): on a
+window of stations k = 0 … n (s_k), a_k = ṡ² and b_k = s̈ with the ends held (a rest end: a = b = 0
+and the first moving station tied to it by copp's constant-jerk block, a_1 = 1.5·(s_1 − s_0)·b_1),
+b linear between stations (a_{k+1} − a_k = Δs_k·(b_k + b_{k+1})), and minimise Σ w_k/√a_k (COPP's
+chord weights, its time):
 
-- first order: 0 ≤ a_k ≤ amax_k (the joints' velocity limits and the feed caps);
+- first order: 0 ≤ a_k ≤ amax_k (the joints' velocity limits and the feed caps), and a ≥ 0 inside
+  every cell too (its slope rows at both ends);
 - second order: rows ca·a_k + cb·b_k ≤ r (the joints' accelerations, the midpoint caps);
 - third order at both ends of every cell, c = (b_{k+1} − b_k)/Δs: rows
   ca·a + cb·b + cc·c + cd ≤ J/√a, J/√a replaced by its tangent at a_lin (copp's linearisation,
   floored at LIN_FLOOR);
-- at a rest end, the moving station's a held within the bounds copp derives from every row at it
-  (stationary_bounds).
+- at a rest end, the moving station's a held within the bounds copp derives from the jerk at the
+  rest end itself and from every row at the station (stationary_bounds).
 
-Clarabel solves it as a conic program: ~26 rows a station in one sparse KKT system of ~37 unknowns
-a station, factored by QDLDL and refined, ~21 µs per station and interior-point iteration
-(docs/TUNING.md).  Here the objective is kept as it is (separable, convex in a > 0) and every
+Clarabel solves it as a conic program: one sparse KKT system of every row and cone, factored by
+QDLDL and refined at each iteration (what that costs: docs/TUNING.md).  Here the objective is kept as it is (separable, convex in a > 0) and every
 row couples two neighbouring stations, so with the unknowns ordered station by station the
 reduced Newton system [∇²f + Gᵀ(Z/S)G, Eᵀ; E, 0] is banded (half-bandwidth 5) and LAPACK's
 banded LU (dgbtrf) factors it in O(n).  Mehrotra's predictor-corrector (Nocedal & Wright,
@@ -32,8 +33,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
 
-# copp's floor of a_lin in the jerk rows' tangent (its a_linearization_floor) and of √a_lin in the
-# stationary bounds (EPSILON_NUMERIC there)
+# copp's floor of a_lin in the jerk rows' tangent and the stationary bounds (its
+# a_linearization_floor)
 LIN_FLOOR = 1e-10
 EPS = np.finfo(float).eps
 # the stopping test: residuals of the dual, the equalities and the inequalities relative to their
@@ -46,9 +47,7 @@ STALL_ITER = 5
 ALMOST_TOL = 1e-6
 STEP_TO_BOUNDARY = 0.99
 # the start: the linearisation's a (b = 0), each slack at least START_SLACK·(1 + |h|), centred at
-# μ = START_MU: of the starts tried on a whole piece, its second linearisation, a window with held
-# ends and a window whose dual residual stalls, the fewest iterations (110 against 147 for s ≥ 1,
-# z = 1; docs/TUNING.md)
+# μ = START_MU (the fewest iterations of the starts tried: docs/TUNING.md)
 START_SLACK = 0.1
 START_MU = 1e-3
 # the band's diagonal regularisation (+ on the primal unknowns, − on the equalities' multipliers):

@@ -61,6 +61,7 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, Plann
                                   interior_knots, join_jumps, join_read_weight, joint_derivs, rest_pieces,
                                   station_grid)
 from planners.optimal import ipm, timewarp
+from planners.optimal.ipm import LIN_FLOOR
 from planners.profile import Profile, Rest
 from planners.verify import FEASIBLE_TOL, stretch_need, windows_above
 
@@ -130,8 +131,6 @@ STOP_A = 1e-6
 WINDOW_TU = 3.0
 WINDOW_STATIONS = 40
 WINDOW_GROWTH = 2
-# copp's floor of a_lin in the jerk rows' tangent (Topp3Problem's a_linearization_floor)
-LIN_FLOOR = 1e-10
 
 
 @dataclasses.dataclass(frozen=True)
