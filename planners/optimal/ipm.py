@@ -100,7 +100,7 @@ class Rows:
         self._sorted = None
 
     def copp_robot(self):
-        """The same rows as copp-py's Robot (its Clarabel solve: solve_clarabel)."""
+        """The same rows as a copp-py Robot: for Clarabel where the IPM has no solution, and TOPP2-RA."""
         import copp_py as copp
         d1, d2, d3, v, a, j, cap = self.joints
         n = len(self.s)
