@@ -60,6 +60,27 @@ def test_a_window_with_its_ends_held_returns_the_whole_solution_there():
     assert np.max(np.abs(win.a - whole.a[lo:hi + 1])) < 1e-5 * whole.a.max()
 
 
+def test_a_warm_start_from_the_last_linearisation_reaches_the_cold_starts_optimum():
+    """The engine's next linearisation starts from the last one's iterate (ipm.Start): the same
+    optimum as from the cold start, in fewer iterations, on the same Newton system's layout; a
+    start whose rows have another pattern (a window's) is not taken."""
+    piece, rows, a_lin = optimal_piece(KOSSEL)
+    second = ipm.solve(piece._rows(a_lin := ipm.solve(rows, a_lin).a), a_lin)
+    first, again = second, piece._rows(second.a)
+    cold = ipm.solve(again, first.a)
+    warm = ipm.solve(again, first.a, start=first.start)
+    assert warm.start.band is first.start.band
+    assert warm.objective == pytest.approx(cold.objective, rel=1e-9)
+    assert np.max(np.abs(warm.a - cold.a)) < 1e-6 * cold.a.max()
+    assert warm.iterations < cold.iterations
+    n = len(a_lin)
+    lo, hi = n // 4, n // 2
+    args = (again, first.a[lo:hi + 1], lo, (cold.a[lo], cold.a[hi]), (cold.b[lo], cold.b[hi]), (0, 0))
+    win = ipm.solve(*args, start=first.start)
+    assert win.start.band is not first.start.band
+    assert np.array_equal(win.a, ipm.solve(*args).a)
+
+
 def test_a_held_end_no_row_can_follow_is_no_solution():
     """An end held at ten times the speed cap squared: the first-order rows at the next stations
     cannot be met (b is continuous), so no solution, named with its stations."""

@@ -159,7 +159,9 @@ def test_a_reference_at_the_fixed_point_ends_the_linearisations_after_one_solve(
     solves.clear()
     prof, _ = again.solve(settings)
     assert len(solves) == 1
-    assert np.allclose(prof.a, first.a, rtol=1e-6, atol=1e-9 * first.a.max())
+    # within the solves' own tolerance (ipm.TOL on the residuals: the last of ``first``'s solves,
+    # warm-started, ends 2.5e-6 from where a cold start ends)
+    assert np.allclose(prof.a, first.a, rtol=1e-5, atol=1e-9 * first.a.max())
 
 
 @pytest.mark.parametrize("machine", [KEOPS, KOSSEL], ids=["keops", "kossel"])
@@ -184,10 +186,10 @@ def test_linearisation_cost_predicts_the_next_solves_gain(machine, monkeypatch):
     real = topp3.Piece._socp
 
     def logged(self, rob, a_lin, *a, **k):
-        prof = real(self, rob, a_lin, *a, **k)
+        prof, start = real(self, rob, a_lin, *a, **k)
         _, tf, ts = self._timed(prof)
         log.append((self.k, tf, topp3.linearisation_cost(a_lin, prof.a, ts)))
-        return prof
+        return prof, start
 
     monkeypatch.setattr(topp3.Piece, "_socp", logged)
     t_full = topp3.station_time(topp3.pieces_of(path, machine, machine.limits, full), full)

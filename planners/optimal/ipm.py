@@ -50,6 +50,11 @@ STEP_TO_BOUNDARY = 0.99
 # μ = START_MU (the fewest iterations of the starts tried: docs/TUNING.md)
 START_SLACK = 0.1
 START_MU = 1e-3
+# a warm start (warm_start): slacks at least WARM_SLACK of their row's size, multipliers at
+# least WARM_MU over their slack (docs/TUNING.md: the linearisations after the first in 0.6 × the
+# cold start's iterations)
+WARM_SLACK = 1e-2
+WARM_MU = 1e-4
 # the band's diagonal regularisation (+ on the primal unknowns, − on the equalities' multipliers):
 # keeps the LU defined where a station's rows are all inactive
 REGULARISATION = 1e-11
@@ -141,6 +146,18 @@ class Solution:
     num_stationary: tuple
     iterations: int
     objective: float
+    start: "Start | None" = None
+
+
+@dataclasses.dataclass
+class Start:
+    """A solve's Newton system's pattern and last iterate (x, slacks s, multipliers z, y), for
+    the next solve of the same rows (``solve(start=…)``): the next linearisation of a piece."""
+    band: "_Band"
+    x: np.ndarray
+    s: np.ndarray
+    z: np.ndarray
+    y: np.ndarray
 
 
 def anchor_bounds(c, jmax, distance):
@@ -194,10 +211,13 @@ def stationary_bounds(k, end, ds, a_lin_k, amax, r2, r3):
     return lo, hi
 
 
-def solve(rows: Rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=(1, 1)) -> Solution:
+def solve(rows: Rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=(1, 1),
+          start: Start | None = None) -> Solution:
     """TOPP3-SOCP on stations lo … lo + len(a_lin) − 1 of ``rows``, linearised around a_lin, its
     ends at (a_ends, b_ends); ``stationary``: (start, end) 1 where that end is a rest (copp's
-    num_stationary_max: used where the end's a and b are 0)."""
+    num_stationary_max: used where the end's a and b are 0).  ``start``: an earlier solution's
+    (Solution.start) where its rows had the same pattern: its Newton system's layout is reused and
+    its iterate starts this solve (warm_start); otherwise the cold start."""
     a_lin = np.asarray(a_lin, float)
     n = len(a_lin) - 1
     if n < 2:
@@ -269,7 +289,7 @@ def solve(rows: Rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), station
         w[1] = 0.5 * (5 * s[1] + s[2] - 6 * s[0])
     if ns[1]:
         w[n - 1] = 0.5 * (6 * s[n] - 5 * s[n - 1] - s[n - 2])
-    x, its, f = p.solve(fixed, w, a_lin, where=f"stations {lo}…{lo + n}")
+    x, its, f, last = p.solve(fixed, w, a_lin, f"stations {lo}…{lo + n}", start)
     a, b = x[0::2].copy(), x[1::2].copy()
     if ns[0]:
         a[0] = b[0] = 0.0
@@ -277,7 +297,7 @@ def solve(rows: Rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), station
     if ns[1]:
         a[n] = b[n] = 0.0
         b[n - 1] = -a[n - 1] / (1.5 * ds[-1])
-    return Solution(a, b, ns, its, f)
+    return Solution(a, b, ns, its, f, last)
 
 
 def _window(cols, lo, n):
@@ -322,7 +342,7 @@ class _Problem:
         M = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, nx))
         return M, np.concatenate(rhs)
 
-    def solve(self, fixed, w, a_lin, where):
+    def solve(self, fixed, w, a_lin, where, start=None):
         G, h = self._matrix(self.le, self.nx)
         E, e = self._matrix(self.eqs, self.nx)
         held = np.zeros(self.nx, bool)
@@ -351,28 +371,38 @@ class _Problem:
         is_a = (free % 2) == 0
         wf = np.where(is_a, w[station], 0.0)
         x0 = np.where(is_a, np.maximum(a_lin[station], 0.0), 0.0)
-        x, its, f = _ipm(G, h, E, e, wf, is_a, x0, station, where)
+        if start is not None and start.band.matches(G, E):
+            start.band.load(G, E)
+            band = start.band
+        else:
+            band, start = _Band(G, E, station), None
+        x, its, f, last = _ipm(G, h, E, e, wf, is_a, x0, band, where, start)
         out = xh.copy()
         out[free] = x
-        return out, its, f
+        return out, its, f, last
 
 
 def _scaled(M, r):
+    """Each row over its largest |coefficient|, its pattern kept (explicit zeros too: a warm start
+    compares patterns).  Every row has a coefficient (_Problem.solve drops the others)."""
     if M.shape[0] == 0:
         return M, r
-    big = np.maximum(abs(M).max(axis=1).toarray().ravel(), 1e-300)
-    D = sp.diags(1.0 / big)
-    return (D @ M).tocsr(), r / big
+    big = np.maximum(np.maximum.reduceat(np.abs(M.data), M.indptr[:-1]), 1e-300)
+    M = M.copy()
+    M.data *= np.repeat(1.0 / big, np.diff(M.indptr))
+    return M, r / big
 
 
 class _Band:
     """The reduced Newton system [H + Gᵀ·diag(σ)·G, Eᵀ; E, 0] in LAPACK's band storage: the
     unknowns ordered station by station (each equality's multiplier after the first station it
-    touches), Gᵀ·diag(σ)·G assembled as one sparse product with σ."""
+    touches), Gᵀ·diag(σ)·G assembled as one sparse product with σ.  Built for a pattern of G and
+    E (``matches``), loaded with their values (``load``): a piece's linearisations share one."""
 
     def __init__(self, G, E, station):
         nv, ne = G.shape[1], E.shape[0]
         self.nv, self.N = nv, nv + ne
+        self.pattern = _pattern(G, E)
         first = np.minimum.reduceat(E.indices, E.indptr[:-1]) if ne else np.zeros(0, int)
         key = np.concatenate([station * 4.0 + (np.arange(nv) % 2), station[first] * 4.0 + 2 + np.arange(ne) / (ne + 1.0)])
         order = np.argsort(key, kind="stable")
@@ -380,7 +410,7 @@ class _Band:
         self.pos[order] = np.arange(self.N)
         cnt = np.diff(G.indptr)
         starts = G.indptr[:-1]
-        pi, pj, pr, pv = [], [], [], []
+        pi, pj, pr, self.iu, self.iv = [], [], [], [], []
         for u in range(int(cnt.max(initial=0))):
             for v in range(int(cnt.max(initial=0))):
                 ok = np.nonzero((cnt > u) & (cnt > v))[0]
@@ -388,24 +418,39 @@ class _Band:
                 pi.append(self.pos[G.indices[iu]])
                 pj.append(self.pos[G.indices[iv]])
                 pr.append(ok)
-                pv.append(G.data[iu] * G.data[iv])
-        pi, pj, pr, pv = (np.concatenate(x) if x else np.zeros(0) for x in (pi, pj, pr, pv))
+                self.iu.append(iu)
+                self.iv.append(iv)
+        pi, pj, pr, self.iu, self.iv = (np.concatenate(x).astype(int) if x else np.zeros(0, int)
+                                        for x in (pi, pj, pr, self.iu, self.iv))
         er = np.repeat(np.arange(ne), np.diff(E.indptr))
         ei, ej = self.pos[nv + er], self.pos[E.indices]
         diag = self.pos[np.arange(nv)]
         self.k = int(max(np.max(np.abs(pi - pj), initial=0), np.max(np.abs(ei - ej), initial=0), 1))
         ld = self.ld = 3 * self.k + 1
         flat = lambda i, j: (2 * self.k + i - j) + j * ld          # dgbtrf's layout (Fortran order), kl = ku = k
-        M = sp.csr_matrix((pv, (flat(pi.astype(int), pj.astype(int)), pr.astype(int))), shape=(self.ld * self.N, G.shape[0]))
+        # the product's pattern once: which term (iu, iv) lands in which stored entry
+        M = sp.csr_matrix((np.arange(1.0, len(pi) + 1), (flat(pi, pj), pr)), shape=(self.ld * self.N, G.shape[0]))
         self.used = np.nonzero(np.diff(M.indptr))[0]
         self.M = M[self.used]
-        self.base = np.zeros(self.ld * self.N)
-        np.add.at(self.base, flat(ei, ej), E.data)
-        np.add.at(self.base, flat(ej, ei), E.data)
-        self.base[flat(diag, diag)] += REGULARISATION
-        ydiag = self.pos[nv:]
-        self.base[flat(ydiag, ydiag)] -= REGULARISATION
+        if self.M.nnz != len(pi):
+            raise ValueError("a row of G holds a column twice")
+        self.term = self.M.data.astype(int) - 1
+        self.e_flat = (flat(ei, ej), flat(ej, ei))
         self.diag = flat(diag, diag)
+        self.ydiag = flat(self.pos[nv:], self.pos[nv:])
+        self.load(G, E)
+
+    def matches(self, G, E) -> bool:
+        return all(np.array_equal(p, q) for p, q in zip(self.pattern, _pattern(G, E)))
+
+    def load(self, G, E):
+        """G's and E's values (on this band's pattern)."""
+        self.M.data = G.data[self.iu[self.term]] * G.data[self.iv[self.term]]
+        self.base = np.zeros(self.ld * self.N)
+        np.add.at(self.base, self.e_flat[0], E.data)
+        np.add.at(self.base, self.e_flat[1], E.data)
+        self.base[self.diag] += REGULARISATION
+        self.base[self.ydiag] -= REGULARISATION
 
     def factor(self, sigma, hdiag):
         ab = self.base.copy()
@@ -427,21 +472,38 @@ class _Band:
         return sol[self.pos[:self.nv]], sol[self.pos[self.nv:]]
 
 
-def _ipm(G, h, E, e, w, is_a, x0, station, where):
-    """min Σ w·a^(−½) s.t. G·x ≤ h, E·x = e: (x, iterations, objective)."""
+def warm_start(start, G, h):
+    """The iterate a solve starts from at an earlier solution of rows of the same pattern (x, s,
+    z, y): its x and y; each slack h − G·x where that is at least WARM_SLACK·(1 + |h|), and each
+    multiplier at least WARM_MU over its slack."""
+    x, y = start.x.copy(), start.y.copy()
+    s = np.maximum(h - G @ x, WARM_SLACK * (1.0 + np.abs(h)))
+    z = np.maximum(start.z, WARM_MU / s)
+    return x, s, z, y
+
+
+def _pattern(G, E):
+    return G.shape, G.indptr, G.indices, E.shape, E.indptr, E.indices
+
+
+def _ipm(G, h, E, e, w, is_a, x0, band, where, start=None):
+    """min Σ w·a^(−½) s.t. G·x ≤ h, E·x = e, from ``start`` (warm_start) or x0: (x, iterations,
+    objective, Start)."""
     Gt, Et = G.T.tocsr(), E.T.tocsr()
     m = G.shape[0]
-    band = _Band(G, E, station)
     ia = np.nonzero(is_a)[0]
     wa = w[ia]
     pos_w = wa > 0
-    x = x0.copy()
-    scale = max(float(np.max(x[ia], initial=0.0)), 1.0)
-    x[ia] = np.maximum(x[ia], 1e-2 * scale)
-    # slacks at least START_SLACK of their row's size, centred at START_MU (the rows are scaled)
-    s = np.maximum(h - G @ x, START_SLACK * (1.0 + np.abs(h)))
-    z = START_MU / s
-    y = np.zeros(E.shape[0])
+    if start is not None:
+        x, s, z, y = warm_start(start, G, h)
+    else:
+        x = x0.copy()
+        scale = max(float(np.max(x[ia], initial=0.0)), 1.0)
+        x[ia] = np.maximum(x[ia], 1e-2 * scale)
+        # slacks at least START_SLACK of their row's size, centred at START_MU (the rows are scaled)
+        s = np.maximum(h - G @ x, START_SLACK * (1.0 + np.abs(h)))
+        z = START_MU / s
+        y = np.zeros(E.shape[0])
     hscale = 1.0 + float(np.max(np.abs(h), initial=0.0))
     escale = 1.0 + float(np.max(np.abs(e), initial=0.0))
 
@@ -471,16 +533,15 @@ def _ipm(G, h, E, e, w, is_a, x0, station, where):
                   float(np.max(np.abs(ri), initial=0.0)) / hscale,
                   mu * m / (1.0 + f))
         if res < TOL:
-            return x, it, f
+            return x, it, f, Start(band, x, s, z, y)
         if best is None or res < best[0]:
-            best = (res, x.copy(), it, f)
-        elif it - best[2] >= STALL_ITER and best[0] < ALMOST_TOL:
+            best = (res, it, f, Start(band, x.copy(), s.copy(), z.copy(), y.copy()))
+        elif it - best[1] >= STALL_ITER and best[0] < ALMOST_TOL:
             # no progress for STALL_ITER iterations: the best iterate, where it is close enough
             # (Clarabel's AlmostSolved, which copp accepts)
-            return best[1], it, best[3]
-        fac = band.factor(z / s, hd)
-
+            return best[3].x, it, best[2], best[3]
         sig = z / s
+        fac = band.factor(sig, hd)
 
         def direction(rc, refine):
             rx, ry = -rd - Gt @ ((z * ri - rc) / s), -re

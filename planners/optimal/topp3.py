@@ -443,9 +443,11 @@ class Piece:
             # solution: its first solve here moved < lin_tol and stopped 7e-5 above the fixed
             # point on rand_3d_lcnc
             before = None if self.reference is None or self.reference_is_coarser else self._chord_time(a_lin)
-            best = None
+            best = start = None
             for _ in range(settings.max_linearisations):
-                prof, tf, ts = self._timed(self._socp(self._rows(a_lin), a_lin))
+                # each linearisation starts from the last one's iterate (same rows' pattern)
+                prof, start = self._socp(self._rows(a_lin), a_lin, start=start)
+                prof, tf, ts = self._timed(prof)
                 done = (best is not None and (best[0] - tf) / tf < settings.lin_tol) or \
                     (best is None and before is not None and abs(before - self._chord_time(prof.a)) < settings.lin_tol * tf) or \
                     (settings.lin_predicted is not None and linearisation_cost(a_lin, prof.a, ts) < settings.lin_predicted)
@@ -503,14 +505,14 @@ class Piece:
                 try:
                     # at the piece's ends: the rest it starts and stops at
                     ends = [(a[lo], b[lo]) if lo > 0 else (0.0, 0.0), (a[hi], b[hi]) if hi < n - 1 else (0.0, 0.0)]
-                    prof = self._socp(rows, a_lin, lo, (ends[0][0], ends[1][0]), (ends[0][1], ends[1][1]),
-                                      (1 if lo == 0 else 0, 1 if hi == n - 1 else 0))
+                    prof, _ = self._socp(rows, a_lin, lo, (ends[0][0], ends[1][0]), (ends[0][1], ends[1][1]),
+                                         (1 if lo == 0 else 0, 1 if hi == n - 1 else 0))
                     break
                 except copp.CoppError:
                     if lo == 0 and hi == n - 1:
                         # the whole piece, linearised around the last solution as it was
                         a0 = np.minimum(old.a, self.cap2 * self.factor[:, 3] ** 2)
-                        return self._socp(self._rows(a0), a0)
+                        return self._socp(self._rows(a0), a0)[0]
                     w = WINDOW_GROWTH * (hi - lo)
                     lo, hi = max(lo - w, 0), min(hi + w, n - 1)
             a[lo:hi + 1], b[lo:hi + 1] = prof.a, prof.b
@@ -520,17 +522,18 @@ class Piece:
                 ns[1] = prof.num_stationary[1]
         return copp.Profile3rd(a, b, tuple(ns))
 
-    def _socp(self, rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=1):
-        """TOPP3-SOCP's profile over stations lo … lo + len(a_lin) − 1 of ``rows`` (_rows), by the
-        banded interior-point method (ipm.py; Settings.solver) or copp-py's Clarabel, which also
+    def _socp(self, rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary=1, start=None):
+        """(TOPP3-SOCP's profile over stations lo … lo + len(a_lin) − 1 of ``rows`` (_rows), the
+        IPM's ipm.Start for the next solve of these rows or None), by the banded interior-point
+        method (ipm.py; Settings.solver, from ``start`` where given) or copp-py's Clarabel, which also
         takes the rows where the IPM stops without a solution (info["ipm_fallbacks"]); Clarabel's
         last iterate is accepted
         where it stops on insufficient progress (feeds orders of magnitude apart at µm blend arcs
         next to fast stretches): the check at T judges it like any other."""
         if self.solver == "ipm":
             try:
-                sol = ipm.solve(rows, a_lin, lo, a_ends, b_ends, stationary)
-                return copp.Profile3rd(sol.a, sol.b, sol.num_stationary)
+                sol = ipm.solve(rows, a_lin, lo, a_ends, b_ends, stationary, start)
+                return copp.Profile3rd(sol.a, sol.b, sol.num_stationary), sol.start
             except ipm.NoSolution:
                 self.ipm_fallbacks += 1
         prob = copp.solver.topp3_socp.Problem(rows.copp_robot().constraints, a_lin, idx_s_start=lo,
@@ -540,7 +543,7 @@ class Piece:
             raise copp.CoppError(f"topp3_socp stopped with Clarabel status {res.solver_status}")
         if res.solver_status == copp.core.ClarabelSolverStatus.INSUFFICIENT_PROGRESS:
             self.insufficient_progress += 1
-        return res.profile
+        return res.profile, None
 
     def tighten(self, col, s_lo, s_hi, ratio, new, extra) -> None:
         """In ``new`` (the next factors): limit ``col`` at the stations under [s_lo, s_hi] and
