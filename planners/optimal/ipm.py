@@ -76,7 +76,6 @@ class Rows:
     def __init__(self, s, d1, d2, d3, v, a, j, cap):
         self.s = np.asarray(s, float)
         self.joints = (d1, d2, d3, v, a, j, np.asarray(cap, float))
-        self.extra = []
         with np.errstate(divide="ignore"):
             vel = np.where(d1 != 0, (v / np.where(d1 != 0, np.abs(d1), 1.0)) ** 2, np.inf)
         self.amax = np.minimum(np.min(vel, axis=1), cap)
@@ -87,13 +86,13 @@ class Rows:
                 r2.append((k, sg * d2[:, m], sg * d1[:, m], a[:, m]))
                 r3.append((k, sg * d3[:, m], sg * 3 * d2[:, m], sg * d1[:, m], np.zeros(len(k)), j[:, m]))
         self._r2, self._r3 = r2, r3
+        self._joint_rows = (len(r2), len(r3))       # the rows added after them: add_2nd, add_3rd
         self._sorted = None
 
     def add_2nd(self, ca, cb, rhs, start):
         """Rows ca·a + cb·b ≤ rhs at stations start, start + 1, …"""
         ca = np.ravel(ca)
         self._r2.append((start + np.arange(len(ca)), ca, np.ravel(cb), np.ravel(rhs)))
-        self.extra.append(("2nd", ca, np.ravel(cb), np.ravel(rhs), start))
         self._sorted = None
 
     def add_3rd(self, ca, cb, cc, cd, jmax, station):
@@ -101,7 +100,6 @@ class Rows:
         ca = np.ravel(ca)
         jmax = np.broadcast_to(np.ravel(jmax), ca.shape)
         self._r3.append((np.full(len(ca), station), ca, np.ravel(cb), np.ravel(cc), np.ravel(cd), jmax))
-        self.extra.append(("3rd", ca, np.ravel(cb), np.ravel(cc), np.ravel(cd), jmax, station))
         self._sorted = None
 
     def copp_robot(self):
@@ -116,14 +114,14 @@ class Rows:
         rob.add_acceleration_limits(a, -a, start_idx_s=0, length=n)
         rob.add_jerk_limits(j, -j, start_idx_s=0, length=n)
         rob.constraints.add_constraint_1st(cap[:, None], 0)
-        for kind, *cols in self.extra:
-            if kind == "2nd":
-                ca, cb, rhs, start = cols
-                rob.constraints.add_constraint_2nd(ca[:, None], cb[:, None], rhs[:, None], start)
-            else:
-                ca, cb, cc, cd, jm, station = cols
+        n2, n3 = self._joint_rows
+        for k, ca, cb, rhs in self._r2[n2:]:
+            if len(k):
+                rob.constraints.add_constraint_2nd(ca[:, None], cb[:, None], rhs[:, None], int(k[0]))
+        for k, ca, cb, cc, cd, jm in self._r3[n3:]:
+            if len(k):
                 rob.constraints.add_constraint_3rd(ca[None, :], cb[None, :], cc[None, :], cd[None, :],
-                                                   np.array(jm, float)[None, :], station)
+                                                   np.array(jm, float)[None, :], int(k[0]))
         return rob
 
     def rows(self):
