@@ -23,7 +23,8 @@ row couples two neighbouring stations, so with the unknowns ordered station by s
 reduced Newton system [∇²f + Gᵀ(Z/S)G, Eᵀ; E, 0] is banded (half-bandwidth 5) and LAPACK's
 banded LU (dgbtrf) factors it in O(n).  Mehrotra's predictor-corrector (Nocedal & Wright,
 Numerical Optimization, 2nd ed., §14.2, for the inequalities; the objective's Hessian is
-diagonal) with one step length for primal and dual.
+diagonal) with one step length for primal and dual.  A piece's next linearisation starts from the
+last one's iterate (warm_start), on the same band layout.
 """
 from __future__ import annotations
 
