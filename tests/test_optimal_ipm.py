@@ -65,8 +65,9 @@ def test_a_warm_start_from_the_last_linearisation_reaches_the_cold_starts_optimu
     optimum as from the cold start, in fewer iterations, on the same Newton system's layout; a
     start whose rows have another pattern (a window's) is not taken."""
     piece, rows, a_lin = optimal_piece(KOSSEL)
-    second = ipm.solve(piece._rows(a_lin := ipm.solve(rows, a_lin).a), a_lin)
-    first, again = second, piece._rows(second.a)
+    a1 = ipm.solve(rows, a_lin).a
+    first = ipm.solve(piece._rows(a1), a1)             # the second linearisation
+    again = piece._rows(first.a)                         # the third's rows
     cold = ipm.solve(again, first.a)
     warm = ipm.solve(again, first.a, start=first.start)
     assert warm.start.band is first.start.band
