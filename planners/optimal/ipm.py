@@ -52,8 +52,8 @@ STEP_TO_BOUNDARY = 0.99
 START_SLACK = 0.1
 START_MU = 1e-3
 # a warm start (warm_start): slacks at least WARM_SLACK of their row's size, multipliers at
-# least WARM_MU over their slack (docs/TUNING.md: the linearisations after the first in 0.6 × the
-# cold start's iterations)
+# least WARM_MU over their slack, pushed that far inside so the next linearisation's moved rows
+# do not start at their boundary (the settings tried: docs/TUNING.md)
 WARM_SLACK = 1e-2
 WARM_MU = 1e-4
 # the band's diagonal regularisation (+ on the primal unknowns, − on the equalities' multipliers):

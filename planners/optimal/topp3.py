@@ -527,9 +527,8 @@ class Piece:
         IPM's ipm.Start for the next solve of these rows or None), by the banded interior-point
         method (ipm.py; Settings.solver, from ``start`` where given) or copp-py's Clarabel, which also
         takes the rows where the IPM stops without a solution (info["ipm_fallbacks"]); Clarabel's
-        last iterate is accepted
-        where it stops on insufficient progress (feeds orders of magnitude apart at µm blend arcs
-        next to fast stretches): the check at T judges it like any other."""
+        last iterate is accepted where it stops on insufficient progress (feeds orders of magnitude
+        apart at µm blend arcs next to fast stretches): the check at T judges it like any other."""
         if self.solver == "ipm":
             try:
                 sol = ipm.solve(rows, a_lin, lo, a_ends, b_ends, stationary, start)
