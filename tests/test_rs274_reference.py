@@ -8,7 +8,7 @@ import pytest
 
 from planners.paths.gcode.rs274 import RS274Error, interpret
 from planners.paths.gcode.rs274.interp import _read_text
-from planners.paths.gcode.rs274.reference import RS274_DECIMALS_TOL, available, compare, linuxcnc_moves
+from planners.paths.gcode.rs274.reference import RS274_DECIMALS_TOL, available, compare, linuxcnc_moves, rs274_moves
 
 WHY = available()
 pytestmark = pytest.mark.skipif(WHY is not None, reason=str(WHY))
@@ -34,6 +34,18 @@ def test_corpus_is_there():
 @pytest.mark.parametrize("file", PROGRAMS, ids=lambda p: str(p.relative_to(ROOT / "benchmarks/paths/programs")))
 def test_program_reads_as_linuxcnc(file):
     same_as_linuxcnc(file)
+
+
+def test_rs274_runs_side_by_side_and_leaves_the_users_home_alone(tmp_path, monkeypatch):
+    # a tool change makes rs274 map $HOME/.tool.mmap; two under one HOME crashed one in ten
+    # (SIGBUS) on this program, and failed CI when two test workers met there
+    monkeypatch.setenv("HOME", str(tmp_path))
+    file = ROOT / "benchmarks/paths/programs/linuxcnc/circular-arcs/performance/Cereal.ngc"
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(2) as pool:
+        ends = [end for _, end in pool.map(lambda _: rs274_moves(file), range(40))]
+    assert [e["error"] for e in ends] == [None] * 40
+    assert not (tmp_path / ".tool.mmap").exists()
 
 
 CONSTRUCTS = {

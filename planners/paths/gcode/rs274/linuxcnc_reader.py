@@ -24,7 +24,7 @@ from pathlib import Path
 
 from planners.paths.gcode.rs274.canon import CanonEvent, CanonMove, CanonProgram
 from planners.paths.gcode.rs274.errors import RS274Error
-from planners.paths.gcode.rs274.reference import HERE, SYSTEM_PYTHON, available
+from planners.paths.gcode.rs274.reference import HERE, SYSTEM_PYTHON, available, run_rs274, zero_tool_table
 
 _CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
 _MOTION = ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED")
@@ -106,11 +106,9 @@ def _rs274_stream(src: str, tool_table, timeout):
     """From ``rs274``'s canon calls: the path mode at each move, the moves emitted before each
     chain-ending call, and the events (kind, value, moves before it)."""
     with tempfile.TemporaryDirectory() as d:
-        if not tool_table:      # tools 1…999 with zero offsets, as reference.rs274_moves
-            tool_table = Path(d) / "zero.tbl"
-            tool_table.write_text("".join(f"T{t} P{t} Z0\n" for t in range(1, 1000)))
-        r = subprocess.run(["rs274", "-g", "-t", str(tool_table), src], capture_output=True, text=True,
-                           timeout=timeout, stdin=subprocess.DEVNULL)
+        r = run_rs274(["-g", "-t", str(tool_table or zero_tool_table(Path(d))), src], timeout)
+    if r.returncode < 0:
+        raise RS274Error(src, 0, f"--reader linuxcnc: LinuxCNC's rs274 died of signal {-r.returncode}")
     unit, mode, q = 1.0, "blend", 0.0
     p = 0.0
     modes, flushes, events = [], [], []

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import re
 import math
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -35,7 +37,6 @@ def linuxcnc_rows(file, tool_table=None, timeout=120, setup=None):
     when LinuxCNC's gcode module crashed; and the other lines of its output ((PRINT,…)).
     ``setup`` (planners.paths.gcode.rs274.setup.Setup): its tool table and var file, given to
     LinuxCNC in its standalone interpreters' machine units (inches) so that both read the same mm."""
-    import tempfile
     cmd = [SYSTEM_PYTHON, str(HERE / "linuxcnc.py"), str(file)]
     with tempfile.TemporaryDirectory() as d:
         if setup is not None:
@@ -88,20 +89,13 @@ def rs274_moves(file, tool_table=None, timeout=120, setup=None):
     """LinuxCNC's ``rs274`` program: canonical calls as text with 4 decimals and no source line
     numbers ("line" is None); same dicts as linuxcnc_moves, plus "decimals": 4. ``setup``: as
     linuxcnc_moves (rs274's machine units are inches: the files are written in inches)."""
-    import tempfile
     with tempfile.TemporaryDirectory() as d:
         var = []
         if setup is not None:
             var = ["-v", str(_write(Path(d) / "in.var", setup.var_text(25.4)))]
             if setup.tools:
                 tool_table = _write(Path(d) / "in.tbl", setup.tool_table_text(25.4))
-        if not tool_table:
-            # rs274's built-in table has tool 1 at Z 0.511 in; ours is empty (offsets 0): give
-            # rs274 tools 1…999 with zero offsets so both read the same program
-            tool_table = Path(d) / "zero.tbl"
-            tool_table.write_text("".join(f"T{t} P{t} Z0\n" for t in range(1, 1000)))
-        cmd = ["rs274", "-g", "-t", str(tool_table), *var, str(file)]
-        r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+        r = run_rs274(["-g", "-t", str(tool_table or zero_tool_table(Path(d))), *var, str(file)], timeout)
     unit, g5x, g92, tlo, rot, plane, feed = 1.0, [0.0] * 3, [0.0] * 3, [0.0] * 3, 0.0, 17, 0.0
     out = []
 
@@ -150,8 +144,26 @@ def rs274_moves(file, tool_table=None, timeout=120, setup=None):
                         "plane": plane, "feed": feed})
     # rs274 prints (on stderr) the error's text, then the line it refused
     err = [x for x in (r.stdout + r.stderr).splitlines() if x and not _CALL.match(x) and not x.startswith("executing")]
+    if r.returncode < 0:
+        err = [f"rs274 died of signal {-r.returncode}"] + err
     return out, {"kind": "end", "result": r.returncode, "line": None, "decimals": 4,
-                 "error": None if r.returncode == 0 else (" / ".join(err) if err else "error")}
+                 "error": None if r.returncode == 0 else (" / ".join(err) if err else f"rs274 exited {r.returncode}")}
+
+
+def run_rs274(args, timeout):
+    """``rs274 ARGS`` (stdin closed) in a HOME of its own: LinuxCNC 2.9 keeps the tool data in a
+    memory map of $HOME/.tool.mmap (tooldata_mmap.cc, tool_mmap_creator) that each rs274
+    truncates when it starts, so two at once under one HOME crash each other with SIGBUS (as
+    two test workers did)."""
+    with tempfile.TemporaryDirectory(prefix="pkmbench-rs274-") as home:
+        return subprocess.run(["rs274", *args], capture_output=True, text=True, timeout=timeout,
+                              stdin=subprocess.DEVNULL, env=dict(os.environ, HOME=home))
+
+
+def zero_tool_table(d: Path) -> Path:
+    """rs274's built-in table has tool 1 at Z 0.511 in; ours is empty (offsets 0): a table of
+    tools 1…999 with zero offsets, in ``d``, so that both read the same program."""
+    return _write(d / "zero.tbl", "".join(f"T{t} P{t} Z0\n" for t in range(1, 1000)))
 
 
 def _write(f: Path, text: str) -> Path:
@@ -170,8 +182,7 @@ _SEQUENCE_CALLS = {"STRAIGHT_TRAVERSE": "rapid", "STRAIGHT_FEED": "feed", "STRAI
 def rs274_sequence(file, timeout=120):
     """The moves, dwells ("dwell", s) and spindle/stop calls ("m", n) of ``rs274 -g FILE`` in
     their order, up to PROGRAM_END (which it includes)."""
-    r = subprocess.run(["rs274", "-g", str(file)], capture_output=True, text=True, timeout=timeout,
-                       stdin=subprocess.DEVNULL)
+    r = run_rs274(["-g", str(file)], timeout)
     out = []
     for row in r.stdout.splitlines():
         m = _CALL.match(row)
