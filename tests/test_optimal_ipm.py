@@ -29,6 +29,33 @@ def clarabel(rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary
     return topp3.copp.solver.topp3_socp.solve_expert(prob, topp3.Settings("copp").clarabel())
 
 
+def test_the_band_solves_the_newton_system_as_a_dense_solve_does():
+    # rows coupling one station's (a, b) with the next's, as the engine's do, with σ over 20
+    # decades; the band stores the upper triangle of Gᵀ·diag(σ)·G and mirrors it
+    import scipy.sparse as sp
+    rng = np.random.default_rng(7)
+    n = 40
+    nv, rows = 2 * n, []
+    for r in range(300):
+        c = rng.choice(np.arange(2 * int(rng.integers(0, n - 1)), 2 * n)[:4], size=int(rng.integers(1, 4)),
+                       replace=False)
+        rows.append((np.full(len(c), r), c, rng.normal(size=len(c))))
+    G = sp.csr_matrix((np.concatenate([v for *_, v in rows]), (np.concatenate([r for r, _, _ in rows]),
+                                                               np.concatenate([c for _, c, _ in rows]))), shape=(300, nv))
+    k = np.arange(n - 1)
+    E = sp.csr_matrix((np.r_[np.ones(n - 1), -np.ones(n - 1), rng.random(n - 1), rng.random(n - 1)],
+                       (np.tile(k, 4), np.r_[2 * k, 2 * k + 2, 2 * k + 1, 2 * k + 3])), shape=(n - 1, nv))
+    band = ipm._Band(G, E, np.arange(nv) // 2)
+    sigma = 10.0 ** rng.uniform(-10, 10, 300)
+    hd = np.where(np.arange(nv) % 2 == 0, rng.random(nv), 0.0)
+    rx, ry = rng.normal(size=nv), rng.normal(size=n - 1)
+    dx, dy = band.solve(band.factor(sigma, hd), rx, ry)
+    K = np.block([[np.diag(hd + ipm.REGULARISATION) + (G.T @ sp.diags(sigma) @ G).toarray(), E.T.toarray()],
+                  [E.toarray(), -ipm.REGULARISATION * np.eye(n - 1)]])
+    want = np.linalg.solve(K, np.r_[rx, ry])
+    assert np.allclose(np.r_[dx, dy], want, rtol=1e-6, atol=1e-9 * np.abs(want).max())
+
+
 @pytest.mark.parametrize("machine", [KEOPS, KOSSEL], ids=["keops", "kossel"])
 def test_the_banded_ipm_reaches_clarabels_optimum_on_the_same_rows(machine):
     """The same problem (joint v, a, j, the feed caps, the join's read rows, the midpoint caps, the

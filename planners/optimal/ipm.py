@@ -395,8 +395,9 @@ def _scaled(M, r):
 class _Band:
     """The reduced Newton system [H + Gᵀ·diag(σ)·G, Eᵀ; E, 0] in LAPACK's band storage: the
     unknowns ordered station by station (each equality's multiplier after the first station it
-    touches), Gᵀ·diag(σ)·G assembled as one sparse product with σ.  Built for a pattern of G and
-    E (``matches``), loaded with their values (``load``): a piece's linearisations share one."""
+    touches), Gᵀ·diag(σ)·G's upper triangle assembled as one sparse product with σ and mirrored.
+    Built for a pattern of G and E (``matches``), loaded with their values (``load``): a piece's
+    linearisations share one."""
 
     def __init__(self, G, E, station):
         nv, ne = G.shape[1], E.shape[0]
@@ -407,33 +408,37 @@ class _Band:
         order = np.argsort(key, kind="stable")
         self.pos = np.empty(self.N, int)
         self.pos[order] = np.arange(self.N)
-        cnt = np.diff(G.indptr)
-        starts = G.indptr[:-1]
-        pi, pj, pr, self.iu, self.iv = [], [], [], [], []
-        for u in range(int(cnt.max(initial=0))):
-            for v in range(int(cnt.max(initial=0))):
-                ok = np.nonzero((cnt > u) & (cnt > v))[0]
-                iu, iv = starts[ok] + u, starts[ok] + v
-                pi.append(self.pos[G.indices[iu]])
-                pj.append(self.pos[G.indices[iv]])
-                pr.append(ok)
-                self.iu.append(iu)
-                self.iv.append(iv)
-        pi, pj, pr, self.iu, self.iv = (np.concatenate(x).astype(int) if x else np.zeros(0, int)
-                                        for x in (pi, pj, pr, self.iu, self.iv))
+        # every pair (u, v) of a row's entries: the term G[r,u]·σ_r·G[r,v] of the product, landing at
+        # the stored entry (pos of u's column, pos of v's column)
+        m, cnt = G.shape[0], np.diff(G.indptr)
+        row = np.repeat(np.arange(m), cnt)                  # each entry's row
+        iu = np.repeat(np.arange(G.nnz), cnt[row])          # an entry, once per entry of its row
+        group = np.cumsum(cnt[row]) - cnt[row]              # where each entry's copies start
+        iv = G.indptr[row[iu]] + np.arange(len(iu)) - np.repeat(group, cnt[row])
+        pr = row[iu]
+        pi, pj = self.pos[G.indices[iu]], self.pos[G.indices[iv]]
         er = np.repeat(np.arange(ne), np.diff(E.indptr))
         ei, ej = self.pos[nv + er], self.pos[E.indices]
         diag = self.pos[np.arange(nv)]
         self.k = int(max(np.max(np.abs(pi - pj), initial=0), np.max(np.abs(ei - ej), initial=0), 1))
         ld = self.ld = 3 * self.k + 1
         flat = lambda i, j: (2 * self.k + i - j) + j * ld          # dgbtrf's layout (Fortran order), kl = ku = k
-        # the product's pattern once: which term (iu, iv) lands in which stored entry
-        M = sp.csr_matrix((np.arange(1.0, len(pi) + 1), (flat(pi, pj), pr)), shape=(self.ld * self.N, G.shape[0]))
-        self.used = np.nonzero(np.diff(M.indptr))[0]
-        self.M = M[self.used]
-        if self.M.nnz != len(pi):
+        if np.any((pi == pj) & (iu != iv)):
             raise ValueError("a row of G holds a column twice")
-        self.term = self.M.data.astype(int) - 1
+        # the product as a sparse matrix (stored entry × row of G), its terms ordered by entry, then
+        # row: the upper triangle and the diagonal; the lower is their mirror (the same sums)
+        up = pi <= pj
+        at, pr, iu, iv = flat(pi[up], pj[up]), pr[up], iu[up], iv[up]
+        order = np.argsort(at * np.int64(max(m, 1)) + pr)
+        at, pr = at[order], pr[order]
+        starts = np.flatnonzero(np.r_[True, at[1:] != at[:-1]]) if len(at) else np.zeros(0, int)
+        self.used = at[starts]
+        self.M = sp.csr_matrix((np.zeros(len(at)), pr, np.r_[starts, len(at)]), shape=(len(starts), m))
+        self.iu, self.iv = iu[order], iv[order]
+        j = self.used // ld
+        i = self.used - j * ld - 2 * self.k + j
+        self.off = i != j
+        self.mirror = flat(j[self.off], i[self.off])
         self.e_flat = (flat(ei, ej), flat(ej, ei))
         self.diag = flat(diag, diag)
         self.ydiag = flat(self.pos[nv:], self.pos[nv:])
@@ -444,16 +449,19 @@ class _Band:
 
     def load(self, G, E):
         """G's and E's values (on this band's pattern)."""
-        self.M.data = G.data[self.iu[self.term]] * G.data[self.iv[self.term]]
+        self.M.data = G.data[self.iu] * G.data[self.iv]
         self.base = np.zeros(self.ld * self.N)
-        np.add.at(self.base, self.e_flat[0], E.data)
-        np.add.at(self.base, self.e_flat[1], E.data)
+        # each of E's entries has a stored entry of its own, and its mirror another
+        self.base[self.e_flat[0]] = E.data
+        self.base[self.e_flat[1]] = E.data
         self.base[self.diag] += REGULARISATION
         self.base[self.ydiag] -= REGULARISATION
 
     def factor(self, sigma, hdiag):
         ab = self.base.copy()
-        ab[self.used] += self.M @ sigma
+        prod = self.M @ sigma
+        ab[self.used] += prod
+        ab[self.mirror] += prod[self.off]
         ab[self.diag] += hdiag
         lu, piv, info = lapack.dgbtrf(ab.reshape((self.ld, self.N), order="F"), self.k, self.k, overwrite_ab=True)
         if info < 0:
@@ -545,16 +553,18 @@ def _ipm(G, h, E, e, w, is_a, x0, band, where, start=None):
         def direction(rc, refine):
             rx, ry = -rd - Gt @ ((z * ri - rc) / s), -re
             dx, dy = band.solve(fac, rx, ry)
+            gdx = None
             for _ in range(refine):
                 # the band's LU against the system itself: σ spans ~20 decades near the end
-                ex = rx - (hd * dx + Gt @ (sig * (G @ dx)) + Et @ dy)
+                gdx = G @ dx
+                ex = rx - (hd * dx + Gt @ (sig * gdx) + Et @ dy)
                 ey = ry - E @ dx
                 if max(float(np.max(np.abs(ex), initial=0.0)), float(np.max(np.abs(ey), initial=0.0))) <= \
                         REFINE_TOL * (1.0 + max(float(np.max(np.abs(rx), initial=0.0)), float(np.max(np.abs(ry), initial=0.0)))):
                     break
                 cx, cy = band.solve(fac, ex, ey)
-                dx, dy = dx + cx, dy + cy
-            ds = -ri - G @ dx
+                dx, dy, gdx = dx + cx, dy + cy, None
+            ds = -ri - (G @ dx if gdx is None else gdx)
             return dx, dy, ds, (-rc - z * ds) / s
 
         dx, dy, ds, dz = direction(s * z, 0)
