@@ -196,3 +196,21 @@ def test_segment_path_many_points_in_blocks_equal_small_calls():
         small = path.derivs(s[lo:lo + 50])
         for d in range(4):
             assert np.array_equal(big[d][lo:lo + 50], small[d])
+
+
+def test_a_remembered_evaluation_is_the_evaluation_and_a_copy():
+    import pickle
+    p = quarter_circle()
+    s = np.linspace(0, p.length, 501)
+    first = p.derivs(s)
+    first[1][:] = 0.0                           # a caller's scribble does not reach the memo
+    again = p.derivs(s)
+    fresh = NurbsPath(p.degree, p.knots, p.control_points, p.weights).derivs(s)
+    for a, b in zip(again, fresh):
+        assert np.array_equal(a, b)
+    assert np.array_equal(p.point(s), fresh[0])
+    # another set of arc lengths is evaluated, not looked up; a pickled path carries no memo
+    assert not np.array_equal(p.derivs(s[::-1])[0], fresh[0])
+    q = pickle.loads(pickle.dumps(p))
+    assert len(q.__dict__["_memo"]._items) == 0
+    assert np.array_equal(q.derivs(s)[2], fresh[2])

@@ -10,6 +10,7 @@ from __future__ import annotations
 import gc
 import json
 import math
+import threading
 from contextlib import contextmanager
 
 import numpy as np
@@ -92,7 +93,7 @@ class Path:
     def point(self, s) -> np.ndarray:
         """Points (N, 3) at arc lengths s (mm); a scalar s gives shape (3,)."""
         a, scalar = self._check_s(s)
-        P = self._derivs(a, 0)[0]
+        P = self._remembered(a, 0)[0]
         return P[0] if scalar else P
 
     def derivs(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -102,7 +103,21 @@ class Path:
         incoming ones.
         """
         a, _ = self._check_s(s)
-        return tuple(self._derivs(a, 3))
+        return self._remembered(a, 3)
+
+    def _remembered(self, a: np.ndarray, order: int) -> tuple[np.ndarray, ...]:
+        """_derivs(a, order), copies of the last results kept (_DerivsMemo): a planner asks
+        again for the stations it solved on (its checks, its lower bound), and a NURBS's
+        arc-length inversion costs ~20 ms per 1000 stations."""
+        memo = self.__dict__.get("_memo")
+        if memo is None:
+            memo = self.__dict__["_memo"] = _DerivsMemo()
+        key = (order, a.tobytes())
+        out = memo.get(key)
+        if out is None:
+            out = tuple(self._derivs(a, order))
+            memo.put(key, out)
+        return tuple(x.copy() for x in out)
 
     def tangent(self, s) -> np.ndarray:
         a, _ = self._check_s(s)
@@ -132,6 +147,34 @@ class Path:
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.source!r} length={self.length:.6g} mm>"
+
+
+class _DerivsMemo:
+    """The last path evaluations (arc lengths → derivatives), up to MAX_BYTES of results, the
+    oldest dropped first; thread-safe (a sweep's threads may share a path); pickled empty."""
+
+    MAX_BYTES = 64 << 20
+
+    def __init__(self):
+        self._items: dict = {}
+        self._lock = threading.Lock()
+
+    def get(self, key):
+        with self._lock:
+            out = self._items.pop(key, None)
+            if out is not None:
+                self._items[key] = out            # the newest again
+            return out
+
+    def put(self, key, value) -> None:
+        with self._lock:
+            self._items[key] = value
+            size = lambda kv: len(kv[0][1]) + sum(x.nbytes for x in kv[1])
+            while len(self._items) > 1 and sum(map(size, self._items.items())) > self.MAX_BYTES:
+                del self._items[next(iter(self._items))]
+
+    def __reduce__(self):
+        return _DerivsMemo, ()
 
 
 @contextmanager
