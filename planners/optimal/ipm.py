@@ -408,27 +408,32 @@ class _Band:
         order = np.argsort(key, kind="stable")
         self.pos = np.empty(self.N, int)
         self.pos[order] = np.arange(self.N)
-        # every pair (u, v) of a row's entries: the term G[r,u]·σ_r·G[r,v] of the product, landing at
-        # the stored entry (pos of u's column, pos of v's column)
+        # every pair of a row's entries, each once (the product is symmetric): the term
+        # G[r,u]·σ_r·G[r,v] lands at the stored entry (pos of u's column, pos of v's column), u's
+        # at or above v's
         m, cnt = G.shape[0], np.diff(G.indptr)
-        row = np.repeat(np.arange(m), cnt)                  # each entry's row
-        iu = np.repeat(np.arange(G.nnz), cnt[row])          # an entry, once per entry of its row
-        group = np.cumsum(cnt[row]) - cnt[row]              # where each entry's copies start
-        iv = G.indptr[row[iu]] + np.arange(len(iu)) - np.repeat(group, cnt[row])
-        pr = row[iu]
+        iu, iv, pr = [], [], []
+        for c in np.unique(cnt):
+            rows = np.flatnonzero(cnt == c)
+            a, b = np.triu_indices(c)
+            iu.append((G.indptr[rows][:, None] + a).ravel())
+            iv.append((G.indptr[rows][:, None] + b).ravel())
+            pr.append(np.repeat(rows, len(a)))
+        iu, iv, pr = (np.concatenate(x) if x else np.zeros(0, int) for x in (iu, iv, pr))
         pi, pj = self.pos[G.indices[iu]], self.pos[G.indices[iv]]
+        if np.any((pi == pj) & (iu != iv)):
+            raise ValueError("a row of G holds a column twice")
+        swap = pi > pj
+        pi, pj, iu, iv = np.where(swap, pj, pi), np.where(swap, pi, pj), np.where(swap, iv, iu), np.where(swap, iu, iv)
         er = np.repeat(np.arange(ne), np.diff(E.indptr))
         ei, ej = self.pos[nv + er], self.pos[E.indices]
         diag = self.pos[np.arange(nv)]
-        self.k = int(max(np.max(np.abs(pi - pj), initial=0), np.max(np.abs(ei - ej), initial=0), 1))
+        self.k = int(max(np.max(pj - pi, initial=0), np.max(np.abs(ei - ej), initial=0), 1))
         ld = self.ld = 3 * self.k + 1
         flat = lambda i, j: (2 * self.k + i - j) + j * ld          # dgbtrf's layout (Fortran order), kl = ku = k
-        if np.any((pi == pj) & (iu != iv)):
-            raise ValueError("a row of G holds a column twice")
         # the product as a sparse matrix (stored entry × row of G), its terms ordered by entry, then
         # row: the upper triangle and the diagonal; the lower is their mirror (the same sums)
-        up = pi <= pj
-        at, pr, iu, iv = flat(pi[up], pj[up]), pr[up], iu[up], iv[up]
+        at = flat(pi, pj)
         order = np.argsort(at * np.int64(max(m, 1)) + pr)
         at, pr = at[order], pr[order]
         starts = np.flatnonzero(np.r_[True, at[1:] != at[:-1]]) if len(at) else np.zeros(0, int)
@@ -542,7 +547,7 @@ def _ipm(G, h, E, e, w, is_a, x0, band, where, start=None):
         if res < TOL:
             return x, it, f, Start(band, x, s, z, y)
         if best is None or res < best[0]:
-            best = (res, it, f, Start(band, x.copy(), s.copy(), z.copy(), y.copy()))
+            best = (res, it, f, Start(band, x, s, z, y))     # the steps make new arrays
         elif it - best[1] >= STALL_ITER and best[0] < ALMOST_TOL:
             # no progress for STALL_ITER iterations: the best iterate, where it is close enough
             # (Clarabel's AlmostSolved, which copp accepts)
@@ -575,8 +580,5 @@ def _ipm(G, h, E, e, w, is_a, x0, band, where, start=None):
         al = min(1.0, STEP_TO_BOUNDARY * min(step(s, ds), step(z, dz), step(a[pos_w], dx[ia][pos_w])))
         if not np.isfinite(al) or al < 1e-10:
             raise NoSolution(f"the interior-point steps stalled at iteration {it} ({where})")
-        x += al * dx
-        y += al * dy
-        s += al * ds
-        z += al * dz
+        x, y, s, z = x + al * dx, y + al * dy, s + al * ds, z + al * dz
     raise NoSolution(f"no convergence in {MAX_ITER} interior-point iterations ({where})")
