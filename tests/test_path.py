@@ -212,5 +212,8 @@ def test_a_remembered_evaluation_is_the_evaluation_and_a_copy():
     # another set of arc lengths is evaluated, not looked up; a pickled path carries no memo
     assert not np.array_equal(p.derivs(s[::-1])[0], fresh[0])
     q = pickle.loads(pickle.dumps(p))
-    assert len(q.__dict__["_memo"]._items) == 0
+    assert q.__dict__["_memo_token"] is not p.__dict__["_memo_token"]
     assert np.array_equal(q.derivs(s)[2], fresh[2])
+    # another path at the same arc lengths is its own
+    other = quarter_circle(z=-390.0)
+    assert np.allclose(other.point(s)[:, 2], -390.0, rtol=0, atol=1e-9)

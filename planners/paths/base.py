@@ -106,17 +106,17 @@ class Path:
         return self._remembered(a, 3)
 
     def _remembered(self, a: np.ndarray, order: int) -> tuple[np.ndarray, ...]:
-        """_derivs(a, order), copies of the last results kept (_DerivsMemo): a planner asks
+        """_derivs(a, order), copies of the last results kept (_MEMO): a planner asks
         again for the stations it solved on (its checks, its lower bound), and a NURBS's
         arc-length inversion costs ~20 ms per 1000 stations."""
-        memo = self.__dict__.get("_memo")
-        if memo is None:
-            memo = self.__dict__["_memo"] = _DerivsMemo()
-        key = (order, a.tobytes())
-        out = memo.get(key)
+        token = self.__dict__.get("_memo_token")
+        if token is None:
+            token = self.__dict__["_memo_token"] = _Token()
+        key = (token, order, a.tobytes())
+        out = _MEMO.get(key)
         if out is None:
             out = tuple(self._derivs(a, order))
-            memo.put(key, out)
+            _MEMO.put(key, out)
         return tuple(x.copy() for x in out)
 
     def tangent(self, s) -> np.ndarray:
@@ -149,9 +149,17 @@ class Path:
         return f"<{type(self).__name__} {self.source!r} length={self.length:.6g} mm>"
 
 
+class _Token:
+    """A path's key in _MEMO: compared by identity, a new one for a path's pickled or deep copy
+    (another process's keys are its own)."""
+
+    def __reduce__(self):
+        return _Token, ()
+
+
 class _DerivsMemo:
-    """The last path evaluations (arc lengths → derivatives), up to MAX_BYTES of results, the
-    oldest dropped first; thread-safe (a sweep's threads may share a path); pickled empty."""
+    """The process's last path evaluations ((path, order, arc lengths) → derivatives), up to
+    MAX_BYTES of results, the oldest dropped first; thread-safe (a sweep's threads share it)."""
 
     MAX_BYTES = 64 << 20
 
@@ -169,12 +177,12 @@ class _DerivsMemo:
     def put(self, key, value) -> None:
         with self._lock:
             self._items[key] = value
-            size = lambda kv: len(kv[0][1]) + sum(x.nbytes for x in kv[1])
+            size = lambda kv: len(kv[0][-1]) + sum(x.nbytes for x in kv[1])
             while len(self._items) > 1 and sum(map(size, self._items.items())) > self.MAX_BYTES:
                 del self._items[next(iter(self._items))]
 
-    def __reduce__(self):
-        return _DerivsMemo, ()
+
+_MEMO = _DerivsMemo()
 
 
 @contextmanager
