@@ -345,3 +345,28 @@ def test_bad_options():
         plan("pso_socp", PATH, KEOPS, iterations=-1)
     with pytest.raises(TypeError):
         plan("pso", PATH, KEOPS, polish=True)          # the swarm has no polish: pso_socp has
+
+
+def test_the_swarms_pieces_end_at_rest_where_the_jerk_free_optimum_all_but_stops():
+    """cusp_trochoid_lcnc's 6 arches meet at 5 near-cusps where TOPP2-RA's feed falls to
+    0.05–0.11 % of its fastest: the swarm's pieces end there at rest (one stop a foot, though
+    some feet dip twice); the short keops path's join (a G1 line–arc join) is no such stop."""
+    from harness.corpus.run import CORPUS_DIR
+    from planners.paths import resolve_path
+    from planners.pso.planner import NEAR_STOP, _near_stops
+    m = load_machine("linuxcnc_delta")
+    path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
+    settings = topp3.Settings("pso", station_radii=0.1, knot_stations=True, join_grading=True)
+    piece, = topp3.pieces_of(path, m, m.limits, settings)
+    stops = _near_stops([piece])
+    assert len(stops) == 5
+    # the feet: a sixth of the path apart, each at the curvature's peak there
+    assert np.allclose(np.diff(np.r_[0.0, stops, path.length]), path.length / 6, rtol=0.02)
+    for s in stops:
+        near = np.linspace(s - 0.5, s + 0.5, 2001)
+        assert abs(near[np.argmax(path.curvature(near))] - s) < 0.05
+    sd = np.sqrt(np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0))
+    assert np.all(np.interp(stops, piece.grid, sd) < NEAR_STOP * sd.max())
+    split = topp3.pieces_of(path, m, m.limits, settings, stops)
+    assert [(p.s0, p.s1) for p in split] == list(zip([0.0] + stops, stops + [path.length]))
+    assert _near_stops(topp3.pieces_of(PATH, KEOPS, KEOPS.limits, settings)) == []

@@ -776,8 +776,9 @@ def _stretch_uniformly(prof, spans, machine, path, limits, info, name) -> Profil
     return prof
 
 
-def pieces_of(path, machine, limits, settings: Settings) -> list[Piece]:
-    """The path's rest-to-rest pieces as problems on their station grids."""
+def pieces_of(path, machine, limits, settings: Settings, stops=()) -> list[Piece]:
+    """The path's rest-to-rest pieces as problems on their station grids; ``stops``: arc lengths
+    inside them where the profile comes to rest too (pso's near-stops)."""
     check_limits(limits, settings.name)
     check_path(path, settings.name)
     g = settings.grid_mm
@@ -785,7 +786,11 @@ def pieces_of(path, machine, limits, settings: Settings) -> list[Piece]:
         raise PlanningError(f"{settings.name}: grid_mm = {g!r} must be a finite number > 0")
     table = PathTable(path, machine)
     joins = join_jumps(path, table, machine)
-    return [Piece(k, table, path, machine, limits, s0, s1, settings, joins) for k, (s0, s1) in enumerate(rest_pieces(path))]
+    spans = rest_pieces(path)
+    if len(stops):
+        edges = np.unique(np.concatenate([[s0 for s0, _ in spans], [path.length], np.asarray(stops, float)]))
+        spans = list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+    return [Piece(k, table, path, machine, limits, s0, s1, settings, joins) for k, (s0, s1) in enumerate(spans)]
 
 
 def station_time(pieces, settings: Settings) -> float:

@@ -12,10 +12,11 @@ continuous jerk, there and, weighted, at stations graded toward the join within 
 travel (topp3.Settings.join_grading, as `optimal`: held at the join alone, the swarm's profile
 read 2 × J at T next to pocket_keops's µm blends and no stretch brought it within).
 
-Parametrisation (feed.py): per rest-to-rest piece w = ṡ^{3/2} as a cubic B-spline over arc
-length, its knots placed by the limits (equal steps of the jerk-free optimum's time), so the
-swarm's dimension follows the path and its limits, never a seed profile's segments or switch
-times, and nothing is chosen per path.  The search runs on these knots, then on knots twice as
+Parametrisation (feed.py): per rest-to-rest piece (the path's, also split where the jerk-free
+optimum all but stops: _near_stops) w = ṡ^{3/2} as a cubic B-spline over arc length, its knots
+placed by the limits (equal steps of the jerk-free optimum's time), so the swarm's dimension
+follows the path and its limits, never a seed profile's segments or switch times, and nothing
+is chosen per path.  The search runs on these knots, then on knots twice as
 dense (REFINEMENTS times): knot insertion keeps the feed, so each level starts where the last
 ended, and the coarse levels move the feed broadly where the fine ones would need many steps.
 
@@ -76,6 +77,13 @@ SWARM_STATION_RADII = 0.1
 REFINEMENTS = 3
 SWARM_REPAIRS = 4          # rounds of tightening where the swarm's samples at T read above a limit
 REPAIR_ITERATIONS = 10     # swarm iterations after each
+# the swarm's pieces also end at rest where the jerk-free optimum's feed falls below this fraction
+# of its piece's fastest (_near_stops): at a minimum of the velocity limit curve, where
+# time-optimal profiles switch (Shin & McKay, IEEE TAC 30(6), 1985); `optimal` stopped at
+# cusp_trochoid_lcnc's five tips (0.0005–0.0011 of its fastest) is 1.4 % slower (docs/TUNING.md)
+NEAR_STOP = 0.01
+# ... one stop per stretch below this many times that fraction (the two sides of a tip)
+NEAR_STOP_SPREAD = 4.0
 # a repair whose context takes this many times the last one's time stops the repairs: the
 # tightened limits made a stretch crawl (a G1 join's read at T the station rows do not follow)
 COLLAPSE = 2.0
@@ -121,6 +129,9 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
                                station_radii=SWARM_STATION_RADII, knot_stations=True,
                                join_grading=True)
     pieces = topp3.pieces_of(path, machine, limits, settings)
+    stops = _near_stops(pieces)
+    if stops:
+        pieces = topp3.pieces_of(path, machine, limits, settings, stops)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
     feeds, starts = [], []
@@ -137,7 +148,7 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
         _search(feeds, starts, rng, particles, spread, iterations, time_budget_s, t0, T, path, machine, limits,
                 10 * seed_prof.execution_time_s)
     history = progress.history
-    info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1,
+    info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1, "near_stops": stops,
             "stopped_by": progress.stopped_by, "control_points": [f.K for f in feeds],
 "start_time_s": None if no_start else progress.history[0][1] * pieces[0].tu,
             "seed_time_s": float(seed_prof.execution_time_s), "swarm_repairs": repairs,
@@ -247,6 +258,24 @@ class _Progress:
             for sw in swarms:
                 sw.step()
             self.history.append((round(time.perf_counter() - self.t0, 4), _total(swarms)))
+
+
+def _near_stops(pieces) -> list[float]:
+    """Arc lengths inside the pieces where the jerk-free optimum (TOPP2-RA) all but stops: the
+    lowest station of each stretch where its feed is below NEAR_STOP_SPREAD × NEAR_STOP of the
+    piece's fastest, if that station is below NEAR_STOP × it (a near-cusp's tip, a µm blend).
+    The swarm's pieces end there at rest: a spline of ṡ^{3/2} that must dip to ~0 inside a piece
+    is fitted with a ringing that reads far above the limits, and its start was stretched
+    uniformly by that (docs/TUNING.md)."""
+    out = []
+    for p in pieces:
+        sd = np.sqrt(np.maximum(np.minimum(p.topp2_ra(), p.cap2), 0.0))
+        low = np.diff(np.r_[0, (sd < NEAR_STOP_SPREAD * NEAR_STOP * sd.max()).astype(int), 0])
+        for a, b in zip(np.flatnonzero(low == 1), np.flatnonzero(low == -1)):
+            i = a + int(np.argmin(sd[a:b]))
+            if 0 < a and b < len(sd) and sd[i] < NEAR_STOP * sd.max():
+                out.append(float(p.grid[i]))
+    return out
 
 
 def _first_not_none(*xs):
