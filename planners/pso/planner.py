@@ -82,7 +82,7 @@ REPAIR_ITERATIONS = 10     # swarm iterations after each
 # time-optimal profiles switch (Shin & McKay, IEEE TAC 30(6), 1985); `optimal` stopped at
 # cusp_trochoid_lcnc's five tips (0.0005–0.0011 of its fastest) is 1.4 % slower (docs/TUNING.md)
 NEAR_STOP = 0.01
-# ... one stop per stretch below this many times that fraction (the two sides of a tip)
+# ... a stretch of stations below this many times that fraction is one dip: one stop, at its lowest
 NEAR_STOP_SPREAD = 4.0
 # a repair whose context takes this many times the last one's time stops the repairs: the
 # tightened limits made a stretch crawl (a G1 join's read at T the station rows do not follow)
