@@ -209,7 +209,7 @@ def test_a_remembered_evaluation_is_the_evaluation_and_a_copy():
     for a, b in zip(again, fresh):
         assert np.array_equal(a, b)
     assert np.array_equal(p.point(s), fresh[0])
-    # another set of arc lengths is evaluated, not looked up; a pickled path carries no memo
+    # another set of arc lengths is evaluated, not looked up; a pickled path is keyed anew
     assert not np.array_equal(p.derivs(s[::-1])[0], fresh[0])
     q = pickle.loads(pickle.dumps(p))
     assert q.__dict__["_memo_token"] is not p.__dict__["_memo_token"]
