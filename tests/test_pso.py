@@ -370,3 +370,20 @@ def test_the_swarms_pieces_end_at_rest_where_the_jerk_free_optimum_all_but_stops
     split = topp3.pieces_of(path, m, m.limits, settings, stops)
     assert [(p.s0, p.s1) for p in split] == list(zip([0.0] + stops, stops + [path.length]))
     assert _near_stops(topp3.pieces_of(PATH, KEOPS, KEOPS.limits, settings)) == []
+
+
+def test_a_swarm_stretched_across_many_pieces_gets_the_rounds_they_need():
+    """cusp_trochoid_lcnc's swarm, seed 7: its six pieces' reads next to their stops move from
+    piece to piece as the stretch changes the samples' phase; 8 rounds in all left it without a
+    profile within the limits (the row fell back to its seed). With 8 a piece it returns its own,
+    within the limits at T and within 1.3 × the corpus's converged reference."""
+    import json
+    from harness.corpus.run import CORPUS_DIR
+    from planners.paths import resolve_path
+    m = load_machine("linuxcnc_delta")
+    path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
+    prof = plan("pso", path, m, seed=7)
+    assert prof.info["returned"] == "swarm" and len(prof.info["near_stops"]) == 5
+    assert command_metrics(m, path.point(prof.s), m.servo_period_s, prof.s)["feasible"]
+    t_ref = json.loads((CORPUS_DIR / "reference.json").read_text())["paths"]["cusp_trochoid_lcnc"]["T_reference_s"]
+    assert prof.execution_time_s < 1.3 * t_ref

@@ -84,6 +84,12 @@ REPAIR_ITERATIONS = 10     # swarm iterations after each
 NEAR_STOP = 0.01
 # ... a stretch of stations below this many times that fraction is one dip: one stop, at its lowest
 NEAR_STOP_SPREAD = 4.0
+# the swarm's profile at T is stretched, each piece by its samples' worst need, up to this many
+# rounds a piece (and STRETCH_ROUNDS_MAX in all): a read next to a stop moves with the samples'
+# phase, so the next round may find one at another piece's stop (cusp_trochoid_lcnc's six pieces
+# took 4–15 rounds over seeds 0–3, 7 and 8, where 8 in all left 7 and 8 without a profile)
+STRETCH_ROUNDS = 8
+STRETCH_ROUNDS_MAX = 64
 # a repair whose context takes this many times the last one's time stops the repairs: the
 # tightened limits made a stretch crawl (a G1 join's read at T the station rows do not follow)
 COLLAPSE = 2.0
@@ -294,9 +300,9 @@ def _seed_feed(seed_prof, piece):
 
 def _stretched_at_T(spans, T, path, machine, limits, too_slow):
     """The spans sampled at T, each rest-to-rest piece stretched by the worst need of its samples
-    (planners.verify.stretch_need), up to 8 times; None if still above a limit or slower than
-    ``too_slow``."""
-    for _ in range(8):
+    (planners.verify.stretch_need), up to STRETCH_ROUNDS rounds a piece; None if still above a
+    limit or slower than ``too_slow``."""
+    for _ in range(min(STRETCH_ROUNDS * len(spans), STRETCH_ROUNDS_MAX)):
         if sum(sp.duration for sp in spans) > too_slow:
             return None
         prof = Profile.from_pieces("pso", T, spans, path)
