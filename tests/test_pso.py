@@ -9,7 +9,7 @@ from kins import load_machine
 from planners import PlanningError, plan
 from planners.optimal import topp3
 from planners.paths import Arc, Line, SegmentPath
-from planners.pso.feed import KNOT_STEP_TU, MIN_SPAN_STATIONS, FeedSpline
+from planners.pso.feed import KNOT_STEP_TU, MIN_SPAN_STATIONS, FeedSpline, jerk_free_a
 from planners.pso.span import FeedSpan
 from planners.pso.swarm import BLOCK, BlockSwarm
 from planners.verify import command_metrics
@@ -358,18 +358,20 @@ def test_the_swarms_pieces_end_at_rest_where_the_jerk_free_optimum_all_but_stops
     path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
     settings = topp3.Settings("pso", station_radii=0.1, knot_stations=True, join_grading=True)
     piece, = topp3.pieces_of(path, m, m.limits, settings)
-    stops = _near_stops([piece])
+    a_ra = jerk_free_a(piece)
+    stops = _near_stops([piece], [a_ra])
     assert len(stops) == 5
     # the feet: a sixth of the path apart, each at the curvature's peak there
     assert np.allclose(np.diff(np.r_[0.0, stops, path.length]), path.length / 6, rtol=0.02)
     for s in stops:
         near = np.linspace(s - 0.5, s + 0.5, 2001)
         assert abs(near[np.argmax(path.curvature(near))] - s) < 0.05
-    sd = np.sqrt(np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0))
+    sd = np.sqrt(a_ra)
     assert np.all(np.interp(stops, piece.grid, sd) < NEAR_STOP * sd.max())
     split = topp3.pieces_of(path, m, m.limits, settings, stops)
     assert [(p.s0, p.s1) for p in split] == list(zip([0.0] + stops, stops + [path.length]))
-    assert _near_stops(topp3.pieces_of(PATH, KEOPS, KEOPS.limits, settings)) == []
+    short = topp3.pieces_of(PATH, KEOPS, KEOPS.limits, settings)
+    assert _near_stops(short, [jerk_free_a(p) for p in short]) == []
 
 
 def test_a_swarm_stretched_across_many_pieces_gets_the_rounds_they_need():

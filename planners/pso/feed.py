@@ -62,6 +62,12 @@ def interval_time(dx, sd0, sd1):
     return 3.0 * dx / np.maximum(sd0 + np.sqrt(sd0 * sd1) + sd1, TINY)
 
 
+def jerk_free_a(piece):
+    """ṡ² at the piece's stations of the jerk-free time-optimal profile (TOPP2-RA), within its
+    feed caps."""
+    return np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0)
+
+
 class FeedSpline:
     """The spline's knots and basis on one topp3.Piece's stations, and the reads of any set of
     coefficient columns there (joint v, a, j, the feed cap, the G1 joins' rows)."""
@@ -71,7 +77,7 @@ class FeedSpline:
         self.x = piece.grid - piece.s0
         self.dx = np.diff(self.x)
         self.L = float(self.x[-1])
-        self.a_ra = np.maximum(np.minimum(piece.topp2_ra(), piece.cap2), 0.0) if a_ra is None else a_ra
+        self.a_ra = jerk_free_a(piece) if a_ra is None else a_ra
         self.t_ra = self.station_times(np.sqrt(self.a_ra))
         if inner is None:
             m = max(MIN_SPANS, int(math.ceil(self.t_ra[-1] / KNOT_STEP_TU)))

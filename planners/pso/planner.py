@@ -62,7 +62,7 @@ import numpy as np
 from planners.constraints import PlanningError, check_limits, check_path
 from planners.optimal import topp3
 from planners.profile import Profile
-from planners.pso.feed import FeedSpline
+from planners.pso.feed import FeedSpline, jerk_free_a
 from planners.pso.span import FeedSpan
 from planners.pso.swarm import BlockSwarm
 from planners.scurve import plan_joint
@@ -135,16 +135,18 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
                                station_radii=SWARM_STATION_RADII, knot_stations=True,
                                join_grading=True)
     pieces = topp3.pieces_of(path, machine, limits, settings)
-    stops = _near_stops(pieces)
+    a_ra = [jerk_free_a(p) for p in pieces]
+    stops = _near_stops(pieces, a_ra)
     if stops:
         pieces = topp3.pieces_of(path, machine, limits, settings, stops)
+        a_ra = [jerk_free_a(p) for p in pieces]
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
     feeds, starts = [], []
-    for p in pieces:
+    for p, a in zip(pieces, a_ra):
         # the papers' start: the s-curve seed's feed as a spline, within the limits (or else
         # stretched as a whole)
-        feed = FeedSpline(p, margin)
+        feed = FeedSpline(p, margin, a_ra=a)
         c = feed.fit(_seed_feed(seed_prof, p))
         c = _first_not_none(feed.start_within(c), feed.scaled_within(c))
         feeds.append(feed)
@@ -266,16 +268,17 @@ class _Progress:
             self.history.append((round(time.perf_counter() - self.t0, 4), _total(swarms)))
 
 
-def _near_stops(pieces) -> list[float]:
-    """Arc lengths inside the pieces where the jerk-free optimum (TOPP2-RA) all but stops: the
-    lowest station of each stretch where its feed is below NEAR_STOP_SPREAD × NEAR_STOP of the
-    piece's fastest, if that station is below NEAR_STOP × it (a near-cusp's tip, a µm blend).
+def _near_stops(pieces, a_ra) -> list[float]:
+    """Arc lengths inside the pieces where the jerk-free optimum (``a_ra``: ṡ² of TOPP2-RA at
+    each piece's stations, feed.jerk_free_a) all but stops: the lowest station of each stretch
+    where its feed is below NEAR_STOP_SPREAD × NEAR_STOP of the piece's fastest, if that station
+    is below NEAR_STOP × it (a near-cusp's tip, a µm blend).
     The swarm's pieces end there at rest: a spline of ṡ^{3/2} that must dip to ~0 inside a piece
     is fitted with a ringing that reads far above the limits, and its start was stretched
     uniformly by that (docs/TUNING.md)."""
     out = []
-    for p in pieces:
-        sd = np.sqrt(np.maximum(np.minimum(p.topp2_ra(), p.cap2), 0.0))
+    for p, a in zip(pieces, a_ra):
+        sd = np.sqrt(a)
         low = np.diff(np.r_[0, (sd < NEAR_STOP_SPREAD * NEAR_STOP * sd.max()).astype(int), 0])
         for a, b in zip(np.flatnonzero(low == 1), np.flatnonzero(low == -1)):
             i = a + int(np.argmin(sd[a:b]))
