@@ -16,7 +16,7 @@ import pytest
 import planners
 from harness.cli import main as cli_main
 from harness.corpus import (CORPUS_DIR, QUICK_PATHS, Row, load_manifest, performance_profile, ratios, seed_spread,
-                            run_corpus, summary)
+                            run_corpus, summary, swarm_spread, write_markdown)
 from kins import load_machine
 from planners.constraints import PathTable, check_path_in_workspace, join_jumps, joint_derivs
 from planners.paths import load_path
@@ -339,6 +339,22 @@ def test_the_reference_is_the_denominator_where_a_path_has_one():
     assert R["p"] == pytest.approx({"A": 1.02, "B": 1.0}) and R["q"] == pytest.approx({"A": 1.10})
     S = summary(rows, {"A": (1.0, 0.001)})
     assert S["p"]["to_reference"]["median"] == pytest.approx(1.02) and S["p"]["to_reference"]["n"] == 1
+
+
+def test_the_swarm_alone_is_a_distribution_over_the_reference(tmp_path):
+    """pso_socp's swarm before its polish is reported over T_ref (T_best without one), a run
+    without a swarm profile as ∞; planners without a swarm get no line."""
+    import dataclasses
+    rows = [dataclasses.replace(_row("A", "pso_socp", 1.01, True), seed=k, swarm_time_s=t)
+            for k, t in enumerate([1.05, 1.20, math.nan, 1.10])]
+    rows += [_row("A", "optimal", 1.0, True), dataclasses.replace(_row("B", "pso_socp", 2.0, True), swarm_time_s=3.0)]
+    S = swarm_spread(rows, {"A": (1.0, 0.001)})
+    assert list(S) == ["pso_socp"]
+    q = S["pso_socp"]
+    assert (q["n"], q["best"], q["worst"]) == (5, pytest.approx(1.05), math.inf)
+    assert q["median"] == pytest.approx(1.20) and q["q1"] == pytest.approx(1.10)   # order statistics: 1.05 1.1 1.2 1.5 ∞
+    write_markdown(rows, tmp_path / "c.md", {"A": (1.0, 0.001)})
+    assert "pso_socp's swarm alone" in (tmp_path / "c.md").read_text() and "optimal's swarm" not in (tmp_path / "c.md").read_text()
 
 
 def _module_sources(*roots):

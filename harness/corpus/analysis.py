@@ -134,6 +134,23 @@ def seed_spread(rows: list[Row], reference: dict) -> dict[tuple[str, str], dict]
     return {k: spread(v) for k, v in groups.items()}
 
 
+def swarm_spread(rows: list[Row], reference: dict) -> dict[str, dict]:
+    """planner → spread of its swarm's own time (info["swarm_time_s"]: pso_socp's before its
+    polish) over T_reference (T_best without one), over every run of a planner that reports a
+    swarm; a run without a swarm profile within the limits at T is ∞."""
+    best = best_times(rows)
+    out: dict = {}
+    for k in dict.fromkeys(r.planner for r in rows if math.isfinite(r.swarm_time_s)):
+        q = []
+        for r in rows:
+            if r.planner != k:
+                continue
+            den = reference[r.path][0] if r.path in reference else best[r.path]
+            q.append(r.swarm_time_s / den if math.isfinite(r.swarm_time_s) and math.isfinite(den) else math.inf)
+        out[k] = spread(q)
+    return out
+
+
 def summary(rows: list[Row], reference: dict | None = None) -> dict[str, dict]:
     """Per planner: paths, runs, profiles, joint-feasible, Cartesian-feasible, own limits
     (None: declares none), failed (incl. fallbacks), fallbacks, errors, T/T_best median / worst

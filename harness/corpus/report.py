@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from harness import perfprofile
-from harness.corpus.analysis import (best_times, counts, load_reference, runs, seed_spread, summary,
+from harness.corpus.analysis import (best_times, counts, load_reference, runs, seed_spread, summary, swarm_spread,
                                      to_reference)
 from harness.corpus.run import Row
 
@@ -97,11 +97,10 @@ def write_markdown(rows: list[Row], file, reference: dict, title="Toolpath corpu
         for (p, k), q in spreads.items():
             L.append(f"| {p} | {k} | {q['n']} | {_fmt(q['median'], 5)} | {_fmt(q['q1'], 5)}–{_fmt(q['q3'], 5)} | "
                      f"{_fmt(q['best'], 5)} | {_fmt(q['worst'], 5)} |")
-    swarm = [r for r in rows if r.status == "ok" and math.isfinite(r.swarm_time_s) and math.isfinite(best[r.path])]
-    if swarm:
-        q = [r.swarm_time_s / best[r.path] for r in swarm]
-        L += ["", f"pso's swarm alone (before its polish, info['swarm_time_s']) on {len(swarm)} runs: "
-                  f"T/T_best median {np.median(q):.4f}, worst {max(q):.4f}."]
+    for k, q in swarm_spread(rows, reference).items():
+        L += ["", f"{k}'s swarm alone (its own profile before any polish, info['swarm_time_s']; ∞ where it had "
+                  f"none within the limits at T) over {q['n']} runs: T/T_ref median {_fmt(q['median'], 4)}, "
+                  f"IQR {_fmt(q['q1'], 4)}–{_fmt(q['q3'], 4)}, best {_fmt(q['best'], 4)}, worst {_fmt(q['worst'], 4)}."]
     L += ["", "## Every row", "",
           "| path | machine | planner | seed | T (s) | T/T_ref | T/T_best | feasible | joint v/a/j | Cartesian v/a/j | "
           "plan (s) | gap to its bound | swarm alone (s) | error |",
