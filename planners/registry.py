@@ -208,6 +208,16 @@ def stochastic(name: str) -> bool:
         return False
 
 
+def seeded(name: str, options: dict | None, seed: int) -> dict:
+    """``options`` for planner ``name`` in a run with ``seed``: a stochastic planner takes the
+    run's seed unless its options name one, so a sweep over seeds is a distribution of its plans
+    (not of the bus alone)."""
+    out = dict(options or {})
+    if stochastic(name):
+        out.setdefault("seed", seed)
+    return out
+
+
 def plugin_version(name: str) -> str | None:
     """The installed distribution version of a plug-in (None for built-ins and specs): part of
     a sweep task's key, so upgrading a plug-in re-runs its tasks."""

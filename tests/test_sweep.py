@@ -307,3 +307,44 @@ def test_run_and_sweep_read_a_suite_with_the_one_parser(tmp_path):
         tasks_from_suite_file(bad)
     assert str(run_err.value) == str(sweep_err.value)
     assert "bad.toml:line 5: [[run]] #1: unknown key 'planers'" in str(sweep_err.value)
+
+
+def _seeded_feed(path, machine, limits=None, seed=0, **kw):
+    """A stochastic plug-in: scurve_joint with F_max lowered by seed × 10 %."""
+    import dataclasses
+
+    import planners
+    lim = machine.limits
+    return planners.plan("scurve_joint", path, machine, dataclasses.replace(lim, feed_max=lim.feed_max / (1 + seed / 10)))
+
+
+_seeded_feed.stochastic = True
+
+
+def test_a_suites_seeds_seed_a_stochastic_planner_unless_its_options_pin_one(tmp_path):
+    """The sweep's seed is a stochastic planner's seed too (the bus's only, before): a suite over
+    seeds is a distribution of its plans. A seed in its planner_options wins."""
+    import planners
+    from harness.cosim.run import run_case
+    from kins import load_machine
+    from planners.paths import load_path
+    name = f"{__name__}:_seeded_feed"
+    (tmp_path / "line.json").write_text(json.dumps(LINE))
+    suite = tmp_path / "suite.toml"
+    head = f'[[run]]\nmachine = "keops"\npath = "{tmp_path / "line.json"}"\nplanners = ["{name}"]\n[sweep]\nseeds = [0, 9]\n'
+    m, path = load_machine("keops"), load_path(tmp_path / "line.json")
+    direct = {k: planners.plan(name, path, m, seed=k).execution_time_s for k in (0, 9)}
+    assert direct[9] > direct[0] + 0.01                       # F_max binds on the line
+
+    def times(text, out):
+        suite.write_text(text)
+        r = run_sweep(tasks_from_suite_file(suite), out, task_fn="harness.sweep.tasks:plan_task", workers=0, progress=False)
+        assert (r.ok, r.failed) == (2, 0), r.failures
+        return {row["seed"]: row["metrics"]["execution_time_s"] for row in TaskTable(out / "results.sqlite").to_rows()}
+
+    assert times(head, tmp_path / "a") == pytest.approx(direct, abs=1e-12)
+    pinned = times(head + f'[planner_options."{name}"]\nseed = 0\n', tmp_path / "b")
+    assert pinned == pytest.approx({0: direct[0], 9: direct[0]}, abs=1e-12)
+    # `pkmbench run --seed 9` (run_case: the full chain, ideal) plans it with seed 9 as well
+    s = run_case("keops", str(tmp_path / "line.json"), [name], tmp_path / "run", seed=9, ideal=True, recordings=False)
+    assert s["planners"][name]["execution_time_s"] == pytest.approx(direct[9], abs=1e-12)

@@ -21,7 +21,7 @@ def add_arguments(p):
     p.add_argument("--planners", default="trapezoid,scurve,scurve_joint,pso,toppra,optimal",
                    help="comma-separated planners (default: %(default)s)")
     p.add_argument("--out", default=None, help="output folder (default: results/<machine>_<path> or results/<suite>)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the EtherCAT jitter draws, 0 <= SEED < 2**64 (default: 0)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the EtherCAT jitter draws and of a stochastic planner (pso) without a seed option, 0 <= SEED < 2**64 (default: 0)")
     p.add_argument("--jitter", default=None, help=f"EtherCAT preset: {', '.join(JITTER_PRESETS)} (default: the machine file's)")
     p.add_argument("--ideal", action="store_true", help="ideal chain: no jitter, no delay, ideal drives")
     p.add_argument("--engine", choices=("native", "python"), default="native", help="co-simulation master")

@@ -174,7 +174,7 @@ def _run(machine, path, path_name, planner_names, out_dir: Path, *, seed, jitter
         pdir.mkdir(parents=True)
         try:
             profile = planners.plan_in_time(planner_timeout_s, name, path, machine,
-                                            **(planner_options or {}).get(name, {}))
+                                            **planners.registry.seeded(name, (planner_options or {}).get(name), seed))
         except Exception as e:   # PlanningError and anything a planner raised: record, go on
             summary["planners"][name] = {"error": f"planning failed: {type(e).__name__}: {e}"}
             continue

@@ -14,7 +14,7 @@ A suite (benchmarks/suites/*.toml) names what one run covers; the sweep adds axe
     [planner_options.pso]        # optional, passed to the planner
     iterations = 40
     [sweep]                      # optional axes, crossed with every run
-    seeds = [0, 1]               # default [0]; each 0 <= seed < 2**64
+    seeds = [0, 1]               # default [0]; each 0 <= seed < 2**64: the bus's and a stochastic planner's
     presets = ["none", "tuned_rt"]  # EtherCAT jitter presets ("machine" = the machine file's), default ["none"]
     [[sweep.variation]]          # default: one variation "base" that changes nothing
     name = "jerk_half"

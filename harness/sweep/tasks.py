@@ -173,7 +173,7 @@ def plan_task(task: dict, out_dir: Path) -> dict:
     setup = task_gcode_setup(task, out_dir / "inputs")
     path = load_path(pfile, **({"setup": setup} if setup else {}))
     prof = planners.plan_in_time(task.get("planner_timeout_s"), task["planner"], path, machine,
-                                 **task["planner_options"])
+                                 **planners.registry.seeded(task["planner"], task["planner_options"], int(task["seed"])))
     P = path.point(prof.s)
     metrics = command_metrics(machine, P, prof.T, prof.s)
     metrics["planning_time_s"] = float(prof.planning_time_s)
