@@ -154,6 +154,48 @@ def test_corpus_quick_command(tmp_path, capsys):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_an_interrupted_corpus_keeps_its_rows_and_resume_plans_only_the_rest(tmp_path, monkeypatch, capsys):
+    import harness.corpus.run as corpus_run
+    import harness.sweep
+    from harness.corpus.journal import JOURNAL
+    real, calls, stop_at = corpus_run.run_one, [], [2]
+
+    def one(entry, planner, machine, path, seed=None):
+        if len(calls) == stop_at[0]:
+            raise KeyboardInterrupt
+        calls.append((entry["name"], planner))
+        return real(entry, planner, machine, path, seed)
+
+    monkeypatch.setattr(corpus_run, "run_one", one)
+    args = ["corpus", "--quick", "--planners", "scurve_joint,trapezoid", "--out", str(tmp_path), "--store", "none"]
+    (tmp_path / "corpus.csv").write_text("an earlier run's table\n")
+    assert cli_main(args) == 130
+    assert "--resume" in capsys.readouterr().out
+    assert not (tmp_path / "corpus.csv").exists()              # nothing that looks complete
+    kept = [json.loads(x)["row"] for x in (tmp_path / JOURNAL).read_text().splitlines()]
+    assert [(r["path"], r["planner"]) for r in kept] == calls and [k for _, k in calls] == ["scurve_joint", "trapezoid"]
+    with open(tmp_path / JOURNAL, "a") as f:
+        f.write('{"code": "cut by the kil')                    # a line the interruption cut
+    stop_at[0] = None
+    assert cli_main(args + ["--resume"]) == 0
+    assert "2 rows kept" in capsys.readouterr().out
+    assert len(calls) == 6 and len(set(calls)) == 6            # only the four not finished were planned
+    with open(tmp_path / "corpus.csv") as f:
+        rows = {(r["path"], r["planner"]): r for r in csv.DictReader(f)}
+    assert len(rows) == 6
+    for r in kept:
+        assert float(rows[(r["path"], r["planner"])]["execution_time_s"]) == r["execution_time_s"]
+    # rows made by other code are planned again
+    monkeypatch.setattr(harness.sweep, "code_version", lambda: "other")
+    assert cli_main(args + ["--resume"]) == 0
+    assert "6 made by other code planned again" in capsys.readouterr().out and len(calls) == 12
+    # one run at a time writes a folder's rows
+    from harness.outdir import run_lock
+    with run_lock(tmp_path):
+        assert cli_main(args + ["--resume"]) == 2
+    assert "another pkmbench run is writing" in capsys.readouterr().err and len(calls) == 12
+
+
 def test_scurve_and_trapezoid_keep_their_cartesian_limits_on_the_quick_paths():
     """scurve keeps what the registry says it keeps (Cartesian v/a/j and feed); trapezoid
     declares nothing (own limits: None) but keeps the Cartesian v and a it plans with."""

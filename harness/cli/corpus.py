@@ -10,6 +10,8 @@ Writes OUT/corpus.csv, OUT/corpus.md, OUT/performance_profile.png, OUT/ratio_to_
 (every run against the path's converged minimum time, benchmarks/paths/corpus/reference.json),
 and appends one row per plan to the results store (kind = 'corpus'; `pkmbench query`). A
 stochastic planner (pso) runs over --seeds seeds (default 10) and is reported as a distribution.
+Each row is kept in OUT/rows.jsonl as it ends: an interrupted run loses none, and `--resume`
+plans only what it had not finished (harness/corpus/journal.py); the tables are written at the end.
 Exit 0 when every planner returned a profile or a PlanningError, 1 when a planner raised
 something else (an internal error, listed), 2 on a user error.
 """
@@ -19,7 +21,7 @@ from __future__ import annotations
 # needs when it runs (`pkmbench --help` and the other commands stay fast)
 
 from harness.cli import CliError
-from harness.outdir import OutDirError, output_dir
+from harness.outdir import OutDirError, output_dir, run_lock
 
 
 def add_arguments(p) -> None:
@@ -34,6 +36,9 @@ def add_arguments(p) -> None:
                    help="take machines × paths × planners from a suite file (e.g. benchmarks/suites/corpus.toml)")
     p.add_argument("--seeds", type=int, default=None,
                    help="runs of each stochastic planner (pso) per path, seeds 0 … N−1 (default 10)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the rows an interrupted run into OUT finished (OUT/rows.jsonl, made by the same "
+                        "code) and plan only the rest")
     p.add_argument("--store", default=None,
                    help="results store folder the rows are appended to (default: $PKMBENCH_STORE "
                         "or results/store; 'none' = do not append)")
@@ -42,7 +47,7 @@ def add_arguments(p) -> None:
 def main(args) -> int:
     import planners
     from harness.corpus import (FAST_PLANNERS, SEEDS, CorpusError, entries_from_suite, load_manifest,
-                                load_reference, run_corpus, select, summary, write_outputs)
+                                load_reference, select, summary)
     seeds = SEEDS if args.seeds is None else args.seeds
     if seeds < 1:
         raise CliError(f"--seeds {args.seeds}: need at least 1")
@@ -62,26 +67,13 @@ def main(args) -> int:
         raise CliError(str(e)) from None
     try:
         out = output_dir(args.out)
+        with run_lock(out):
+            rows, files = _run(selection, seeds, out, args.resume)
     except OutDirError as e:
         raise CliError(str(e)) from None
-    n = sum(len(ps) for _, ps in selection)
-    print(f"corpus: {len(selection)} paths, {n} plans → {out}")
-
-    reference = load_reference()
-
-    def progress(r):
-        what = (f"T = {r.execution_time_s:.4f} s, joint {r.joint_worst:.3f}, cart {r.cart_worst:.3f}, "
-                f"{'feasible' if r.feasible else 'INFEASIBLE'}") if r.status == "ok" else r.error
-        ref = reference.get(r.path)
-        if r.status == "ok" and ref:
-            what += f", T/T_ref {r.execution_time_s / ref[0]:.4f}"
-        seed = f" s{r.seed}" if r.seed is not None else ""
-        print(f"  {r.path:28s} {r.planner + seed:13s} {r.planning_time_s:8.2f} s  {what}", flush=True)
-
-    rows = run_corpus(selection, progress=progress, seeds=seeds)
-    files = write_outputs(rows, out, reference)
     if args.store != "none":
         _append(rows, args, out)
+    reference = load_reference()
     print(f"{'planner':13s} {'profiles':>9s} {'feasible':>9s} {'cart-feas':>9s} {'own-lim':>7s} {'T/Tref med':>10s} "
           f"{'IQR':>15s} {'worst':>7s} {'T/Tbest med':>11s} {'plan med s':>10s} {'worst':>8s}")
     for k, s in summary(rows, reference).items():
@@ -95,6 +87,35 @@ def main(args) -> int:
     for r in errors:
         print(f"  INTERNAL ERROR {r.path} / {r.planner}: {r.error}")
     return 1 if errors else 0
+
+
+def _run(selection, seeds, out, resume):
+    """The rows (each kept in OUT/rows.jsonl as it ends) and the tables written from them."""
+    from harness.corpus import load_reference, run_corpus, write_outputs
+    from harness.corpus.journal import Journal
+    from harness.sweep import code_version
+    n = sum(len(ps) for _, ps in selection)
+    print(f"corpus: {len(selection)} paths, {n} plans → {out}")
+    journal = Journal(out, code_version(), resume)
+    if resume:
+        print(f"resumed: {journal.summary()}")
+    reference = load_reference()
+
+    def progress(r):
+        what = (f"T = {r.execution_time_s:.4f} s, joint {r.joint_worst:.3f}, cart {r.cart_worst:.3f}, "
+                f"{'feasible' if r.feasible else 'INFEASIBLE'}") if r.status == "ok" else r.error
+        ref = reference.get(r.path)
+        if r.status == "ok" and ref:
+            what += f", T/T_ref {r.execution_time_s / ref[0]:.4f}"
+        seed = f" s{r.seed}" if r.seed is not None else ""
+        print(f"  {r.path:28s} {r.planner + seed:13s} {r.planning_time_s:8.2f} s  {what}", flush=True)
+
+    try:
+        rows = run_corpus(selection, progress=progress, seeds=seeds, kept=journal.kept, keep=journal.add)
+    except KeyboardInterrupt:
+        print(f"the rows finished are kept in {journal.file}: the same command with --resume plans the rest")
+        raise
+    return rows, write_outputs(rows, out, reference)
 
 
 def _append(rows, args, out) -> None:

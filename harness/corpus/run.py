@@ -195,14 +195,21 @@ def run_one(entry: dict, planner: str, machine, path, seed: int | None = None) -
     return row
 
 
-def run_corpus(selection: list[tuple[dict, list[str]]], progress=None, seeds: int = SEEDS) -> list[Row]:
+def run_corpus(selection: list[tuple[dict, list[str]]], progress=None, seeds: int = SEEDS,
+               kept: dict | None = None, keep=None) -> list[Row]:
     """Every (entry, planners) of the selection, serially (planning-time measurements stay
     comparable), a stochastic planner once per seed 0 … seeds − 1. A path that cannot be
-    loaded gives one failed row per planner."""
+    loaded gives one failed row per planner. ``kept``: (path, machine, planner, seed) → a Row
+    of an interrupted run (harness.corpus.journal), used instead of planning again; ``keep``
+    is called with each row planned here as it ends."""
 
-    rows, machines = [], {}
+    rows, machines, kept = [], {}, kept or {}
     for entry, names in selection:
         mname = entry["machine"]
+        todo = [(name, seed) for name in names for seed in (range(seeds) if registry.stochastic(name) else [None])]
+        if all((entry["name"], mname, name, seed) in kept for name, seed in todo):
+            rows += [kept[(entry["name"], mname, name, seed)] for name, seed in todo]
+            continue
         try:
             m = machines.get(mname) or machines.setdefault(mname, load_machine(mname))
             f = Path(entry["file"])
@@ -213,12 +220,13 @@ def run_corpus(selection: list[tuple[dict, list[str]]], progress=None, seeds: in
                 rows.append(Row(entry["name"], mname, entry.get("kind", "-"), name, "failed",
                                 error=f"{entry['name']}: cannot load: {e}"))
             continue
-        for name in names:
-            for seed in (range(seeds) if registry.stochastic(name) else [None]):
+        for name, seed in todo:
+            row = kept.get((entry["name"], mname, name, seed))
+            if row is None:
                 row = run_one(entry, name, m, path, seed)
-                rows.append(row)
+                if keep:
+                    keep(row)
                 if progress:
                     progress(row)
+            rows.append(row)
     return rows
-
-
