@@ -21,11 +21,6 @@ TABLES = ("corpus.csv", "corpus.md", "performance_profile.png", "ratio_to_refere
 _FIELDS = {f.name for f in fields(Row)}
 
 
-def key(r: Row) -> tuple:
-    """What a row answers: (path, machine, planner, seed)."""
-    return (r.path, r.machine, r.planner, r.seed)
-
-
 class Journal:
     """OUT/rows.jsonl of one corpus run. ``resume``: keep the rows made by ``code`` (``kept``:
     key → Row); else start afresh. Either way the earlier run's tables are removed."""
@@ -54,7 +49,7 @@ class Journal:
             if d.get("code") != self.code:
                 self.other_code += 1
                 continue
-            self.kept[key(row)] = row
+            self.kept[row.key] = row
 
     def _line(self, r: Row) -> str:
         return json.dumps({"code": self.code, "row": asdict(r)}) + "\n"

@@ -84,12 +84,21 @@ class Row:
         return all(within(self.ratio(space, o)) for space, orders in g.items() for o in orders)
 
     @property
+    def key(self) -> tuple:
+        """What the row answers (run_corpus, harness.corpus.journal)."""
+        return row_key(self.path, self.machine, self.planner, self.seed)
+
+    @property
     def joint_worst(self) -> float:
         return max(self.joint_v, self.joint_a, self.joint_j)
 
     @property
     def cart_worst(self) -> float:
         return max(self.cart_v, self.cart_a, self.cart_j)
+
+
+def row_key(path: str, machine: str, planner: str, seed: int | None) -> tuple:
+    return (path, machine, planner, seed)
 
 
 def load_manifest(file=MANIFEST) -> list[dict]:
@@ -207,8 +216,9 @@ def run_corpus(selection: list[tuple[dict, list[str]]], progress=None, seeds: in
     for entry, names in selection:
         mname = entry["machine"]
         todo = [(name, seed) for name in names for seed in (range(seeds) if registry.stochastic(name) else [None])]
-        if all((entry["name"], mname, name, seed) in kept for name, seed in todo):
-            rows += [kept[(entry["name"], mname, name, seed)] for name, seed in todo]
+        keys = [row_key(entry["name"], mname, name, seed) for name, seed in todo]
+        if all(k in kept for k in keys):
+            rows += [kept[k] for k in keys]
             continue
         try:
             m = machines.get(mname) or machines.setdefault(mname, load_machine(mname))
@@ -220,8 +230,8 @@ def run_corpus(selection: list[tuple[dict, list[str]]], progress=None, seeds: in
                 rows.append(Row(entry["name"], mname, entry.get("kind", "-"), name, "failed",
                                 error=f"{entry['name']}: cannot load: {e}"))
             continue
-        for name, seed in todo:
-            row = kept.get((entry["name"], mname, name, seed))
+        for (name, seed), k in zip(todo, keys):
+            row = kept.get(k)
             if row is None:
                 row = run_one(entry, name, m, path, seed)
                 if keep:
