@@ -389,3 +389,53 @@ def test_a_swarm_stretched_across_many_pieces_gets_the_rounds_they_need():
     assert command_metrics(m, path.point(prof.s), m.servo_period_s, prof.s)["feasible"]
     t_ref = json.loads((CORPUS_DIR / "reference.json").read_text())["paths"]["cusp_trochoid_lcnc"]["T_reference_s"]
     assert prof.execution_time_s < 1.3 * t_ref
+
+
+def test_a_feed_at_f_max_is_held_at_f_max_not_below_it():
+    """The corner path with F_max = 100 mm/s (a tenth of keops's, far below what the joints allow
+    on its lines): the swarm cruises at F_max itself, read at T (0.99965 measured; held to
+    1 − margin, 0.998 at most: spiral_cone_kossel, at F_max nearly everywhere, lost 0.22 % to its
+    seed on every seed).  The joint limits keep their margin."""
+    import dataclasses
+    from kins.machine import MachineLimits
+    lim = KEOPS.limits
+    slow = dataclasses.replace(KEOPS, limits=MachineLimits(lim.joint, lim.cartesian, 100.0, lim.chord_error_mm))
+    p = plan("pso", PATH, slow, **FAST)
+    r = command_metrics(slow, PATH.point(p.s), p.T, p.s)
+    assert p.info["returned"] == "swarm" and r["feasible"]
+    assert 0.9995 < r["cartesian_peak_ratio"]["feed"] <= 1 + 1e-6
+
+
+def test_a_notch_in_the_feed_is_filled_in_one_push():
+    """A coefficient at 1e-4 of its neighbours (where a refinement's least squares can leave one)
+    is raised toward them in one push, where the push's relative steps alone reach at most
+    1.5⁵ ≈ 7.6 × it: the feed no longer crawls there, and the stations stay within the limits."""
+    from planners.pso.feed import NOTCH
+    feed = _feed()
+    c = feed.start_within(feed.fit(np.sqrt(feed.a_ra))) * 0.5 ** 1.5
+    k = feed.K // 2
+    c[k] *= 1e-4
+    pushed = feed.push(c)
+    assert pushed[k] >= NOTCH * min(pushed[k - 1], pushed[k + 1])
+    assert feed.reads(pushed)[1].max() <= 1.0 and np.all(pushed >= c)
+
+
+def test_a_polish_that_fails_is_solved_again_around_topp2_ra(monkeypatch):
+    """Where the polish linearised around the swarm's and the seed's feed has no solution (the
+    IPM, then Clarabel's NUMERICAL_ERROR, as on butterfly_lcnc seed 0), it is solved again on
+    fresh pieces around TOPP2-RA's profile, and that profile is checked at T and returned."""
+    solve, calls = topp3.solve, []
+
+    def first_fails(path, machine, limits, settings, pieces):
+        calls.append(settings)
+        if len(calls) == 1:
+            raise PlanningError("pso_socp: no solution of piece 0: NUMERICAL_ERROR (the test's)")
+        return solve(path, machine, limits, settings, pieces)
+
+    monkeypatch.setattr(topp3, "solve", first_fails)
+    p = plan("pso_socp", PATH, KEOPS, **FAST)
+    assert len(calls) == 2 and calls[1].station_radii == topp3.STATION_RADII
+    assert p.info["polish_reference"] == "TOPP2-RA" and "the test's" in p.info["polish"]
+    assert p.info["returned"] == "polished" and p.execution_time_s == p.info["polished_time_s"]
+    r = command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)
+    assert r["feasible"] and p.execution_time_s < p.info["swarm_time_s"]

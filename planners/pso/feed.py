@@ -53,6 +53,13 @@ CHUNK = 1024              # stations a pass of reads() (its temporaries stay in 
 # T_ref; with 8 and 16 1.21 ×: docs/TUNING.md)
 PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
 PUSH_GROUPS = (1, 2, 4, 8, 16)
+# a coefficient below NOTCH × the smaller of its neighbours is a notch, and a push first tries to
+# raise it to these fractions of that neighbour: relative raises (PUSH_STEPS, the swarm's
+# log-steps) take dozens of feasible steps out of one (a refinement's least squares or a repair
+# can leave a coefficient at ~1e-3 of its neighbours next to a near-cusp's tip, where the feed
+# then crawls: cusp_trochoid_lcnc)
+NOTCH = 0.1
+NOTCH_FILL = np.array([1.0, 0.5, 0.25, 0.1, 0.03])
 
 
 def interval_time(dx, sd0, sd1):
@@ -95,7 +102,10 @@ class FeedSpline:
         self.d1, self.d2, self.d3 = d1, d2, d3
         self.v_abs = np.abs(d1).max(axis=1)
         self.lims = [lim * (1 - margin) for lim in piece.lims]
-        self.cap2 = piece.cap2 * (1 - margin) ** 2
+        # the feed caps (F_max, the chord-error cap) bind ṡ itself, which the stations read
+        # exactly: held at 1 − margin, a path run at F_max nearly everywhere lost the margin on
+        # every seed to its seed (spiral_cone_kossel: 0.22–0.25 %)
+        self.cap2 = piece.cap2
         self.joins = piece.joins
         # a join's read at T as rows: at the join either side, and (graded stations) weighted
         # at the stations within READ_REACH periods' travel of it (topp3.Piece.join_reads)
@@ -354,13 +364,29 @@ class FeedSpline:
         falls there), or, in groups of more than 4, by a half sine (the middle most, the edges
         least: where the jerk holds the feed, a stretch rises only as a whole and smoothly); of
         the feasible raises, the one largest in sum.  Deterministic."""
-        c = np.array(c, float)
+        c = self._fill_notches(np.array(c, float))
         for _ in range(sweeps):
             for g in groups:
                 shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else []) \
                     + ([np.sin(np.pi * (np.arange(g) + 0.5) / g)] if g > 4 else [])
                 up = np.concatenate([1.0 + np.outer(PUSH_STEPS, sh) for sh in shapes])    # (columns, g)
                 self._raise(c, g, lambda c, rows, k: up[None, :, k], (up - 1).sum(axis=1))
+        return c
+
+    def _fill_notches(self, c):
+        """c (in place) with each notch (a free coefficient below NOTCH × its smaller neighbour)
+        raised to the largest of NOTCH_FILL × that neighbour that keeps its stations within the
+        limits (_raise; none where none does)."""
+        inner = c[1:-1]
+        neighbour = np.minimum(c[:-2], c[2:])
+        notch = np.zeros(len(c), bool)
+        notch[1:-1] = inner < NOTCH * neighbour
+        if notch.any():
+            def factors(c, rows, k):
+                want = np.minimum(c[rows - 1], c[rows + 1])[:, None] * NOTCH_FILL[None, :]
+                up = np.maximum(want / np.maximum(c[rows], TINY)[:, None], 1.0)
+                return np.where(notch[rows][:, None], up, 1.0)
+            self._raise(c, 1, factors, NOTCH_FILL)
         return c
 
     def scaled_within(self, c):

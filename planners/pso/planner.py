@@ -28,17 +28,19 @@ as far as its stations allow.
 Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
 the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
 block's best) stays within the limits at the stations (Deb's feasibility rule); after each
-iteration the context is pushed to the limits (feed.push: each coefficient, or groups of up
-to 16 neighbours, raised by the largest step that keeps their stations within the limits: a repair
-operator in the sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed
+iteration the context is pushed to the limits (feed.push: a notch filled toward its
+neighbours, then each coefficient, or groups of up to 16 neighbours, raised by the largest step
+that keeps their stations within the limits: a repair operator in the sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed
 lies).  Where its samples at T read above a limit, the limit is held lower at the stations
 there, the context is brought within it again (feed.start_within) and the swarm goes on (_search).
 
 Polish (`pso_socp` only): the TOPP3-SOCP (topp3.py), linearised on each piece around the larger
 of the swarm's and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2
 solves; a first solve within lin_tol of that reference's time ends them), then checked and
-repaired at T like `optimal`'s.  The swarm's, the polished and the seed's times are in info
-(``swarm_time_s``, ``polished_time_s``, ``seed_time_s``).
+repaired at T like `optimal`'s; where it has no solution, solved again on the engine's own
+stations around TOPP2-RA's profile (info["polish_reference"]; the failure in info["polish"]).
+The swarm's, the polished and the seed's times are in info (``swarm_time_s``,
+``polished_time_s``, ``seed_time_s``).
 
 Returned: the fastest of the swarm's profile, the seed (the swarm's initial guess) and, for
 `pso_socp`, the polished profile, each checked at T (joint limits and F_max), so neither is
@@ -170,17 +172,31 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
         # linearised around the larger of the swarm's and the seed's ṡ² at each station: the
         # tangent rows hold the limits around any reference, and they allow at most 3 × its ṡ²
         # in one solve, so a reference further below the optimum costs linearisations
-        info["polish_reference"] = "seed and swarm" if spans else "seed"
+        # where that fails (the IPM without a solution, then Clarabel's NUMERICAL_ERROR:
+        # butterfly_lcnc and rand_tilted_weights_keops on some seeds), on fresh pieces of the
+        # engine's own stations (not the swarm's denser ones) around TOPP2-RA's profile, with
+        # the engine's linearisations (TOPP2-RA is far above any jerk-limited feed), as `optimal`
+        # starts
         for k, p in enumerate(pieces):
             p.reference = _seed_feed(seed_prof, p) ** 2
             if spans:
                 p.reference = np.maximum(p.reference, spans[k].a_at_stations())
-        try:
-            pol = topp3.solve(path, machine, limits, settings, pieces)
+        failed = []
+        for reference in ("seed and swarm" if spans else "seed", "TOPP2-RA"):
+            if reference == "TOPP2-RA":
+                settings = topp3.Settings(name, grid_mm, join_grading=True)
+                pieces = topp3.pieces_of(path, machine, limits, settings, stops)
+            try:
+                pol = topp3.solve(path, machine, limits, settings, pieces)
+            except PlanningError as e:
+                failed.append(f"around {reference}: {e}")
+                continue
+            info["polish_reference"] = reference
             info["polished_time_s"] = pol.execution_time_s
             candidates.append(("polished", pol))
-        except PlanningError as e:
-            info["polish"] = str(e)
+            break
+        if failed:
+            info["polish"] = "; ".join(failed)
     candidates.append(("seed", seed_prof))
     ok = []
     for which, prof in candidates:
