@@ -100,6 +100,7 @@ class FeedSpline:
         self.sup_hi = np.searchsorted(self.x, self.knots[4:self.K + 4], side="right") - 1
         d1, d2, d3 = piece.deriv[1:]
         self.d1, self.d2, self.d3 = d1, d2, d3
+        self.d2x3 = 3 * d2
         self.v_abs = np.abs(d1).max(axis=1)
         self.lims = [lim * (1 - margin) for lim in piece.lims]
         # the feed caps (F_max, the chord-error cap) bind ṡ itself, which the stations read
@@ -236,13 +237,32 @@ class FeedSpline:
             sd_all[lo:hi] = sd
             sd2 = sd * sd
             sd3 = sd2 * sd
-            qa = qj = 0.0
+            # in place (the push reads ~1000 column sets a sweep): the same operations in the
+            # same order as |d2ṡ² + d1s̈| and |d3ṡ³ + 3d2ṡs̈ + d1s⃛| per joint
+            qa, qj, t, u = (np.empty_like(sd) for _ in range(4))
             for m in range(3):
                 d1, d2, d3 = self.d1[lo:hi, m:m + 1], self.d2[lo:hi, m:m + 1], self.d3[lo:hi, m:m + 1]
-                qa = np.maximum(qa, np.abs(d2 * sd2 + d1 * sdd))
-                qj = np.maximum(qj, np.abs(d3 * sd3 + 3 * d2 * sd * sdd + d1 * sddd))
-            need[lo:hi] = np.maximum(np.maximum(self.q_v[lo:hi] * sd, self.q_feed[lo:hi] * sd),
-                                     np.maximum(np.sqrt(qa * self.q_a[lo:hi]), np.cbrt(qj * self.q_j[lo:hi])))
+                a = qa if m == 0 else t
+                np.multiply(d2, sd2, out=a)
+                a += np.multiply(d1, sdd, out=u)
+                np.abs(a, out=a)
+                if m:
+                    np.maximum(qa, a, out=qa)
+                j = qj if m == 0 else t
+                np.multiply(d3, sd3, out=j)
+                np.multiply(self.d2x3[lo:hi, m:m + 1], sd, out=u)
+                u *= sdd
+                j += u
+                j += np.multiply(d1, sddd, out=u)
+                np.abs(j, out=j)
+                if m:
+                    np.maximum(qj, j, out=qj)
+            qa *= self.q_a[lo:hi]
+            qj *= self.q_j[lo:hi]
+            out = need[lo:hi]
+            np.multiply(self.q_vf[lo:hi], sd, out=out)
+            np.maximum(out, np.sqrt(qa, out=qa), out=out)
+            np.maximum(out, np.cbrt(qj, out=qj), out=out)
         if len(self.jr_at):
             sd, sdd, sddd = (x[:, None, :] for x in self.motion(C, self.jr_bases))     # (R, 1, P)
             jerk = self.jr_d3 * sd ** 3 + 3 * self.jr_d2 * sd * sdd + self.jr_d1 * sddd    # (R, 3, P)
@@ -269,6 +289,8 @@ class FeedSpline:
         self.q_feed = (1.0 / np.sqrt(self.cap2 * f[:, 3] ** 2))[:, None]
         self.q_a = (1.0 / (A * f[:, 1]))[:, None]
         self.q_j = (1.0 / (J * f[:, 2]))[:, None]
+        # max(q_v·ṡ, q_feed·ṡ) = max(q_v, q_feed)·ṡ exactly (ṡ ≥ 0, rounding is monotone)
+        self.q_vf = np.maximum(self.q_v, self.q_feed)
 
     def tighten(self, col: int, s_lo: float, s_hi: float, ratio: float, extra: float) -> None:
         """Limit ``col`` (topp3.LIMIT_COLUMNS) at the stations under [s_lo, s_hi] (path s) and two
