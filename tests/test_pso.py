@@ -391,15 +391,19 @@ def test_a_swarm_stretched_across_many_pieces_gets_the_rounds_they_need():
     assert prof.execution_time_s < 1.3 * t_ref
 
 
+def _with_f_max(machine, f_max):
+    import dataclasses
+    from kins.machine import MachineLimits
+    lim = machine.limits
+    return dataclasses.replace(machine, limits=MachineLimits(lim.joint, lim.cartesian, f_max, lim.chord_error_mm))
+
+
 def test_a_feed_at_f_max_is_held_at_f_max_not_below_it():
     """The corner path with F_max = 100 mm/s (a tenth of keops's, far below what the joints allow
     on its lines): the swarm cruises at F_max itself, read at T (0.99965 measured; held to
     1 − margin, 0.998 at most: spiral_cone_kossel, at F_max nearly everywhere, lost 0.22 % to its
     seed on every seed).  The joint limits keep their margin."""
-    import dataclasses
-    from kins.machine import MachineLimits
-    lim = KEOPS.limits
-    slow = dataclasses.replace(KEOPS, limits=MachineLimits(lim.joint, lim.cartesian, 100.0, lim.chord_error_mm))
+    slow = _with_f_max(KEOPS, 100.0)
     p = plan("pso", PATH, slow, **FAST)
     r = command_metrics(slow, PATH.point(p.s), p.T, p.s)
     assert p.info["returned"] == "swarm" and r["feasible"]
@@ -439,3 +443,17 @@ def test_a_polish_that_fails_is_solved_again_around_topp2_ra(monkeypatch):
     assert p.info["returned"] == "polished" and p.execution_time_s == p.info["polished_time_s"]
     r = command_metrics(KEOPS, PATH.point(p.s), p.T, p.s)
     assert r["feasible"] and p.execution_time_s < p.info["swarm_time_s"]
+
+
+def test_the_feed_cap_is_read_between_the_stations_too():
+    """The need at each station covers the feed at the middle of the interval after it (the
+    spline evaluated there by scipy, against the higher cap of the two stations): held to F_max
+    at the stations only, the spline bulged up to 1.1e-3 above it between them (rand_planar_kossel)."""
+    feed = _feed(machine=_with_f_max(KEOPS, 100.0))
+    c = feed.push(feed.start_within(feed.fit(np.sqrt(feed.a_ra))), 2)
+    x_mid = (feed.x[:-1] + feed.x[1:]) / 2
+    sd_mid = np.cbrt(np.maximum(feed.spline(c)(x_mid), 0.0)) ** 2
+    cap_mid = np.sqrt(np.maximum(feed.cap2[:-1], feed.cap2[1:]))
+    need = feed.reads(c)[1][:, 0]
+    assert np.all(need[:-1] >= sd_mid / cap_mid * (1 - 1e-12))
+    assert (sd_mid / cap_mid).max() > 1 - 1e-6       # the cap binds: the test reads it

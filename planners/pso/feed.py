@@ -93,6 +93,10 @@ class FeedSpline:
         self.knots = np.concatenate([[0.0] * 4, inner, [self.L] * 4])
         self.K = len(self.knots) - 4
         self.bases = self._bases()
+        # w at the middle of every interval: the feed caps are read there too (a spline held to
+        # F_max at the stations bulged up to 1.1e-3 above it between them, and its samples at T
+        # read so in 532 windows on rand_planar_kossel)
+        self.mid_basis = sparse.csr_matrix(BSpline.design_matrix((self.x[:-1] + self.x[1:]) / 2, self.knots, 3))
         self.chunks = [(lo, min(lo + CHUNK, len(self.x))) for lo in range(0, len(self.x), CHUNK)]
         self.chunk_bases = [[B[lo:hi] for B in self.bases] for lo, hi in self.chunks]
         # per coefficient: the first and last station under its support [t_k, t_{k+4}]
@@ -263,6 +267,9 @@ class FeedSpline:
             np.multiply(self.q_vf[lo:hi], sd, out=out)
             np.maximum(out, np.sqrt(qa, out=qa), out=out)
             np.maximum(out, np.cbrt(qj, out=qj), out=out)
+        w_mid = np.maximum(self.mid_basis @ C, 0.0)
+        cb = np.cbrt(w_mid, out=w_mid)
+        np.maximum(need[:-1], np.multiply(cb, cb, out=cb) * self.q_feed_mid, out=need[:-1])
         if len(self.jr_at):
             sd, sdd, sddd = (x[:, None, :] for x in self.motion(C, self.jr_bases))     # (R, 1, P)
             jerk = self.jr_d3 * sd ** 3 + 3 * self.jr_d2 * sd * sdd + self.jr_d1 * sddd    # (R, 3, P)
@@ -291,6 +298,9 @@ class FeedSpline:
         self.q_j = (1.0 / (J * f[:, 2]))[:, None]
         # max(q_v·ṡ, q_feed·ṡ) = max(q_v, q_feed)·ṡ exactly (ṡ ≥ 0, rounding is monotone)
         self.q_vf = np.maximum(self.q_v, self.q_feed)
+        # an interval's middle under the higher cap of its two stations: a G1 join's cap holds at
+        # its station only (topp3.Piece.cap2), F_max and the chord-error cap vary slowly
+        self.q_feed_mid = np.minimum(self.q_feed[:-1], self.q_feed[1:])
 
     def tighten(self, col: int, s_lo: float, s_hi: float, ratio: float, extra: float) -> None:
         """Limit ``col`` (topp3.LIMIT_COLUMNS) at the stations under [s_lo, s_hi] (path s) and two
