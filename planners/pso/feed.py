@@ -55,9 +55,7 @@ PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
 PUSH_GROUPS = (1, 2, 4, 8, 16)
 # a coefficient below NOTCH × the smaller of its neighbours is a notch, and a push first tries to
 # raise it to these fractions of that neighbour: relative raises (PUSH_STEPS, the swarm's
-# log-steps) take dozens of feasible steps out of one (a refinement's least squares or a repair
-# can leave a coefficient at ~1e-3 of its neighbours next to a near-cusp's tip, where the feed
-# then crawls: cusp_trochoid_lcnc)
+# log-steps) take dozens of feasible steps out of one, and the feed crawls there (docs/TUNING.md)
 NOTCH = 0.1
 NOTCH_FILL = np.array([1.0, 0.5, 0.25, 0.1, 0.03])
 
@@ -93,9 +91,8 @@ class FeedSpline:
         self.knots = np.concatenate([[0.0] * 4, inner, [self.L] * 4])
         self.K = len(self.knots) - 4
         self.bases = self._bases()
-        # w at the middle of every interval: the feed caps are read there too (a spline held to
-        # F_max at the stations bulged up to 1.1e-3 above it between them, and its samples at T
-        # read so in 532 windows on rand_planar_kossel)
+        # w at the middle of every interval: the feed caps are read there too, where a spline
+        # held to a cap at the stations bulges above it (docs/TUNING.md)
         self.mid_basis = sparse.csr_matrix(BSpline.design_matrix((self.x[:-1] + self.x[1:]) / 2, self.knots, 3))
         self.chunks = [(lo, min(lo + CHUNK, len(self.x))) for lo in range(0, len(self.x), CHUNK)]
         self.chunk_bases = [[B[lo:hi] for B in self.bases] for lo, hi in self.chunks]
@@ -107,9 +104,9 @@ class FeedSpline:
         self.d2x3 = 3 * d2
         self.v_abs = np.abs(d1).max(axis=1)
         self.lims = [lim * (1 - margin) for lim in piece.lims]
-        # the feed caps (F_max, the chord-error cap) bind ṡ itself, which the stations read
-        # exactly: held at 1 − margin, a path run at F_max nearly everywhere lost the margin on
-        # every seed to its seed (spiral_cone_kossel: 0.22–0.25 %)
+        # the feed caps (F_max, the chord-error cap) bind ṡ itself, read exactly at the stations
+        # and their middles: no margin, or a path at F_max is slower than its seed, which cruises
+        # at F_max itself
         self.cap2 = piece.cap2
         self.joins = piece.joins
         # a join's read at T as rows: at the join either side, and (graded stations) weighted

@@ -30,8 +30,8 @@ the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the conte
 block's best) stays within the limits at the stations (Deb's feasibility rule); after each
 iteration the context is pushed to the limits (feed.push: a notch filled toward its
 neighbours, then each coefficient, or groups of up to 16 neighbours, raised by the largest step
-that keeps their stations within the limits: a repair operator in the sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed
-lies).  Where its samples at T read above a limit, the limit is held lower at the stations
+that keeps their stations within the limits: a repair operator in the sense of Michalewicz's
+GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above a limit, the limit is held lower at the stations
 there, the context is brought within it again (feed.start_within) and the swarm goes on (_search).
 
 Polish (`pso_socp` only): the TOPP3-SOCP (topp3.py), linearised on each piece around the larger
