@@ -103,15 +103,17 @@ def worst_sample(X: np.ndarray, T: float, limits: Limits) -> tuple[str, int, flo
     return best
 
 
-def command_metrics(machine, P: np.ndarray, T: float, s: np.ndarray | None = None) -> dict:
-    """Metrics of a commanded Cartesian trajectory P (N, 3) sampled at T on ``machine``.
+def command_metrics(machine, P: np.ndarray, T: float, s: np.ndarray | None = None, limits=None) -> dict:
+    """Metrics of a commanded Cartesian trajectory P (N, 3) sampled at T on ``machine``,
+    against ``limits`` (kins.MachineLimits; None: the machine's own).
 
     ``s`` (arc length at each sample) adds the feed ratio against F_max.
     Raises kins.WorkspaceError if a point leaves the workspace.
     """
+    limits = machine.limits if limits is None else limits
     Q = machine.ik(P)
-    jpeak, jviol = limit_ratios(Q, T, machine.limits.joint)
-    cpeak, cviol = limit_ratios(P, T, machine.limits.cartesian)
+    jpeak, jviol = limit_ratios(Q, T, limits.joint)
+    cpeak, cviol = limit_ratios(P, T, limits.cartesian)
     out = {
         "execution_time_s": float((len(P) - 1) * T),
         "joint_peak_ratio": jpeak,
@@ -122,7 +124,7 @@ def command_metrics(machine, P: np.ndarray, T: float, s: np.ndarray | None = Non
     }
     if s is not None:
         feed = np.diff(np.asarray(s, float)) / T
-        out["cartesian_peak_ratio"]["feed"] = float(np.abs(feed).max() / machine.limits.feed_max) if len(feed) else 0.0
+        out["cartesian_peak_ratio"]["feed"] = float(np.abs(feed).max() / limits.feed_max) if len(feed) else 0.0
     return out
 
 

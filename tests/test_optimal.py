@@ -414,24 +414,26 @@ def test_slowed_down_scales_each_order_by_its_power(monkeypatch):
 
 
 def test_the_faster_of_the_solution_and_its_start_within_the_limits():
-    """_faster_of keeps the NLP's profile unless its (checked) start is faster; a start above a
-    limit is never returned: with no solution the NLP's failure is raised."""
+    """_faster_of keeps the NLP's profile unless its start, checked against the limits it is given,
+    is faster; a start above a limit is never returned: with no solution the NLP's failure is raised."""
     path = vertical(10.0)
     fast = plan("scurve_joint", path, KOSSEL)
     slow = plan("scurve_joint", path, KOSSEL, margin=0.1)
     assert slow.execution_time_s > fast.execution_time_s
-    out = optimal._faster_of(slow, fast, KOSSEL, path, None)
+    out = optimal._faster_of(slow, fast, KOSSEL, path, KOSSEL.limits, None)
     assert out.planner == "optimal" and out.info["source"] == "warm start (scurve_joint)"
     assert np.array_equal(out.s, fast.s)
-    assert optimal._faster_of(fast, slow, KOSSEL, path, None) is fast
+    assert optimal._faster_of(fast, slow, KOSSEL, path, KOSSEL.limits, None) is fast
     lim = KOSSEL.limits
     double = MachineLimits(Limits(2 * lim.joint.v, 2 * lim.joint.a, 2 * lim.joint.j), lim.cartesian,
                            2 * lim.feed_max, lim.chord_error_mm)
     over = plan("scurve_joint", path, KOSSEL, double)           # above KOSSEL's own limits
     assert not command_metrics(KOSSEL, path.point(over.s), over.T, over.s)["feasible"]
     with pytest.raises(PlanningError, match="IPOPT failed"):
-        optimal._faster_of(None, over, KOSSEL, path, PlanningError("optimal: IPOPT failed on piece …"))
-    assert optimal._faster_of(slow, over, KOSSEL, path, None) is slow
+        optimal._faster_of(None, over, KOSSEL, path, KOSSEL.limits, PlanningError("optimal: IPOPT failed on piece …"))
+    assert optimal._faster_of(slow, over, KOSSEL, path, KOSSEL.limits, None) is slow
+    # checked against the limits it is given: within the doubled ones, the faster start wins
+    assert np.array_equal(optimal._faster_of(slow, over, KOSSEL, path, double, None).s, over.s)
 
 
 @pytest.mark.parametrize("coarse, relaxations, grids_run", [

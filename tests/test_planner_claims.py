@@ -111,3 +111,27 @@ def test_pso_meets_the_issue_targets_against_the_optimum(machine_name):
     q = run("pso", machine_name)[2]
     assert t_opt - T <= q.execution_time_s <= 1.05 * t_opt
     assert info["swarm_time_s"] >= t_opt - T
+
+def _tighter(m):
+    """keops's limits with F_max at 60 mm/s (the short path's lines are held by the joints
+    near 200 mm/s) and every joint limit at 0.7 × its own."""
+    from dataclasses import replace
+    from kins.machine import Limits
+    lim, j = m.limits, m.limits.joint
+    return replace(lim, joint=Limits(0.7 * j.v, 0.7 * j.a, 0.7 * j.j), feed_max=60.0)
+
+
+@pytest.mark.parametrize("name", ["scurve_joint", "optimal", "pso", "pso_socp", "copp"])
+def test_limits_passed_to_a_planner_are_the_limits_it_keeps(name):
+    """planners.plan(…, limits=…) plans against those limits and checks its result at T against
+    them, not against the machine's (pso read 1.002 × a lower F_max passed this way when its
+    check at T read the machine's F_max); the profile is also slower than with the machine's."""
+    m = load_machine("keops")
+    path = short_path(m)
+    lim = _tighter(m)
+    p = plan(name, path, m, lim, **OPTIONS.get(name, {}))
+    r = command_metrics(m, path.point(p.s), p.T, p.s, lim)
+    assert r["feasible"], r["joint_peak_ratio"]
+    assert r["cartesian_peak_ratio"]["feed"] <= TOL
+    assert r["cartesian_peak_ratio"]["feed"] > 0.99         # F_max binds: the test reads it
+    assert p.execution_time_s > run(name, "keops")[2].execution_time_s

@@ -253,7 +253,7 @@ def _nlp_resolves(prof, path, node_period_s, max_nodes) -> bool:
 
 def _within(machine, path, prof, limits) -> tuple[bool, str]:
     """(within the joint limits and F_max at T, what reads worst where it is not)."""
-    r = command_metrics(machine, path.point(prof.s), prof.T, prof.s)
+    r = command_metrics(machine, path.point(prof.s), prof.T, prof.s, limits)
     if keeps_joints_and_feed(r):
         return True, ""
     feed = r["cartesian_peak_ratio"].get("feed", 0.0)
@@ -357,14 +357,14 @@ def _polish(path, machine, limits, warm, margin=0.005, node_period_s=1e-3, max_n
             failure = e
             if not isinstance(e, (IpoptFailure, NoFasterThanStart)):
                 break
-    return _faster_of(prof, warm, machine, path, failure)
+    return _faster_of(prof, warm, machine, path, limits, failure)
 
 
-def _faster_of(prof, warm, machine, path, failure) -> Profile:
+def _faster_of(prof, warm, machine, path, limits, failure) -> Profile:
     """The NLP's solution or, where its start is within the limits at T and faster (the NLP
     failed, or its slow-down cost more than it gained), the start as `optimal`'s answer, saying
     so in info["source"]."""
-    r = command_metrics(machine, path.point(warm.s), warm.T, warm.s)
+    r = command_metrics(machine, path.point(warm.s), warm.T, warm.s, limits)
     warm_ok = keeps_joints_and_feed(r)
     if prof is not None and (not warm_ok or prof.execution_time_s <= warm.execution_time_s):
         prof.info["source"] = "nlp"
@@ -399,7 +399,7 @@ def _solve(path, machine, limits, problems, pcs, warm, stretch, node_period_s, m
             # within the limits less the margin m, so the margin-free optimum on these nodes is
             # ≥ T₁·(1 − m) (IPOPT's optimum is local: a bound of the node relaxation, not a certificate)
             bound = duration(sols) * (1 - max(max(m.values()) for m in margins))
-        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s, limits)
         if keeps_joints_and_feed(r):
             break
         # the limits hold at the nodes only: where the node budget spread a piece's grid
@@ -469,7 +469,7 @@ def _slowed_down(machine, path, prof, pcs, limits, sols, r, T, statuses, too_slo
         total *= lam
         _check_duration(sols, too_slow, "solution slowed down to the limits")
         prof = sample_cubic(sols, T, path, dict(info, slowed_down=[float(x) for x in total]))
-        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s, limits)
         if keeps_joints_and_feed(r):
             return prof
     raise _limit_error(machine, path, prof, limits, r, statuses)

@@ -200,7 +200,7 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
     candidates.append(("seed", seed_prof))
     ok = []
     for which, prof in candidates:
-        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s, limits)
         if keeps_joints_and_feed(r):
             ok.append((prof.execution_time_s, which, prof))
     if not ok:
@@ -325,7 +325,7 @@ def _stretched_at_T(spans, T, path, machine, limits, too_slow):
         if sum(sp.duration for sp in spans) > too_slow:
             return None
         prof = Profile.from_pieces("pso", T, spans, path)
-        r = command_metrics(machine, path.point(prof.s), T, prof.s)
+        r = command_metrics(machine, path.point(prof.s), T, prof.s, limits)
         if keeps_joints_and_feed(r):
             return prof
         need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
