@@ -113,8 +113,9 @@ def test_pso_meets_the_issue_targets_against_the_optimum(machine_name):
     assert info["swarm_time_s"] >= t_opt - T
 
 def _tighter(m):
-    """keops's limits with F_max at 60 mm/s (the short path's lines are held by the joints
-    near 200 mm/s) and every joint limit at 0.7 × its own."""
+    """keops's limits with F_max at 60 mm/s (with keops's own limits the joints hold the short
+    path's peak feed at 538 mm/s under scurve_joint, 589 under copp) and every joint limit at
+    0.7 × its own."""
     from dataclasses import replace
     from kins.machine import Limits
     lim, j = m.limits, m.limits.joint

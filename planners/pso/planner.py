@@ -31,8 +31,9 @@ block's best) stays within the limits at the stations (Deb's feasibility rule); 
 iteration the context is pushed to the limits (feed.push: a notch filled toward its
 neighbours, then each coefficient, or groups of up to 16 neighbours, raised by the largest step
 that keeps their stations within the limits: a repair operator in the sense of Michalewicz's
-GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above a limit, the limit is held lower at the stations
-there, the context is brought within it again (feed.start_within) and the swarm goes on (_search).
+GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above
+a limit, the limit is held lower at the stations there, the context is brought within it again
+(feed.start_within) and the swarm goes on (_search).
 
 Polish (`pso_socp` only): the TOPP3-SOCP (topp3.py), linearised on each piece around the larger
 of the swarm's and the seed's ṡ² at each station instead of TOPP2-RA's profile (at most 2
@@ -160,7 +161,7 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
     history = progress.history
     info = {"seed": seed, "particles": particles, "iterations_run": len(history) - 1, "near_stops": stops,
             "stopped_by": progress.stopped_by, "control_points": [f.K for f in feeds],
-"start_time_s": None if no_start else progress.history[0][1] * pieces[0].tu,
+            "start_time_s": None if no_start else progress.history[0][1] * pieces[0].tu,
             "seed_time_s": float(seed_prof.execution_time_s), "swarm_repairs": repairs,
             **({"swarm": f"no start within the limits on {', '.join(no_start)}"} if no_start else {}),
             "history": [[h[0], h[1] * pieces[0].tu] for h in history[:: max(1, len(history) // 50)] + history[-1:]
