@@ -142,6 +142,31 @@ def test_repair_windows_reach_the_speed_valleys_and_merge():
     assert topp3._windows(np.zeros(100, bool), grid, a, 2.0, 1) == []
 
 
+def test_a_stations_tightening_extra_doubles_with_its_own_repairs_not_the_round():
+    """A window read at ratio r tightens its limit at the stations under it (and one either
+    side) to factor / (r·(1 + e·2^n)), n the times that station's limit was tightened before:
+    a window first read in a late round is tightened by e, not by e·2^round (doubled per round,
+    866 G1 joins' reads on cam_dense_lcnc compounded to 13.066 s from 12.785 s at the stations;
+    per station they converged in 20 rounds to 12.996 s).  The other limits are left alone."""
+    grid = np.arange(0.0, 10.01, 1.0)
+    p = topp3.Piece.__new__(topp3.Piece)
+    p.grid, p.s0 = grid, 0.0
+    p.factor = np.ones((len(grid), len(topp3.LIMIT_COLUMNS)))
+    p.times_tightened = np.zeros_like(p.factor, dtype=int)
+    p.changed = np.zeros(len(grid), bool)
+    p.span = "solved"
+    e, jerk = topp3.TIGHTEN_EXTRA, 2
+    topp3._tighten([p], [(jerk, 2.0, 2.0, 1.1)], e)          # round 0: stations 1…3
+    assert p.factor[1:4, jerk] == pytest.approx(1 / (1.1 * (1 + e)))
+    assert p.factor[0, jerk] == 1 and np.all(p.factor[4:, jerk] == 1) and np.all(p.factor[:, [0, 1, 3]] == 1)
+    assert p.span is None and p.changed[1:4].all() and not p.changed[4:].any()
+    topp3._tighten([p], [(jerk, 8.0, 8.0, 1.05)], e)         # round 1: fresh stations 7…9
+    assert p.factor[7:10, jerk] == pytest.approx(1 / (1.05 * (1 + e)))
+    topp3._tighten([p], [(jerk, 2.0, 2.0, 1.02)], e)         # round 2: stations 1…3 again
+    assert p.factor[1:4, jerk] == pytest.approx(1 / (1.1 * (1 + e) * 1.02 * (1 + 2 * e)))
+    assert list(p.times_tightened[:, jerk]) == [0, 2, 2, 2, 0, 0, 0, 1, 1, 1, 0]
+
+
 def test_a_reference_at_the_fixed_point_ends_the_linearisations_after_one_solve(monkeypatch):
     """From TOPP2-RA's profile the SCP takes ≥ 2 solves (the gain of the second decides); from
     a reference that is already its fixed point (the converged solution) the first solve moves

@@ -13,8 +13,9 @@ cap; the G1-join reads).  Two transcriptions:
   never grows from one linearisation to the next; they stop where the next is predicted to gain
   < LIN_PREDICTED: topp3.linearisation_cost), checked at T and repaired in windows where a
   difference reads above a limit (a joint read within half of CHAIN_MARGIN is left:
-  Settings.read_slack); where 8 rounds of that leave reads above, the fastest of the rounds'
-  profiles stretched in time around their reads (topp3._stretch).  The stations are solved
+  Settings.read_slack; a station's extra tightening doubles each time it is tightened again);
+  where topp3.MAX_REPAIRS rounds of that leave reads above, the fastest of the rounds' profiles
+  stretched in time around their reads (topp3._stretch).  The stations are solved
   twice as coarse first (the first linearisation of the finer solve, the NURBS knots whose
   false cap the coarse speed reaches: topp3.binding_knots, a station at each without jerk rows,
   so each side's cell holds its own q‴; and the cells where the coarse speed changes by more

@@ -39,7 +39,8 @@ station from the IK's stencil (constraints.joint_derivs), not interpolated.  The
 at the stations.  Between them (a(s) is quadratic there and bulges over a bound held at both
 ends) the check at T can read above them: the profile is sampled at T and checked; where a
 difference window reads a limit r > 1, that limit is held to its fraction / (r·(1 + extra)) at
-the stations under the window and one either side, and only a window of stations around
+the stations under the window and one either side (extra doubling with each time that station
+was tightened before), and only a window of stations around
 those is solved again, its ends held at the last solution's a and b (a window's solve is a
 fraction of a whole piece's), up to MAX_REPAIRS rounds; where a limit still reads above then,
 the last resort returns the fastest, of those within the limits, of every round's profile
@@ -106,12 +107,16 @@ SPEED_SPLIT_MAX = 64
 # µm: on the line's 0.05 mm cell beside it, a(s) left it as one quadratic, whose time (a log
 # near a ≈ 0) the SOCP's chord time misses; a 2× grading bounds a's ratio across each cell.
 GRADED_MIN_MM = 1e-6
-# rounds of the check at T and local tightening; a limit is tightened by `extra` more than it
-# read, doubled each round (windows next to a G1 join read above again by less each time);
-# then the last resort's time stretches (_stretch), each up to MAX_STRETCHES rounds (a uniform
-# stretch moves every later piece's samples at T, so a piece not stretched yet can read above
-# next: long programs of many pieces need many)
-MAX_REPAIRS = 8
+# rounds of the check at T and local tightening; a limit is tightened at a station by
+# TIGHTEN_EXTRA more than it read, doubled each time that station's limit was tightened before
+# (windows next to a G1 join read above again by less each time).  Doubled each round instead,
+# a window first read in round 7 was tightened 13 % more than it read: on cam_dense_lcnc's 866
+# G1 joins the rounds compounded (12.785 s at the stations, 13.066 s repaired; 12.996 s, no
+# window left after 20 rounds, per station: docs/TUNING.md); then the last resort's time
+# stretches (_stretch), each up to MAX_STRETCHES rounds (a uniform stretch moves every later
+# piece's samples at T, so a piece not stretched yet can read above next: long programs of
+# many pieces need many)
+MAX_REPAIRS = 20
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 24
 # a local stretch (timewarp.py) with more bumps than this gives way to the uniform one
@@ -357,6 +362,7 @@ class Piece:
         # per station the fraction of each limit (LIMIT_COLUMNS) it is held to: 1 until the
         # check at T reads the limit above 1 in a window over the station (tighten)
         self.factor = np.ones((len(self.grid), len(LIMIT_COLUMNS)))
+        self.times_tightened = np.zeros((len(self.grid), len(LIMIT_COLUMNS)), int)
         self.changed = np.zeros(len(self.grid), bool)
         self.prof = self.span = self.reference = self.relaxed = None
         self.reference_is_coarser = False
@@ -550,7 +556,7 @@ class Piece:
         g = self.grid
         i0 = max(int(np.searchsorted(g, s_lo, side="right")) - 2, 0)
         i1 = min(int(np.searchsorted(g, s_hi, side="left")) + 2, len(g))
-        want = self.factor[i0:i1, col] / (ratio * (1 + extra))
+        want = self.factor[i0:i1, col] / (ratio * (1 + extra * 2.0 ** self.times_tightened[i0:i1, col]))
         new[i0:i1, col] = np.minimum(new[i0:i1, col], want)
 
 
@@ -700,6 +706,7 @@ def _tighten(pieces, above, extra) -> None:
                        int(np.searchsorted(starts, hi, side="right"))):
             pieces[g].tighten(col, lo, hi, ratio, new[g], extra)
     for p, f in zip(pieces, new):
+        p.times_tightened += f < p.factor
         moved = np.any(p.factor != f, axis=1)
         if moved.any():
             p.factor, p.span = f, None
@@ -861,7 +868,7 @@ def solve(path, machine, limits, settings: Settings, pieces: list[Piece] | None 
         # what the round read above: windows per limit, the time before tightening
         info["tightened"].append({"time_s": prof.execution_time_s,
                                   **{c: sum(1 for a in above if a[0] == m) for m, c in enumerate(LIMIT_COLUMNS)}})
-        _tighten(pieces, above, TIGHTEN_EXTRA * 2 ** rnd)
+        _tighten(pieces, above, TIGHTEN_EXTRA)
     prof.info["station_relaxation_s"] = info["station_relaxation_s"]
     prof.info["above_at_T"] = len(above)
     prof.info["insufficient_progress"] = sum(p.insufficient_progress for p in pieces)
