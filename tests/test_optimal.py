@@ -452,16 +452,40 @@ def test_stations_are_halved_while_the_last_halving_moved_their_time(monkeypatch
     grids, out = [], []
 
     def solve(path_, machine, limits, settings, pieces=None):
-        r = relaxations[len(grids)]
+        r = relaxations[len(grids)] if settings.grid_mm <= optimal.GRID_MM else 2.0   # the coarse candidate: slower
         grids.append(settings.grid_mm)
         out.append(dataclasses.replace(base, info=dict(base.info, station_relaxation_s=r, continuous_time_s=r)))
         return out[-1]
     monkeypatch.setattr(optimal.topp3, "solve", solve)
     p = optimal.plan(path, KOSSEL, polish=False)
-    assert grids == [optimal.GRID_MM / optimal.STATION_REFINEMENT ** k for k in range(grids_run)]
-    assert p.info["grid_mm"] == grids[-1]
+    coarse_grid = optimal.GRID_MM * optimal.STATION_REFINEMENT     # repaired too, last: no faster here
+    assert grids == [optimal.GRID_MM / optimal.STATION_REFINEMENT ** k for k in range(grids_run)] + [coarse_grid]
+    assert p.info["grid_mm"] == grids[-2]
     previous = ([coarse] + relaxations)[grids_run - 1]
     assert p.info["spacing_gain"] == pytest.approx(1 - relaxations[grids_run - 1] / previous)
+
+
+def test_the_coarse_stations_repaired_are_returned_where_they_are_the_fastest_within(monkeypatch):
+    """The coarse stations (STATION_REFINEMENT × grid_mm, solved first for the finer solve's
+    linearisation) are repaired at T too, and returned where that is faster within the limits
+    (cam_dense_lcnc: 12.970 s at 0.1 mm against 13.001 s at 0.05 mm, whose repairs cost more);
+    where it reads above a limit at T it is never returned."""
+    path = vertical(10.0)
+    base = optimal.topp3.solve(path, KOSSEL, KOSSEL.limits, optimal.topp3.Settings("optimal"))
+    for coarse_ok in (True, False):
+        grids = []
+
+        def solve(path_, machine, limits, settings, pieces=None):
+            t = 0.9 if settings.grid_mm > optimal.GRID_MM else 1.0
+            grids.append(settings.grid_mm)
+            return dataclasses.replace(base, info=dict(base.info, station_relaxation_s=t, continuous_time_s=t))
+        monkeypatch.setattr(optimal.topp3, "solve", solve)
+        monkeypatch.setattr(optimal, "_within", lambda m, pa, prof, lim: (True, "") if coarse_ok or
+                            prof.info["continuous_time_s"] == 1.0 else (False, "joint jerk 1.2 × its limit"))
+        p = optimal.plan(path, KOSSEL, polish=False)
+        assert grids[-1] == optimal.GRID_MM * optimal.STATION_REFINEMENT
+        assert p.info["grid_mm"] == (grids[-1] if coarse_ok else optimal.GRID_MM)
+        assert p.info["continuous_time_s"] == (0.9 if coarse_ok else 1.0) and p.info["source"] == "socp"
 
 
 def _delayed_s(pieces, T, path, delay):

@@ -24,7 +24,9 @@ cap; the G1-join reads).  Two transcriptions:
   where none are added, the time the halving moved); the path is
   solved again on finer stations where a halving moved it by more than SPACING_GAIN, where a
   limit still reads above 1 after the repairs, or where they cost more than REPAIR_COST
-  (_socp_within_limits).
+  (_socp_within_limits).  The coarse stations are repaired at T too and returned where that
+  is the fastest within the limits: where a path's G1 joins' reads dominate, the repairs cost
+  more on finer stations (_faster_within).
   No other planner's profile is ever returned: without a profile within the limits `optimal`
   raises a PlanningError naming the path and the limit;
 * the time-domain NLP (CasADi + IPOPT, planners/optimal/nlp.py): direct multiple shooting with
@@ -276,27 +278,28 @@ def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profil
     """The TOPP3-SOCP's profile, checked at T.  The stations are first solved STATION_REFINEMENT
     times coarser, for the first linearisation of the solve at grid_mm, for the knots that get
     cells (topp3.binding_knots), for the stations its speed asks for (topp3.speed_stations) and,
-    where it asks for none, for how much the halving moved their time.  The path
-    is solved again on stations STATION_REFINEMENT times closer (also in curvature radii), up
-    to REFINE_LEVELS times, each linearised around the last, where the last halving of the stations moved their time by more than SPACING_GAIN, where
-    the engine's repairs (tightened windows, then stretches) still leave a limit above 1, or
+    where it asks for none, for how much the halving moved their time.  The path is solved
+    again on stations STATION_REFINEMENT times closer (also in curvature radii), up to
+    REFINE_LEVELS times, each linearised around the last, where the last halving of the
+    stations moved their time by more than SPACING_GAIN, where the engine's repairs (tightened windows, then stretches) still leave a limit above 1, or
     where they cost more than REPAIR_COST of the time the stations alone allowed (and the last
     refinement gained as much): the limits hold at the stations, so finer stations leave less
-    to read between them and to repair.  The fastest profile within the limits is returned; a
-    refinement that has no solution or is no faster ends the search.  Never another planner's
+    to read between them and to repair.  A refinement that has no solution or is no faster ends
+    the search; the coarse stations, repaired too, are the last candidate (_faster_within).  The
+    fastest profile within the limits is returned.  Never another planner's
     profile: without a profile within the limits a PlanningError names the path and the limit."""
     why, best = [], None
     inner = limits.joint_scaled(1 - CHAIN_MARGIN)
-    coarse = _settings(grid_mm, 1 / STATION_REFINEMENT)
+    coarse = _settings(grid_mm, 1 / STATION_REFINEMENT, read_phases=read_phases)
     try:
-        prev = topp3.pieces_of(path, machine, inner, coarse)
+        prev = coarse_pieces = topp3.pieces_of(path, machine, inner, coarse)
         relax_prev = topp3.station_time(prev, coarse)
         knots = topp3.binding_knots(prev, path, machine, inner)
         extra = topp3.speed_stations(prev)
         # the coarse stations lack them: their time is no measure of the spacing's gain
         relax_prev = None if extra else relax_prev
     except PlanningError:           # the finer stations are solved from TOPP2-RA's profile
-        prev, relax_prev, knots, extra = None, None, (), ()
+        prev, relax_prev, knots, extra, coarse_pieces = None, None, (), (), None
     for level in range(REFINE_LEVELS + 1):
         settings = _settings(grid_mm, STATION_REFINEMENT ** level, knots, extra, read_phases)
         try:
@@ -327,10 +330,33 @@ def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profil
         repairs_cost = t_new > (1 + REPAIR_COST) * relax and gain >= REPAIR_COST
         if not (repairs_cost or abs(spacing_gain) > SPACING_GAIN):
             break
+    if coarse_pieces is not None:
+        best = _faster_within(best, coarse_pieces, coarse, path, machine, inner, limits, why)
     if best is None:
         raise PlanningError(f"optimal: {getattr(path, 'source', 'the path')}: no profile within the limits at T; "
                             + "; ".join(why))
     return best
+
+
+def _faster_within(best, pieces, settings, path, machine, inner, limits, why) -> Profile | None:
+    """``best`` or, where faster and within the limits at T, the coarse stations' solution
+    (``pieces``, solved at the stations) repaired at T.  The repairs, not the stations, can decide
+    the time: on cam_dense_lcnc's 866 G1 joins the reads at T cost 1.4 % of the stations' time at
+    0.1 mm, 1.7 % at 0.05 mm and 2.3 % at 0.025 mm, so the coarsest was the fastest within the
+    limits (docs/TUNING.md)."""
+    try:
+        prof = topp3.solve(path, machine, inner, settings, pieces)
+    except PlanningError as e:
+        why.append(f"stations ≤ {settings.grid_mm:g} mm: {e}")
+        return best
+    ok, worst = _within(machine, path, prof, limits)
+    if not ok:
+        why.append(f"stations ≤ {settings.grid_mm:g} mm: {worst}")
+        return best
+    if best is not None and prof.info["continuous_time_s"] >= best.info["continuous_time_s"]:
+        return best
+    prof.info.update(source="socp", grid_mm=settings.grid_mm, spacing_gain=0.0)   # no coarser level
+    return prof
 
 
 def _polish(path, machine, limits, warm, margin=0.005, node_period_s=1e-3, max_nodes_per_piece=600,
