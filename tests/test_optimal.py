@@ -284,16 +284,17 @@ def test_a_profile_above_a_limit_is_solved_on_finer_stations_then_refused(monkey
 
     def solve(path_, machine, limits, settings, pieces=None):
         grids.append(settings.grid_mm)
-        return over if len(grids) < 2 else good
+        return over if len(grids) < 2 or settings.grid_mm > optimal.GRID_MM else good
     monkeypatch.setattr(optimal.topp3, "solve", solve)
     p = optimal.plan(path, KOSSEL, polish=False)
-    assert grids == [optimal.GRID_MM, optimal.GRID_MM / optimal.STATION_REFINEMENT]
-    assert p.info["source"] == "socp" and p.info["grid_mm"] == grids[-1] and np.array_equal(p.s, good.s)
+    coarse = optimal.GRID_MM * optimal.STATION_REFINEMENT       # repaired last, above a limit too: refused
+    assert grids == [optimal.GRID_MM, optimal.GRID_MM / optimal.STATION_REFINEMENT, coarse]
+    assert p.info["source"] == "socp" and p.info["grid_mm"] == grids[1] and np.array_equal(p.s, good.s)
     grids.clear()
     monkeypatch.setattr(optimal.topp3, "solve", lambda *a, **k: grids.append(a[3].grid_mm) or over)
     with pytest.raises(PlanningError, match=r"optimal: .*no profile within the limits at T.*joint (velocity|acceleration|jerk) [0-9.]+ × its limit"):
         optimal.plan(path, KOSSEL, polish=False)
-    assert len(grids) == optimal.REFINE_LEVELS + 1
+    assert len(grids) == optimal.REFINE_LEVELS + 2 and grids[-1] == coarse
 
 
 @pytest.mark.parametrize("costly, refined_faster, grids_run, returned", [
@@ -326,10 +327,13 @@ def test_costly_repairs_are_solved_again_on_finer_stations_and_the_faster_kept(m
 
     def solve(path_, machine, limits, settings, pieces=None):
         grids.append(settings.grid_mm)
+        if settings.grid_mm > optimal.GRID_MM:          # the coarse stations, repaired last: no faster
+            return with_cost(slow, 0.0)
         return first if len(grids) == 1 else refined
     monkeypatch.setattr(optimal.topp3, "solve", solve)
     p = optimal.plan(path, KOSSEL, polish=False)
-    assert grids == [optimal.GRID_MM / optimal.STATION_REFINEMENT ** k for k in range(grids_run)]
+    assert grids == [optimal.GRID_MM / optimal.STATION_REFINEMENT ** k for k in range(grids_run)] + [
+        optimal.GRID_MM * optimal.STATION_REFINEMENT]
     want = first if returned == "first" else refined
     assert np.array_equal(p.s, want.s) and p.info["grid_mm"] == grids[0 if returned == "first" else 1]
 
