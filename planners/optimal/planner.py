@@ -281,9 +281,9 @@ def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profil
     where it asks for none, for how much the halving moved their time.  The path is solved
     again on stations STATION_REFINEMENT times closer (also in curvature radii), up to
     REFINE_LEVELS times, each linearised around the last, where the last halving of the
-    stations moved their time by more than SPACING_GAIN, where the engine's repairs (tightened windows, then stretches) still leave a limit above 1, or
-    where they cost more than REPAIR_COST of the time the stations alone allowed (and the last
-    refinement gained as much): the limits hold at the stations, so finer stations leave less
+    stations moved their time by more than SPACING_GAIN, where the engine's repairs (tightened
+    windows, then stretches) still leave a limit above 1, or where they cost more than
+    REPAIR_COST of the time the stations alone allowed (and the last refinement gained as much): the limits hold at the stations, so finer stations leave less
     to read between them and to repair.  A refinement that has no solution or is no faster ends
     the search; the coarse stations, repaired too, are the last candidate (_faster_within).  The
     fastest profile within the limits is returned.  Never another planner's
@@ -340,10 +340,9 @@ def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profil
 
 def _faster_within(best, pieces, settings, path, machine, inner, limits, why) -> Profile | None:
     """``best`` or, where faster and within the limits at T, the coarse stations' solution
-    (``pieces``, solved at the stations) repaired at T.  The repairs, not the stations, can decide
-    the time: on cam_dense_lcnc's 866 G1 joins the reads at T cost 1.4 % of the stations' time at
-    0.1 mm, 1.7 % at 0.05 mm and 2.3 % at 0.025 mm, so the coarsest was the fastest within the
-    limits (docs/TUNING.md)."""
+    (``pieces``, solved at the stations) repaired at T.  Where many G1 joins read above at T the
+    repairs, not the stations, decide the time, and they can cost more on finer stations
+    (cam_dense_lcnc: docs/TUNING.md, thirty-fifth session)."""
     try:
         prof = topp3.solve(path, machine, inner, settings, pieces)
     except PlanningError as e:

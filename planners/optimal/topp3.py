@@ -110,12 +110,11 @@ GRADED_MIN_MM = 1e-6
 # rounds of the check at T and local tightening; a limit is tightened at a station by
 # TIGHTEN_EXTRA more than it read, doubled each time that station's limit was tightened before
 # (windows next to a G1 join read above again by less each time).  Doubled each round instead,
-# a window first read in round 7 was tightened 13 % more than it read: on cam_dense_lcnc's 866
-# G1 joins the rounds compounded (12.785 s at the stations, 13.066 s repaired; 12.996 s, no
-# window left after 20 rounds, per station: docs/TUNING.md); then the last resort's time
-# stretches (_stretch), each up to MAX_STRETCHES rounds (a uniform stretch moves every later
-# piece's samples at T, so a piece not stretched yet can read above next: long programs of
-# many pieces need many)
+# a window first read in a late round was tightened far more than it read, and on a program of
+# many G1 joins the rounds compounded instead of converging (docs/TUNING.md); then the last
+# resort's time stretches (_stretch), each up to MAX_STRETCHES rounds (a uniform stretch moves
+# every later piece's samples at T, so a piece not stretched yet can read above next: long
+# programs of many pieces need many)
 MAX_REPAIRS = 20
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 24
