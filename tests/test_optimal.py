@@ -472,8 +472,8 @@ def test_stations_are_halved_while_the_last_halving_moved_their_time(monkeypatch
 def test_the_coarse_stations_repaired_are_returned_where_they_are_the_fastest_within(monkeypatch):
     """The coarse stations (STATION_REFINEMENT × grid_mm, solved first for the finer solve's
     linearisation) are repaired at T too, and returned where that is faster within the limits
-    (cam_dense_lcnc: 12.970 s at 0.1 mm against 13.001 s at 0.05 mm, whose repairs cost more);
-    where it reads above a limit at T it is never returned."""
+    (where many G1 joins read above at T the repairs can cost more on finer stations:
+    docs/TUNING.md); where it reads above a limit at T it is never returned."""
     path = vertical(10.0)
     base = optimal.topp3.solve(path, KOSSEL, KOSSEL.limits, optimal.topp3.Settings("optimal"))
     for coarse_ok in (True, False):

@@ -146,8 +146,8 @@ def test_a_stations_tightening_extra_doubles_with_its_own_repairs_not_the_round(
     """A window read at ratio r tightens its limit at the stations under it (and one either
     side) to factor / (r·(1 + e·2^n)), n the times that station's limit was tightened before:
     a window first read in a late round is tightened by e, not by e·2^round (doubled per round,
-    866 G1 joins' reads on cam_dense_lcnc compounded to 13.066 s from 12.785 s at the stations;
-    per station they converged in 20 rounds to 12.996 s).  The other limits are left alone."""
+    the reads of many G1 joins compounded instead of converging: docs/TUNING.md).  The other
+    limits are left alone."""
     grid = np.arange(0.0, 10.01, 1.0)
     p = topp3.Piece.__new__(topp3.Piece)
     p.grid, p.s0 = grid, 0.0

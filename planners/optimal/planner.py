@@ -283,11 +283,12 @@ def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profil
     REFINE_LEVELS times, each linearised around the last, where the last halving of the
     stations moved their time by more than SPACING_GAIN, where the engine's repairs (tightened
     windows, then stretches) still leave a limit above 1, or where they cost more than
-    REPAIR_COST of the time the stations alone allowed (and the last refinement gained as much): the limits hold at the stations, so finer stations leave less
-    to read between them and to repair.  A refinement that has no solution or is no faster ends
-    the search; the coarse stations, repaired too, are the last candidate (_faster_within).  The
-    fastest profile within the limits is returned.  Never another planner's
-    profile: without a profile within the limits a PlanningError names the path and the limit."""
+    REPAIR_COST of the time the stations alone allowed (and the last refinement gained as
+    much): the limits hold at the stations, so finer stations leave less to read between them
+    and to repair.  A refinement that has no solution or is no faster ends the search; the
+    coarse stations, repaired too, are the last candidate (_faster_within).  The fastest profile
+    within the limits is returned.  Never another planner's profile: without a profile within
+    the limits a PlanningError names the path and the limit."""
     why, best = [], None
     inner = limits.joint_scaled(1 - CHAIN_MARGIN)
     coarse = _settings(grid_mm, 1 / STATION_REFINEMENT, read_phases=read_phases)
