@@ -391,6 +391,41 @@ def test_a_swarm_stretched_across_many_pieces_gets_the_rounds_they_need():
     assert prof.execution_time_s < 1.3 * t_ref
 
 
+def test_the_swarms_profile_at_T_is_stretched_around_its_reads_where_that_is_cheaper():
+    """The head of cam_dense_keops (250 lines of 0.15–0.6 mm chords under G64, one piece): the
+    papers' start (the seed fitted, within the limits at the stations) reads above a limit at T
+    in a few windows only.  Stretched uniformly, the whole piece slows by the worst read; stretched
+    around the reads by whole periods (topp3.stretch_locally) it costs only the bumps' time, and
+    the swarm's profile at T is the cheaper one, within the limits."""
+    from harness.corpus.run import CORPUS_DIR
+    from planners.paths.gcode import parse_gcode, program_path
+    from planners.profile import Profile
+    from planners.pso import planner as pso
+    from planners.scurve import plan_joint
+    from planners.verify import stretch_need
+    text = "\n".join((CORPUS_DIR / "cam_dense_keops.ngc").read_text().splitlines()[:250]) + "\nM2\n"
+    path = program_path(parse_gcode(text, "cam_dense_keops_head.ngc"))
+    T = KEOPS.servo_period_s
+    settings = topp3.Settings("pso", 0.1, station_radii=pso.SWARM_STATION_RADII, knot_stations=True,
+                              join_grading=True)
+    piece, = topp3.pieces_of(path, KEOPS, KEOPS.limits, settings)
+    feed = FeedSpline(piece, 0.002)
+    c = feed.start_within(feed.fit(pso._seed_feed(plan_joint(path, KEOPS), piece)))
+    start = Profile.from_pieces("pso", T, [FeedSpan(feed, c, 0)], path)
+    need = stretch_need(KEOPS.ik(path.point(start.s)), start.s, T, KEOPS.limits)
+    above = need > 1 + 1e-6
+    assert 0 < above.sum() < 0.01 * len(need) and need.max() > 1.005
+    uniform = pso._stretched_uniformly([FeedSpan(feed, c, 0)], T, path, KEOPS, KEOPS.limits, np.inf)
+    out = pso._stretched_at_T([FeedSpan(feed, c, 0)], T, path, KEOPS, KEOPS.limits, np.inf)
+    assert command_metrics(KEOPS, path.point(out.s), T, out.s)["feasible"]
+    # the uniform stretch pays the worst read over the whole piece (to the sampling's period)
+    assert uniform.execution_time_s >= start.execution_time_s * need.max() - 2 * T
+    bumps = out.info["local_stretch"]
+    assert bumps["bumps"] >= 1
+    assert out.execution_time_s <= start.execution_time_s + bumps["added_s"] + T
+    assert out.execution_time_s < uniform.execution_time_s
+
+
 def _with_f_max(machine, f_max):
     import dataclasses
     from kins.machine import MachineLimits

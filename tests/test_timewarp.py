@@ -105,7 +105,7 @@ def test_last_resort_stretches_locally_where_one_stretch_of_the_line_reads_above
     need = stretch_need(KOSSEL.ik(path.point(prof.s)), prof.s, T, lim)
     above = np.nonzero(need > 1 + 1e-6)[0]
     assert len(above) and abs(prof.t[above] - 2.5).max() < 0.5
-    local = topp3._stretch_locally(prof, [fast], KOSSEL, path, lim, {}, "copp")
+    local = topp3.stretch_locally(prof, [fast], KOSSEL, path, lim, {}, "copp")
     uniform = topp3._stretch_uniformly(prof, [fast], KOSSEL, path, lim, {}, "copp")
     assert not topp3.reads_above(local, KOSSEL, path, lim)
     assert not topp3.reads_above(uniform, KOSSEL, path, lim)

@@ -716,7 +716,7 @@ def _stretch(prof, rounds, machine, path, limits, info, name) -> Profile:
     """The last resort when MAX_REPAIRS rounds of tightening left windows above a limit
     (``prof``: the last round's samples; ``rounds``: each round's solved pieces): the fastest,
     of those that bring every read within the limits, of each round's profile stretched locally
-    around its reads (_stretch_locally: a round's tightening costs time everywhere under its
+    around its reads (stretch_locally: a round's tightening costs time everywhere under its
     windows, and a few reads left after round k can cost less to stretch than rounds k + 1 …
     cost to repair) and of the last one's pieces stretched uniformly (_stretch_uniformly; where
     none brings every read within, that one: the harness's check reports it)."""
@@ -724,14 +724,14 @@ def _stretch(prof, rounds, machine, path, limits, info, name) -> Profile:
     fits = not reads_above(best, machine, path, limits)
     for k, spans in enumerate(rounds):
         start = prof if k == len(rounds) - 1 else Profile.from_pieces(name, prof.T, spans, path, info)
-        local = _stretch_locally(start, spans, machine, path, limits, info, name)
+        local = stretch_locally(start, spans, machine, path, limits, info, name)
         if local is not None and (not fits or local.info["continuous_time_s"] < best.info["continuous_time_s"]):
             best, fits = local, True
             best.info["local_stretch"]["round"] = k
     return best
 
 
-def _stretch_locally(prof, spans, machine, path, limits, info, name) -> Profile | None:
+def stretch_locally(prof, spans, machine, path, limits, info, name) -> Profile | None:
     """The pieces' time (their solved ``spans``) stretched around each read above by sech bumps
     of whole periods (timewarp.Local), round by round until every sample reads within the
     limits; None where MAX_STRETCHES rounds or MAX_BUMPS bumps did not (or the stretched time

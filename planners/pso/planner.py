@@ -233,8 +233,10 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
     feeds = [sw.feed for sw in swarms]
     # the swarm's limits hold at the stations; where its samples at T read above one, the
     # limit is held lower at the stations there and the swarm goes on from its context made
-    # feasible again (as topp3 repairs its SOCP).  The swarm's profile: the faster of the one
-    # before the repairs, stretched per piece by its excess at T, and the one after them.
+    # feasible again (as topp3 repairs its SOCP).  The swarm's profile: the fastest of each
+    # round's brought within the limits at T by a time warp (_stretched_at_T): a round's
+    # tightening costs time everywhere under its windows, and the reads left before it can
+    # cost less to stretch (as topp3._stretch chooses among its rounds)
     repairs, found = [], []
     for rnd in range(SWARM_REPAIRS + 1):
         spans = [FeedSpan(f, sw.c, k) for k, (f, sw) in enumerate(zip(feeds, swarms))]
@@ -242,11 +244,9 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
             break
         at_T = Profile.from_pieces("pso", T, spans, path)
         above = topp3.reads_above(at_T, machine, path, limits)
+        found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
         if not above or rnd == SWARM_REPAIRS:
-            found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
             break
-        if rnd == 0:
-            found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
         for col, i, width, ratio in above:
             lo, hi = at_T.s[i], at_T.s[min(i + width, len(at_T.s) - 1)]
             for f in feeds:
@@ -319,6 +319,24 @@ def _seed_feed(seed_prof, piece):
 
 
 def _stretched_at_T(spans, T, path, machine, limits, too_slow):
+    """The spans sampled at T and brought within the limits there by the faster of two time
+    warps of the spline (the path and the feed over s stay; only the time along them moves):
+    stretched around each read above by sech bumps of whole periods (topp3.stretch_locally,
+    `optimal`'s last resort: on a G64 program of hundreds of joins in one piece, a read at one
+    join stretched the whole piece, docs/TUNING.md), and each rest-to-rest piece stretched
+    uniformly by the worst need of its samples (planners.verify.stretch_need), up to
+    STRETCH_ROUNDS rounds a piece; None if neither is within the limits or faster than
+    ``too_slow``."""
+    local = topp3.stretch_locally(Profile.from_pieces("pso", T, spans, path), spans, machine, path, limits,
+                                  {}, "pso")
+    if local is not None and not keeps_joints_and_feed(command_metrics(machine, path.point(local.s), T, local.s, limits)):
+        local = None
+    uniform = _stretched_uniformly(spans, T, path, machine, limits, too_slow)
+    fits = [p for p in (local, uniform) if p is not None and p.execution_time_s <= too_slow]
+    return min(fits, key=lambda p: p.execution_time_s) if fits else None
+
+
+def _stretched_uniformly(spans, T, path, machine, limits, too_slow):
     """The spans sampled at T, each rest-to-rest piece stretched by the worst need of its samples
     (planners.verify.stretch_need), up to STRETCH_ROUNDS rounds a piece; None if still above a
     limit or slower than ``too_slow``."""
