@@ -15,8 +15,8 @@ import pytest
 
 import planners
 from harness.cli import main as cli_main
-from harness.corpus import (CORPUS_DIR, QUICK_PATHS, Row, load_manifest, performance_profile, ratios, seed_spread,
-                            run_corpus, summary, swarm_spread, write_markdown)
+from harness.corpus import (CORPUS_DIR, QUICK_PATHS, Row, below_reference, load_manifest, performance_profile, ratios,
+                            run_corpus, seed_spread, summary, swarm_spread, write_markdown)
 from kins import load_machine
 from planners.constraints import PathTable, check_path_in_workspace, join_jumps, joint_derivs
 from planners.paths import load_path
@@ -397,6 +397,20 @@ def test_the_swarm_alone_is_a_distribution_over_the_reference(tmp_path):
     assert q["median"] == pytest.approx(1.20) and q["q1"] == pytest.approx(1.10)   # order statistics: 1.05 1.1 1.2 1.5 ∞
     write_markdown(rows, tmp_path / "c.md", {"A": (1.0, 0.001)})
     assert "pso_socp's swarm alone" in (tmp_path / "c.md").read_text() and "optimal's swarm" not in (tmp_path / "c.md").read_text()
+
+
+def test_a_reference_a_counted_run_beats_beyond_its_bar_is_named_an_upper_estimate(tmp_path):
+    """A path where a joint-feasible run of its own is faster than T_ref − bar is listed with its
+    fastest such run; one within the bar, an infeasible run and a fallback are not."""
+    reference = {"A": (1.0, 0.01), "B": (2.0, 0.01), "C": (3.0, 0.01)}
+    rows = [_row("A", "optimal", 0.985, True), _row("A", "pso", 0.97, True), _row("A", "copp", 0.95, False),
+            _row("B", "optimal", 1.995, True), _row("C", "pso", 2.5, True, status="fallback")]
+    below = below_reference(rows, reference)
+    assert below == {"A": {"T_reference_s": 1.0, "error_s": 0.01, "best_s": 0.97, "planner": "pso"}}
+    write_markdown(rows, tmp_path / "c.md", reference)
+    assert "| A | 1.00000 ± 0.01 | 0.97000 | pso | 3.00% |" in (tmp_path / "c.md").read_text()
+    write_markdown(rows[3:], tmp_path / "d.md", reference)
+    assert "upper estimate" not in (tmp_path / "d.md").read_text()
 
 
 def _module_sources(*roots):

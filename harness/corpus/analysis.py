@@ -83,6 +83,23 @@ def best_times(rows: list[Row]) -> dict[str, float]:
     return best
 
 
+def below_reference(rows: list[Row], reference: dict) -> dict[str, dict]:
+    """path → {"T_reference_s", "error_s", "best_s", "planner"} where a run that counts (its own
+    profile, within the joint limits at T) is faster than T_reference by more than its error bar:
+    there the reference is not the optimum but an upper estimate of it (its refinement study
+    extrapolates from grids outside their asymptotic range, or its joins' reads, held whatever the
+    samples' phase, are stricter than the check at T), and ratios to it flatter every planner."""
+    out: dict = {}
+    for r in rows:
+        ref = reference.get(r.path)
+        if not ref or not counts(r) or not r.execution_time_s < ref[0] - ref[1]:
+            continue
+        if r.path not in out or r.execution_time_s < out[r.path]["best_s"]:
+            out[r.path] = {"T_reference_s": ref[0], "error_s": ref[1], "best_s": r.execution_time_s,
+                           "planner": r.planner}
+    return dict(sorted(out.items()))
+
+
 def ratios(rows: list[Row], reference: dict | None = None) -> dict[str, dict[str, float]]:
     """planner → path → T/T_best (T/T_reference where ``reference`` has the path); ∞ when the
     run does not count; a planner with several runs on a path (seeds): their median."""
