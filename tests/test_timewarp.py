@@ -11,7 +11,8 @@ import planners.optimal.topp3 as topp3
 from kins import Limits, load_machine
 from planners.paths import Line, SegmentPath
 from planners.profile import Profile
-from planners.optimal.timewarp import REACH, Local, Uniform, bump_width, bumps_for
+from planners.optimal.timewarp import (REACH, WIDTH_REACH, WIDTH_SPEED_MARGIN, Local, Uniform, bump_width, bumps_for,
+                                       local_widths)
 from planners.verify import stretch_need
 
 KOSSEL = load_machine("kossel")
@@ -128,8 +129,38 @@ def test_bumps_cover_each_cell_of_reads_by_whole_periods():
     time a whole number of periods (at least one)."""
     T, tau = 2.5e-4, 0.1
     w = Local(Quintic(D=3.0), tau)
-    c, d = bumps_for(w, np.array([0.51, 0.52, 0.58, 1.43]), np.array([1.001, 1.02, 1.0000001, 1.003]), T, 1e-5)
-    assert np.allclose(c, [0.52, 1.43], rtol=0, atol=1e-12)
+    c, d, taus = bumps_for(w, np.array([0.51, 0.52, 0.58, 1.43]), np.array([1.001, 1.02, 1.0000001, 1.003]), T, 1e-5)
+    assert np.allclose(c, [0.52, 1.43], rtol=0, atol=1e-12) and np.array_equal(taus, [tau, tau])
     periods = d * math.pi * tau / T
     assert np.allclose(periods, np.round(periods), rtol=0, atol=1e-9) and periods.min() >= 1
     assert d[0] >= 0.02 * (1 + 1e-5) and d[0] - 0.02 < T / (math.pi * tau) + 1e-5
+
+
+def test_a_bump_where_the_joints_are_slow_is_narrower_and_adds_its_time_by_its_own_width():
+    """keops (V/A = 0.1 s sets the widest bump): a bump's τ is bump_width at the fastest joint
+    speed within WIDTH_REACH widest bumps, × WIDTH_SPEED_MARGIN (closed form), never wider than
+    at V; near a fast stretch it is as wide as there; a cell's bump takes its reads' widest τ,
+    its height whole periods of T at that τ."""
+    lim = Limits(1000.0, 1e4, 5e5)
+    T, widest = 2.5e-4, bump_width(lim)
+    # one joint at 10 mm/s for 2 s, then 500 mm/s for 1 s, then 900 mm/s
+    v = np.r_[np.full(8000, 10.0), np.full(4000, 500.0), np.full(4000, 900.0)]
+    Q = np.zeros((len(v), 3))
+    Q[:, 1] = np.cumsum(v) * T
+    tu = lim.a / lim.j
+    slow = WIDTH_SPEED_MARGIN * 10.0
+    assert local_widths(Q, T, lim, [100])[0] == pytest.approx(max(tu + math.sqrt(tu * tu + 2 * slow / (3 * lim.j)),
+                                                                  slow / lim.a), rel=1e-12)
+    assert local_widths(Q, T, lim, [100])[0] < 0.5 * widest
+    near = 8000 - int(WIDTH_REACH * widest / T) + 10            # the fast stretch within reach
+    fast = bump_width(lim, WIDTH_SPEED_MARGIN * 500.0)
+    assert local_widths(Q, T, lim, [near])[0] == pytest.approx(fast, rel=1e-12) and fast < widest
+    assert local_widths(Q, T, lim, [15000])[0] == widest         # 900 mm/s × the margin: capped at V
+    w = Local(Quintic(D=3.0), widest)
+    c, d, taus = bumps_for(w, np.array([0.51, 0.52]), np.array([1.02, 1.001]), T, 1e-5, np.array([0.03, 0.05]))
+    assert np.array_equal(taus, [0.05]) and np.allclose(c, [0.51])
+    periods = d * math.pi * taus / T
+    assert np.allclose(periods, np.round(periods), rtol=0, atol=1e-9)
+    w.add(c, d, taus)
+    assert w.added_s == pytest.approx(np.round(periods)[0] * T, rel=1e-12)
+    assert w.duration == pytest.approx(3.0 + w.added_s, rel=1e-12)

@@ -27,6 +27,11 @@ import numpy as np
 # 2τδ·e^{-30} ≈ 1e-13·τδ s of time moves no sample by more than ~1e-13 mm
 REACH = 30.0
 NEWTON_ITERATIONS = 60
+# a bump's width is set by the joints' speed within this many of the widest bumps (bump_width at
+# V) of its centre, times a margin: its terms fall off as sech, and the stretch only slows the
+# joints, but a bump's rounds move the samples, so the speed it was sized on is not exact
+WIDTH_REACH = 2.0
+WIDTH_SPEED_MARGIN = 1.25
 
 
 class Uniform:
@@ -45,14 +50,33 @@ class Uniform:
         return s, sd / self.lam, sdd / self.lam ** 2, sddd / self.lam ** 3
 
 
-def bump_width(limits) -> float:
+def bump_width(limits, speed=None):
     """τ (s) of the bumps for joint limits (v, a, j): the smallest with the first-order terms of
-    a varying λ at most half of the relief it buys, t_u/τ + V/(3Jτ²) ≤ 1/2 for the jerk
-    (t_u = A/J) and V/(2Aτ) ≤ 1/2 for the acceleration, where a joint is at V, A and J at once
-    (the worst case; elsewhere there is more room)."""
+    a varying λ at most half of the relief it buys, t_u/τ + v/(3Jτ²) ≤ 1/2 for the jerk
+    (t_u = A/J) and v/(2Aτ) ≤ 1/2 for the acceleration, where a joint is at speed v, A and J at
+    once (the worst case; elsewhere there is more room): v = V, or ``speed`` (a number or an
+    array, capped at V), the fastest a joint moves under the bump."""
     V, A, J = limits.v, limits.a, limits.j
+    v = V if speed is None else np.minimum(speed, V)
     tu = A / J
-    return max(tu + math.sqrt(tu * tu + 2 * V / (3 * J)), V / A)
+    tau = np.maximum(tu + np.sqrt(tu * tu + 2 * v / (3 * J)), v / A)
+    return float(tau) if np.ndim(tau) == 0 else tau
+
+
+def local_widths(Q, T: float, limits, samples):
+    """τ (s) of a bump at each of ``samples`` (indices into joint samples Q (N, 3) at T): by the
+    fastest joint speed within WIDTH_REACH widest bumps of it, × WIDTH_SPEED_MARGIN.  Where the
+    joints are slow (a G1 join's read at a corner, a near-cusp) a bump may be narrower than one
+    sized for V, and costs less: its height adds δ·π·τ."""
+    from scipy.ndimage import maximum_filter1d
+    widest = bump_width(limits)
+    speed = np.zeros(len(Q))
+    if len(Q) > 1:
+        speed[1:] = np.abs(np.diff(Q, axis=0)).max(axis=1) / T
+        speed[0] = speed[1]
+    reach = int(math.ceil(WIDTH_REACH * widest / T))
+    around = maximum_filter1d(speed, size=2 * reach + 1, mode="nearest")
+    return np.minimum(bump_width(limits, WIDTH_SPEED_MARGIN * around[samples]), widest)
 
 
 class Local:
@@ -62,19 +86,23 @@ class Local:
 
     def __init__(self, span, tau: float):
         self.span, self.tau, self.s0 = span, float(tau), span.s0
-        self.c, self.d = np.zeros(0), np.zeros(0)
+        self.c, self.d, self.w = np.zeros(0), np.zeros(0), np.zeros(0)
 
-    def add(self, c, delta) -> None:
-        """Bumps of heights ``delta`` centred at the piece's own times ``c`` (s)."""
-        c = np.concatenate([self.c, np.atleast_1d(np.asarray(c, float))])
+    def add(self, c, delta, width=None) -> None:
+        """Bumps of heights ``delta`` centred at the piece's own times ``c`` (s), each ``width``
+        wide (τ, s; the span's τ where None)."""
+        c = np.atleast_1d(np.asarray(c, float))
+        w = np.broadcast_to(self.tau if width is None else np.asarray(width, float), c.shape)
+        c = np.concatenate([self.c, c])
         d = np.concatenate([self.d, np.atleast_1d(np.asarray(delta, float))])
+        w = np.concatenate([self.w, w])
         order = np.argsort(c, kind="stable")
-        self.c, self.d = c[order], d[order]
+        self.c, self.d, self.w = c[order], d[order], w[order]
 
     @property
     def added_s(self) -> float:
         """The time the bumps add (s)."""
-        return float(np.sum(self.d)) * math.pi * self.tau
+        return float(np.sum(self.d * self.w)) * math.pi
 
     @property
     def duration(self) -> float:
@@ -87,20 +115,20 @@ class Local:
         order = np.argsort(t, kind="stable")
         ts = t[order]
         off, lam, lt, ltt = np.zeros(n), np.ones(n), np.zeros(n), np.zeros(n)
-        lo = np.searchsorted(ts, self.c - REACH * self.tau, side="left")
-        hi = np.searchsorted(ts, self.c + REACH * self.tau, side="right")
+        lo = np.searchsorted(ts, self.c - REACH * self.w, side="left")
+        hi = np.searchsorted(ts, self.c + REACH * self.w, side="right")
         past = np.zeros(n + 1)
-        np.add.at(past, hi, math.pi * self.tau * self.d)
+        np.add.at(past, hi, math.pi * self.w * self.d)
         off += np.cumsum(past)[:-1]
-        for c, d, a, b in zip(self.c, self.d, lo, hi):
+        for c, d, tau, a, b in zip(self.c, self.d, self.w, lo, hi):
             if b <= a:
                 continue
-            x = (ts[a:b] - c) / self.tau
+            x = (ts[a:b] - c) / tau
             sech, th = 1.0 / np.cosh(x), np.tanh(x)
-            off[a:b] += self.tau * d * (2 * np.arctan(np.tanh(x / 2)) + math.pi / 2)
+            off[a:b] += tau * d * (2 * np.arctan(np.tanh(x / 2)) + math.pi / 2)
             lam[a:b] += d * sech
-            lt[a:b] -= d * sech * th / self.tau
-            ltt[a:b] += d * sech * (th * th - sech * sech) / self.tau ** 2
+            lt[a:b] -= d * sech * th / tau
+            ltt[a:b] += d * sech * (th * th - sech * sech) / tau ** 2
         out = [np.empty(n) for _ in range(4)]
         for o, v in zip(out, (off, lam, lt, ltt)):
             o[order] = v
@@ -133,18 +161,22 @@ class Local:
         return s, sd * p1, sdd * p1 ** 2 + sd * p2, sddd * p1 ** 3 + 3 * sdd * p1 * p2 + sd * p3
 
 
-def bumps_for(span: Local, t_local, need, T: float, extra: float):
-    """(centres, heights) of one round's bumps on ``span``: its reads above (stretched times
-    ``t_local`` in the piece, stretch needs ``need`` > 1) grouped into cells of τ, one bump per
-    cell at its worst read, of height need·(1 + extra) − 1 rounded up so that it adds a whole
-    number of periods T."""
+def bumps_for(span: Local, t_local, need, T: float, extra: float, widths=None):
+    """(centres, heights, widths) of one round's bumps on ``span``: its reads above (stretched
+    times ``t_local`` in the piece, stretch needs ``need`` > 1; ``widths``: a bump's τ at each,
+    the span's where None) grouped into cells of the span's τ, one bump per cell at its worst
+    read, as wide as the widest read of its cell wants, of height need·(1 + extra) − 1 rounded
+    up so that it adds a whole number of periods T."""
     t0 = span.original(np.asarray(t_local, float))
+    widths = np.full(len(t0), span.tau) if widths is None else np.asarray(widths, float)
     cell = np.floor(t0 / span.tau).astype(np.int64)
-    centres, heights = [], []
+    centres, heights, taus = [], [], []
     for k in np.unique(cell):
         m = cell == k
         i = int(np.argmax(np.where(m, need, -np.inf)))
-        periods = math.ceil((need[i] * (1 + extra) - 1) * math.pi * span.tau / T)
+        tau = float(widths[m].max())
+        periods = math.ceil((need[i] * (1 + extra) - 1) * math.pi * tau / T)
         centres.append(t0[i])
-        heights.append(max(periods, 1) * T / (math.pi * span.tau))
-    return np.array(centres), np.array(heights)
+        heights.append(max(periods, 1) * T / (math.pi * tau))
+        taus.append(tau)
+    return np.array(centres), np.array(heights), np.array(taus)

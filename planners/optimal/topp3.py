@@ -740,17 +740,20 @@ def stretch_locally(prof, spans, machine, path, limits, info, name) -> Profile |
     T = prof.T
     spans = [timewarp.Local(w, timewarp.bump_width(limits.joint)) for w in spans]
     for _ in range(MAX_STRETCHES):
-        need = stretch_need(machine.ik(path.point(prof.s)), prof.s, T, limits)
+        Q = machine.ik(path.point(prof.s))
+        need = stretch_need(Q, prof.s, T, limits)
         above = np.nonzero(need > 1 + FEASIBLE_TOL)[0]
         if len(above) == 0:
             prof.info["local_stretch"] = {"bumps": int(sum(len(w.c) for w in spans)),
                                           "added_s": round(sum(w.added_s for w in spans), 9)}
             return prof
+        widths = timewarp.local_widths(Q, T, limits.joint, above)
         starts = np.concatenate([[0.0], np.cumsum([w.duration for w in spans])])
         g = np.clip(np.searchsorted(starts, prof.t[above], side="right") - 1, 0, len(spans) - 1)
         for k in np.unique(g):
-            sel = above[g == k]
-            spans[k].add(*timewarp.bumps_for(spans[k], prof.t[sel] - starts[k], need[sel], T, STRETCH_EXTRA))
+            sel = g == k
+            spans[k].add(*timewarp.bumps_for(spans[k], prof.t[above[sel]] - starts[k], need[above[sel]], T,
+                                             STRETCH_EXTRA, widths[sel]))
         if sum(len(w.c) for w in spans) > MAX_BUMPS:
             return None
         try:
