@@ -47,8 +47,10 @@ Returned: the fastest of the swarm's profile, the seed (the swarm's initial gues
 `pso_socp`, the polished profile, each checked at T (joint limits and F_max), so neither is
 slower than its seed (info["returned"]).  The seed is another planner's profile: returned, it is
 named in info["source"], and the corpus counts the row as a fallback, a failure.  The swarm's
-own profile is sampled from the exact time map of its spline (span.py) and stretched per piece
-by what its samples at T read above a limit.
+own profile is sampled from the exact time map of its spline (span.py) and brought within the
+limits at T by a time warp of it: stretched around its reads above (`optimal`'s last resort,
+topp3.stretch_locally) or per piece by its worst read, whichever is faster, for the context of
+every repair round; the fastest is the swarm's.
 
 Deterministic: ``seed`` drives every random number (`plan.stochastic`: the corpus runs both
 over seeds), the iteration count ends the search (an optional wall-clock ``time_budget_s``
