@@ -416,7 +416,7 @@ def test_the_swarms_profile_at_T_is_stretched_around_its_reads_where_that_is_che
     above = need > 1 + 1e-6
     assert 0 < above.sum() < 0.01 * len(need) and need.max() > 1.005
     uniform = pso._stretched_uniformly([FeedSpan(feed, c, 0)], T, path, KEOPS, KEOPS.limits, np.inf)
-    out = pso._stretched_at_T([FeedSpan(feed, c, 0)], T, path, KEOPS, KEOPS.limits, np.inf)
+    out = pso._stretched_at_T([FeedSpan(feed, c, 0)], start, path, KEOPS, KEOPS.limits, np.inf)
     assert command_metrics(KEOPS, path.point(out.s), T, out.s)["feasible"]
     # the uniform stretch pays the worst read over the whole piece (to the sampling's period)
     assert uniform.execution_time_s >= start.execution_time_s * need.max() - 2 * T

@@ -246,7 +246,7 @@ def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, pa
             break
         at_T = Profile.from_pieces("pso", T, spans, path)
         above = topp3.reads_above(at_T, machine, path, limits)
-        found.append((_stretched_at_T(spans, T, path, machine, limits, too_slow), spans))
+        found.append((_stretched_at_T(spans, at_T, path, machine, limits, too_slow), spans))
         if not above or rnd == SWARM_REPAIRS:
             break
         for col, i, width, ratio in above:
@@ -320,8 +320,8 @@ def _seed_feed(seed_prof, piece):
     return np.interp(piece.grid, seed_prof.s, seed_prof.sd) * piece.tu
 
 
-def _stretched_at_T(spans, T, path, machine, limits, too_slow):
-    """The spans sampled at T and brought within the limits there by the faster of two time
+def _stretched_at_T(spans, at_T, path, machine, limits, too_slow):
+    """The spans (``at_T``: sampled at T) brought within the limits there by the faster of two time
     warps of the spline (the path and the feed over s stay; only the time along them moves):
     stretched around each read above by sech bumps of whole periods (topp3.stretch_locally,
     `optimal`'s last resort: on a G64 program of hundreds of joins in one piece, a read at one
@@ -329,9 +329,10 @@ def _stretched_at_T(spans, T, path, machine, limits, too_slow):
     uniformly by the worst need of its samples (planners.verify.stretch_need), up to
     STRETCH_ROUNDS rounds a piece; None if neither is within the limits or faster than
     ``too_slow``."""
-    local = topp3.stretch_locally(Profile.from_pieces("pso", T, spans, path), spans, machine, path, limits,
-                                  {}, "pso")
-    if local is not None and not keeps_joints_and_feed(command_metrics(machine, path.point(local.s), T, local.s, limits)):
+    T = at_T.T
+    local = topp3.stretch_locally(at_T, spans, machine, path, limits, {}, "pso")
+    if local is not None and not keeps_joints_and_feed(command_metrics(machine, path.point(local.s), T, local.s,
+                                                                       limits)):
         local = None
     uniform = _stretched_uniformly(spans, T, path, machine, limits, too_slow)
     fits = [p for p in (local, uniform) if p is not None and p.execution_time_s <= too_slow]
