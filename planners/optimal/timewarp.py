@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d
 
 # a bump's influence is cut at this many τ: sech(30) ≈ 2e-13, and the offset's tail
 # 2τδ·e^{-30} ≈ 1e-13·τδ s of time moves no sample by more than ~1e-13 mm
@@ -69,7 +70,6 @@ def local_widths(Q, T: float, limits, samples):
     fastest joint speed within WIDTH_REACH widest bumps of it, × WIDTH_SPEED_MARGIN.  Where the
     joints are slow (a G1 join's read at a corner, a near-cusp) a bump may be narrower than one
     sized for V, and costs less: its height adds δ·π·τ."""
-    from scipy.ndimage import maximum_filter1d
     widest = bump_width(limits)
     speed = np.zeros(len(Q))
     if len(Q) > 1:

@@ -331,6 +331,8 @@ def _stretched_at_T(spans, at_T, path, machine, limits, too_slow):
     ``too_slow``."""
     T = at_T.T
     local = topp3.stretch_locally(at_T, spans, machine, path, limits, {}, "pso")
+    # stretch_locally ends at stretch_need ≤ 1 + tol, a k-th root of the ratio: (1 + tol)^k on
+    # a and j, looser than the check every candidate of _plan must pass
     if local is not None and not keeps_joints_and_feed(command_metrics(machine, path.point(local.s), T, local.s,
                                                                        limits)):
         local = None
