@@ -78,6 +78,11 @@ __all__ = ["plan", "plan_socp"]
 # stations ≤ this many curvature radii apart for the swarm: its spline, held to the limits at
 # the stations, read above them between coarser ones at lobe tips
 SWARM_STATION_RADII = 0.1
+# ... down to this spacing (`optimal`'s floor, not the engine's 1 µm): a near-cusp's pair of
+# curvature peaks µm apart (radii 0.05–2.4 µm) lay between 0.3–0.6 µm stations, the swarm's
+# knots could not follow its dip, and a station on a peak's shoulder held the feed far below
+# `optimal`'s for tens of µm (cusp_trochoid_lcnc 1.22–1.25 × T_ref; docs/TUNING.md)
+SWARM_STATION_MIN_MM = topp3.GRADED_MIN_MM
 # the swarm's knots are made twice as dense this many times, ``iterations`` on each
 REFINEMENTS = 3
 SWARM_REPAIRS = 4          # rounds of tightening where the swarm's samples at T read above a limit
@@ -137,7 +142,8 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
     settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1),
-                               station_radii=SWARM_STATION_RADII, knot_stations=True,
+                               station_radii=SWARM_STATION_RADII, station_min_mm=SWARM_STATION_MIN_MM,
+                               knot_stations=True,
                                join_grading=True)
     pieces = topp3.pieces_of(path, machine, limits, settings)
     a_ra = [jerk_free_a(p) for p in pieces]
