@@ -5,12 +5,13 @@ extended to a delta's joints as planned in Erwinski et al., NU·ROBOTI·FTS 2022
 §A).  No convex solver touches its profile.  `pso_socp` is the memetic hybrid: the same swarm,
 then the TOPP3-SOCP polish.
 
-Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations, here also a
-hair either side of every NURBS knot, where q‴ may jump): joint v, a, j limits, F_max and the
-chord-error feed cap, and at a G1 join the jerk its jump of q″ reads as at T added to the
-continuous jerk, there and, weighted, at stations graded toward the join within 1.5 periods'
-travel (topp3.Settings.join_grading, as `optimal`: held at the join alone, the swarm's profile
-read 2 × J at T next to pocket_keops's µm blends and no stretch brought it within).
+Constraint set shared with `optimal` and `copp` (planners/optimal/topp3.py's stations, down to
+`optimal`'s 1 nm at µm tips, here also a hair either side of every NURBS knot, where q‴ may
+jump: swarm_settings): joint v, a, j limits, F_max and the chord-error feed cap, and at a G1 join
+the jerk its jump of q″ reads as at T added to the continuous jerk, there and, weighted, at
+stations graded toward the join within 1.5 periods' travel (topp3.Settings.join_grading, as
+`optimal`: held at the join alone, the swarm's profile read 2 × J at T next to pocket_keops's µm
+blends and no stretch brought it within).
 
 Parametrisation (feed.py): per rest-to-rest piece (the path's, also split where the jerk-free
 optimum all but stops: _near_stops) w = ṡ^{3/2} as a cubic B-spline over arc length, its knots
@@ -141,10 +142,7 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
         raise PlanningError(f"{name}: need ≥ 2 particles and ≥ 0 iterations (got {particles}, {iterations})")
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
-    settings = topp3.Settings(name, grid_mm, max_linearisations=max(polish_linearisations, 1),
-                               station_radii=SWARM_STATION_RADII, station_min_mm=SWARM_STATION_MIN_MM,
-                               knot_stations=True,
-                               join_grading=True)
+    settings = swarm_settings(name, grid_mm, polish_linearisations)
     pieces = topp3.pieces_of(path, machine, limits, settings)
     a_ra = [jerk_free_a(p) for p in pieces]
     stops = _near_stops(pieces, a_ra)
@@ -223,6 +221,15 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
     prof = dataclasses.replace(best, planner=name, info=dict(best.info, **info, returned=which))
     prof.planning_time_s = time.perf_counter() - t0
     return prof
+
+
+def swarm_settings(name: str = "pso", grid_mm: float = 0.1, linearisations: int = 1) -> topp3.Settings:
+    """The engine's settings for the swarm's pieces (and the polish's first solve): stations
+    ≤ SWARM_STATION_RADII curvature radii apart down to SWARM_STATION_MIN_MM, a hair either side
+    of every NURBS knot, graded toward every G1 join."""
+    return topp3.Settings(name, grid_mm, max_linearisations=max(linearisations, 1),
+                          station_radii=SWARM_STATION_RADII, station_min_mm=SWARM_STATION_MIN_MM,
+                          knot_stations=True, join_grading=True)
 
 
 def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, path, machine, limits, too_slow):
