@@ -10,6 +10,7 @@ from planners import PlanningError, plan
 from planners.optimal import topp3
 from planners.paths import Arc, Line, SegmentPath
 from planners.pso.feed import KNOT_STEP_TU, MIN_SPAN_STATIONS, FeedSpline, jerk_free_a
+from planners.pso.planner import swarm_settings
 from planners.pso.span import FeedSpan
 from planners.pso.swarm import BLOCK, BlockSwarm
 from planners.verify import command_metrics
@@ -270,14 +271,13 @@ def _seed_on_graded_and_even_knots(piece, path, machine):
 def test_knots_are_graded_toward_a_near_cusp():
     """cusp_trochoid_lcnc's near-cusps (radius ~2 µm) dip TOPP2-RA's feed to < 5 % of its
     largest over a few µm: no even time step lands there, and the seed's feed fitted on even
-    knots reads 159 × a limit, its start 18.3 s against the seed's 2.50 s (measured). Graded
-    toward every local minimum that dips as a join does: 7.6 ×, 4.05 s."""
+    knots reads 213 × a limit, its start 21.5 s against the seed's 2.50 s (measured on the
+    swarm's stations). Graded toward every local minimum that dips as a join does: 3.1 ×, 3.63 s."""
     from harness.corpus.run import CORPUS_DIR
     from planners.paths import resolve_path
     m = load_machine("linuxcnc_delta")
     path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
-    piece = topp3.pieces_of(path, m, m.limits, topp3.Settings("pso", station_radii=0.1, knot_stations=True,
-                                                              join_grading=True))[0]
+    piece = topp3.pieces_of(path, m, m.limits, swarm_settings())[0]
     graded, (read_g, read_e), (start_g, start_e), seed_T = _seed_on_graded_and_even_knots(piece, path, m)
     sd_ra = np.sqrt(graded.a_ra)
     lows = np.nonzero((sd_ra[1:-1] < sd_ra[:-2]) & (sd_ra[1:-1] <= sd_ra[2:]) & (sd_ra[1:-1] < 0.05 * sd_ra.max()))[0] + 1
@@ -356,7 +356,7 @@ def test_the_swarms_pieces_end_at_rest_where_the_jerk_free_optimum_all_but_stops
     from planners.pso.planner import NEAR_STOP, _near_stops
     m = load_machine("linuxcnc_delta")
     path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
-    settings = topp3.Settings("pso", station_radii=0.1, knot_stations=True, join_grading=True)
+    settings = swarm_settings()
     piece, = topp3.pieces_of(path, m, m.limits, settings)
     a_ra = jerk_free_a(piece)
     stops = _near_stops([piece], [a_ra])
@@ -385,7 +385,7 @@ def test_the_swarms_stations_resolve_the_curvature_peaks_at_a_near_cusp():
     from harness.corpus.run import CORPUS_DIR
     from planners.constraints import PathTable
     from planners.paths import resolve_path
-    from planners.pso.planner import SWARM_STATION_RADII, swarm_settings
+    from planners.pso.planner import SWARM_STATION_RADII
     m = load_machine("linuxcnc_delta")
     path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
     peaks = []
@@ -437,8 +437,7 @@ def test_the_swarms_profile_at_T_is_stretched_around_its_reads_where_that_is_che
     text = "\n".join((CORPUS_DIR / "cam_dense_keops.ngc").read_text().splitlines()[:250]) + "\nM2\n"
     path = program_path(parse_gcode(text, "cam_dense_keops_head.ngc"))
     T = KEOPS.servo_period_s
-    settings = topp3.Settings("pso", 0.1, station_radii=pso.SWARM_STATION_RADII, knot_stations=True,
-                              join_grading=True)
+    settings = pso.swarm_settings()
     piece, = topp3.pieces_of(path, KEOPS, KEOPS.limits, settings)
     feed = FeedSpline(piece, 0.002)
     c = feed.start_within(feed.fit(pso._seed_feed(plan_joint(path, KEOPS), piece)))
