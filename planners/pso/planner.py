@@ -79,10 +79,10 @@ __all__ = ["plan", "plan_socp"]
 # stations ≤ this many curvature radii apart for the swarm: its spline, held to the limits at
 # the stations, read above them between coarser ones at lobe tips
 SWARM_STATION_RADII = 0.1
-# ... down to this spacing (`optimal`'s floor, not the engine's 1 µm): a near-cusp's pair of
-# curvature peaks µm apart (radii 0.05–2.4 µm) lay between 0.3–0.6 µm stations, the swarm's
-# knots could not follow its dip, and a station on a peak's shoulder held the feed far below
-# `optimal`'s for tens of µm (cusp_trochoid_lcnc 1.22–1.25 × T_ref; docs/TUNING.md)
+# ... down to this spacing (`optimal`'s floor, not the engine's 1 µm): a near-cusp's curvature
+# peaks µm apart (cusp_trochoid_lcnc: radii down to 0.84 µm) lay in cells up to 0.28 radii
+# wide, the swarm's knots could not follow its dip, and a station on a peak's shoulder held the
+# feed far below `optimal`'s for tens of µm (cusp_trochoid_lcnc 1.21–1.25 × T_ref; docs/TUNING.md)
 SWARM_STATION_MIN_MM = topp3.GRADED_MIN_MM
 # the swarm's knots are made twice as dense this many times, ``iterations`` on each
 REFINEMENTS = 3
