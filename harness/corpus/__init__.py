@@ -13,5 +13,5 @@ from harness.corpus.run import (CORPUS_DIR, FAST_PLANNERS, MANIFEST, QUICK_PATHS
 
 __all__ = ["CORPUS_DIR", "FAST_PLANNERS", "MANIFEST", "QUICK_PATHS", "SEEDS", "CorpusError", "Row",
            "below_reference", "best_times", "entries_from_suite", "load_manifest", "load_reference",
-           "performance_profile", "ratios", "run_corpus", "run_one", "select", "seed_spread", "spread", "summary", "swarm_spread", "write_csv",
-           "write_markdown", "write_outputs"]
+           "performance_profile", "ratios", "run_corpus", "run_one", "select", "seed_spread", "spread", "summary",
+           "swarm_spread", "write_csv", "write_markdown", "write_outputs"]

@@ -15,8 +15,9 @@ a fixed fraction of the relief 3(λ − 1)·q⃛ and 2(λ − 1)·q̈ it buys wh
 feet).  The terms grow with the joints' speed q̇, so a bump where they are slow (a G1 join's
 corner) may be narrower than one sized for V, and costs less (local_widths).  Each bump adds
 δ_i·π·τ_i, a whole number of periods T: the samples after it keep their phase against the
-profile and read as they did, so a round of bumps moves only the reads under them (a uniform stretch moves every later sample, and new windows read above: 24 rounds of it
-took cam_dense_keops's need from 1.014 to 1.022).
+profile and read as they did, so a round of bumps moves only the reads under them (a uniform
+stretch moves every later sample, and new windows read above: 24 rounds of it took
+cam_dense_keops's need from 1.014 to 1.022).
 """
 from __future__ import annotations
 
