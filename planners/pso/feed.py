@@ -42,7 +42,11 @@ TINY = 1e-12
 # joins 0.59–0.82)
 FEED_DIP = 0.5
 # the start (start_within): uniform stretches to reach the limits, then sweeps of the climb back
-# toward the target, each raise the largest of these fractions of a coefficient's log-ratio to it
+# toward the target, each raise the largest of these fractions of a coefficient's log-ratio to it,
+# in groups of neighbours from the widest power of two the piece holds down to one (coarse to
+# fine: climbed in groups of 1–4 only, neighbours that reach a target which reads a few % above
+# a limit leave a coefficient between them that can no longer rise, a valley 5 × below the
+# target: docs/TUNING.md)
 UNIFORM_ROUNDS = 20
 CLIMB_SWEEPS = 40
 CLIMB_FRACTIONS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])
@@ -328,8 +332,8 @@ class FeedSpline:
         least the climb finds, or None: the target uniformly stretched until within (a G1 join's
         read κṡ² shrinks slower than the stretch: repeated, at most UNIFORM_ROUNDS), then each
         coefficient raised back toward the target by the largest of CLIMB_FRACTIONS of their
-        log-ratio that keeps the stations under its support within, alone and g neighbours
-        together (as push), until a sweep moves nothing or CLIMB_SWEEPS.  Where the target holds
+        log-ratio that keeps the stations under its support within, in groups of g neighbours
+        (_climb_groups, widest first), until a sweep moves nothing or CLIMB_SWEEPS.  Where the target holds
         the limits it is returned; elsewhere only the stretches that break them stay slower, by
         as much as their neighbours' limits require.  Deterministic."""
         target = np.asarray(target, float)
@@ -349,11 +353,16 @@ class FeedSpline:
 
         for _ in range(CLIMB_SWEEPS):
             before = c.copy()
-            for g in (1, 2, 4):
+            for g in self._climb_groups():
                 self._raise(c, g, toward, CLIMB_FRACTIONS)
             if np.array_equal(c, before):
                 break
         return c
+
+    def _climb_groups(self):
+        """The group sizes of the climb: the powers of two up to the free coefficients' count,
+        widest first."""
+        return [1 << k for k in range(int(math.log2(max(self.K - 2, 1))), -1, -1)]
 
     def _raise(self, c, g, factors, gain):
         """c (in place) with its free coefficients in groups of g neighbours raised by one column
