@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 from scipy.interpolate import BSpline
+from scipy.signal import find_peaks
 from scipy import sparse
 from scipy.sparse.linalg import lsqr, spsolve
 
@@ -62,6 +63,13 @@ PUSH_GROUPS = (1, 2, 4, 8, 16)
 # log-steps) take dozens of feasible steps out of one, and the feed crawls there (docs/TUNING.md)
 NOTCH = 0.1
 NOTCH_FILL = np.array([1.0, 0.5, 0.25, 0.1, 0.03])
+# a valley of the coefficients (a local minimum and the stretch around it below the lower of
+# the highest coefficients either side before a deeper minimum) whose floor is below VALLEY of
+# that level is filled toward it by the largest fraction of VALLEY_FILL the stations allow
+# (fill_valleys): where the jerk holds both flanks, raising groups of ≤ 16 neighbours alike, by
+# a ramp or a half sine bends the flanks more, and a valley spanning more knots stays
+VALLEY = 0.9
+VALLEY_FILL = np.array([1.0, 0.5, 0.25, 0.125, 0.0625, 0.03, 0.01])
 
 
 def interval_time(dx, sd0, sd1):
@@ -402,7 +410,7 @@ class FeedSpline:
         falls there), or, in groups of more than 4, by a half sine (the middle most, the edges
         least: where the jerk holds the feed, a stretch rises only as a whole and smoothly); of
         the feasible raises, the one largest in sum.  Deterministic."""
-        c = self._fill_notches(np.array(c, float))
+        c = self._fill_valleys(self._fill_notches(np.array(c, float)))
         for _ in range(sweeps):
             for g in groups:
                 shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else []) \
@@ -425,6 +433,41 @@ class FeedSpline:
                 up = np.maximum(want / np.maximum(c[rows], TINY)[:, None], 1.0)
                 return np.where(notch[rows][:, None], up, 1.0)
             self._raise(c, 1, factors, NOTCH_FILL)
+        return c
+
+    def _fill_valleys(self, c):
+        """c (in place) with each valley (VALLEY) raised toward its level by the largest fraction
+        of VALLEY_FILL of (level − c)₊ that keeps the stations under it within the limits: the
+        floor most, the rims not at all, so the flanks flatten.  Deepest first; valleys whose
+        raised coefficients lie ≥ 4 apart (supports sharing at most a knot) in one pass."""
+        inner = c[1:-1]
+        minima, props = find_peaks(-inner, prominence=0.0)
+        if not len(minima):
+            return c
+        level = np.minimum(inner[props["left_bases"]], inner[props["right_bases"]])
+        deep = inner[minima] < VALLEY * level
+        todo = sorted(((float(inner[m] / lv), int(a) + 1, int(b) + 1, float(lv))
+                       for m, a, b, lv, d in zip(minima, props["left_bases"], props["right_bases"], level, deep) if d))
+        while todo:
+            batch, rest, taken = [], [], []
+            for v in todo:
+                _, a, b, _ = v
+                if all(b + 4 <= a2 or b2 + 4 <= a for a2, b2 in taken):
+                    batch.append(v)
+                    taken.append((a, b))
+                else:
+                    rest.append(v)
+            C = np.repeat(c[:, None], len(VALLEY_FILL), axis=1)
+            for _, a, b, lv in batch:
+                up = np.maximum(lv - c[a:b + 1], 0.0)
+                C[a:b + 1] += up[:, None] * VALLEY_FILL[None, :]
+            need = self.reads(C)[1]
+            for _, a, b, _ in batch:
+                worst = need[self.sup_lo[a]:self.sup_hi[b] + 1].max(axis=0)
+                ok = np.flatnonzero(worst <= 1.0)
+                if len(ok):
+                    c[a:b + 1] = C[a:b + 1, ok[0]]
+            todo = rest
         return c
 
     def scaled_within(self, c):
