@@ -49,6 +49,9 @@ FEED_DIP = 0.5
 # a limit leave a coefficient between them that can no longer rise, a valley 5 × below the
 # target: docs/TUNING.md)
 UNIFORM_ROUNDS = 20
+# a group of g is started at every (g / CLIMB_OFFSETS)-th coefficient, not at each: a pass reads
+# every station whatever g, and starts at each would make a sweep cost K passes
+CLIMB_OFFSETS = 8
 CLIMB_SWEEPS = 40
 CLIMB_FRACTIONS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])
 CHUNK = 1024              # stations a pass of reads() (its temporaries stay in cache)
@@ -356,13 +359,13 @@ class FeedSpline:
             return target.copy()
         c = c.copy()
 
-        def toward(c, rows, k):
+        def toward(c, rows, ks):
             return np.maximum(target[rows] / np.maximum(c[rows], TINY), 1.0)[:, None] ** CLIMB_FRACTIONS[None, :]
 
         for _ in range(CLIMB_SWEEPS):
             before = c.copy()
             for g in self._climb_groups():
-                self._raise(c, g, toward, CLIMB_FRACTIONS)
+                self._raise(c, g, toward, CLIMB_FRACTIONS, max(g // CLIMB_OFFSETS, 1))
             if np.array_equal(c, before):
                 break
         return c
@@ -372,24 +375,24 @@ class FeedSpline:
         widest first."""
         return [1 << k for k in range(int(math.log2(max(self.K - 2, 1))), -1, -1)]
 
-    def _raise(self, c, g, factors, gain):
+    def _raise(self, c, g, factors, gain, stride: int = 1):
         """c (in place) with its free coefficients in groups of g neighbours raised by one column
-        of ``factors(c, rows, k)`` (rows: the k-th coefficient of each group; (rows, columns) ≥ 1):
+        of ``factors(c, rows, ks)`` (rows: the groups' coefficients, ks: each one's place in its
+        group; (rows, columns) ≥ 1):
         per group the column of largest ``gain`` that keeps the stations under the group's
         supports within the limits (none where none does).  Groups g + 3 apart have supports
         that share at most a knot, where the other's w, w′, w″ are 0: a pass raises every
         (g + 3)-th group at once."""
         period = g + 3
-        for r in range(period):
+        for r in range(0, period, stride):
             firsts = np.arange(1 + r, self.K - 1, period)
             if not len(firsts):
                 continue
             at = firsts[:, None] + np.arange(g)[None, :]          # (groups, g)
             inside = at <= self.K - 2
             C = np.repeat(c[:, None], len(gain), axis=1)
-            for k in range(g):
-                rows = at[inside[:, k], k]
-                C[rows] *= factors(c, rows, k)
+            rows, ks = at[inside], np.broadcast_to(np.arange(g), at.shape)[inside]
+            C[rows] *= factors(c, rows, ks)
             last = np.minimum(firsts + g - 1, self.K - 2)
             need = np.vstack([self.reads(C)[1], np.zeros((1, len(gain)))])
             lo, hi = self.sup_lo[firsts], self.sup_hi[last]
@@ -397,9 +400,8 @@ class FeedSpline:
             score = np.where(worst <= 1.0, gain[None, :], -1.0)
             best = np.argmax(score, axis=1)
             move = score[np.arange(len(firsts)), best] > 0
-            for k in range(g):
-                sel = move & inside[:, k]
-                c[at[sel, k]] = C[at[sel, k], best[sel]]
+            sel = move[:, None] & inside
+            c[at[sel]] = C[at[sel], np.broadcast_to(best[:, None], at.shape)[sel]]
 
     def push(self, c, sweeps: int = 1, groups=PUSH_GROUPS):
         """c with its free coefficients raised, g neighbours at a time for each g of ``groups``, by
@@ -416,7 +418,7 @@ class FeedSpline:
                 shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else []) \
                     + ([np.sin(np.pi * (np.arange(g) + 0.5) / g)] if g > 4 else [])
                 up = np.concatenate([1.0 + np.outer(PUSH_STEPS, sh) for sh in shapes])    # (columns, g)
-                self._raise(c, g, lambda c, rows, k: up[None, :, k], (up - 1).sum(axis=1))
+                self._raise(c, g, lambda c, rows, ks: up[:, ks].T, (up - 1).sum(axis=1))
         return c
 
     def _fill_notches(self, c):
@@ -428,7 +430,7 @@ class FeedSpline:
         notch = np.zeros(len(c), bool)
         notch[1:-1] = inner < NOTCH * neighbour
         if notch.any():
-            def factors(c, rows, k):
+            def factors(c, rows, ks):
                 want = np.minimum(c[rows - 1], c[rows + 1])[:, None] * NOTCH_FILL[None, :]
                 up = np.maximum(want / np.maximum(c[rows], TINY)[:, None], 1.0)
                 return np.where(notch[rows][:, None], up, 1.0)
