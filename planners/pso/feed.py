@@ -344,8 +344,8 @@ class FeedSpline:
         read κṡ² shrinks slower than the stretch: repeated, at most UNIFORM_ROUNDS), then each
         coefficient raised back toward the target by the largest of CLIMB_FRACTIONS of their
         log-ratio that keeps the stations under its support within, in groups of g neighbours
-        (_climb_groups, widest first), until a sweep moves nothing or CLIMB_SWEEPS.  Where the target holds
-        the limits it is returned; elsewhere only the stretches that break them stay slower, by
+        (_climb_groups, widest first), until a sweep moves nothing or CLIMB_SWEEPS.  Where the
+        target holds the limits it is returned; elsewhere only the stretches that break them stay slower, by
         as much as their neighbours' limits require.  Deterministic."""
         target = np.asarray(target, float)
         c = target
@@ -378,11 +378,11 @@ class FeedSpline:
     def _raise(self, c, g, factors, gain, stride: int = 1):
         """c (in place) with its free coefficients in groups of g neighbours raised by one column
         of ``factors(c, rows, ks)`` (rows: the groups' coefficients, ks: each one's place in its
-        group; (rows, columns) ≥ 1):
-        per group the column of largest ``gain`` that keeps the stations under the group's
-        supports within the limits (none where none does).  Groups g + 3 apart have supports
-        that share at most a knot, where the other's w, w′, w″ are 0: a pass raises every
-        (g + 3)-th group at once."""
+        group; (rows, columns) ≥ 1): per group the column of largest ``gain`` that keeps the
+        stations under the group's supports within the limits (none where none does).  Groups
+        g + 3 apart have supports that share at most a knot, where the other's w, w′, w″ are 0:
+        a pass raises every (g + 3)-th group at once, and the passes start groups at every
+        ``stride``-th coefficient."""
         period = g + 3
         for r in range(0, period, stride):
             firsts = np.arange(1 + r, self.K - 1, period)

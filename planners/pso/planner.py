@@ -23,14 +23,14 @@ ended, and the coarse levels move the feed broadly where the fine ones would nee
 
 Start: the `scurve_joint` seed's feed fitted by the spline (knots also graded toward each G1
 join, where the seed dips), brought within the limits by the least the climb of
-feed.start_within finds: stretched as a whole, then each coefficient raised back toward the fit
-as far as its stations allow.
+feed.start_within finds: stretched as a whole, then raised back toward the fit as far as its
+stations allow, in groups of neighbours from the whole piece down to one coefficient.
 
 Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficients, judged on
 the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
 block's best) stays within the limits at the stations (Deb's feasibility rule); after each
 iteration the context is pushed to the limits (feed.push: a notch filled toward its
-neighbours, then each coefficient, or groups of up to 16 neighbours, raised by the largest step
+neighbours, a valley toward its rims, then each coefficient, or groups of up to 16 neighbours, raised by the largest step
 that keeps their stations within the limits: a repair operator in the sense of Michalewicz's
 GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above
 a limit, the limit is held lower at the stations there, the context is brought within it again
