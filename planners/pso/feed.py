@@ -69,7 +69,7 @@ NOTCH_FILL = np.array([1.0, 0.5, 0.25, 0.1, 0.03])
 # a valley of the coefficients (a local minimum and the stretch around it below the lower of
 # the highest coefficients either side before a deeper minimum) whose floor is below VALLEY of
 # that level is filled toward it by the largest fraction of VALLEY_FILL the stations allow
-# (fill_valleys): where the jerk holds both flanks, raising groups of ≤ 16 neighbours alike, by
+# (_fill_valleys): where the jerk holds both flanks, raising groups of ≤ 16 neighbours alike, by
 # a ramp or a half sine bends the flanks more, and a valley spanning more knots stays
 VALLEY = 0.9
 VALLEY_FILL = np.array([1.0, 0.5, 0.25, 0.125, 0.0625, 0.03, 0.01])
@@ -345,8 +345,8 @@ class FeedSpline:
         coefficient raised back toward the target by the largest of CLIMB_FRACTIONS of their
         log-ratio that keeps the stations under its support within, in groups of g neighbours
         (_climb_groups, widest first), until a sweep moves nothing or CLIMB_SWEEPS.  Where the
-        target holds the limits it is returned; elsewhere only the stretches that break them stay slower, by
-        as much as their neighbours' limits require.  Deterministic."""
+        target holds the limits it is returned; elsewhere only the stretches that break them stay
+        slower, by as much as their neighbours' limits require.  Deterministic."""
         target = np.asarray(target, float)
         c = target
         for _ in range(UNIFORM_ROUNDS):
@@ -448,8 +448,9 @@ class FeedSpline:
             return c
         level = np.minimum(inner[props["left_bases"]], inner[props["right_bases"]])
         deep = inner[minima] < VALLEY * level
-        todo = sorted(((float(inner[m] / lv), int(a) + 1, int(b) + 1, float(lv))
-                       for m, a, b, lv, d in zip(minima, props["left_bases"], props["right_bases"], level, deep) if d))
+        bases = zip(minima, props["left_bases"], props["right_bases"], level, deep)
+        # (depth, first and last coefficient, level), the deepest first
+        todo = sorted((float(inner[m] / lv), int(a) + 1, int(b) + 1, float(lv)) for m, a, b, lv, d in bases if d)
         while todo:
             batch, rest, taken = [], [], []
             for v in todo:
