@@ -340,7 +340,7 @@ def test_the_climb_raises_wide_groups_before_narrow_ones():
 
 def test_a_valley_of_the_coefficients_is_filled_in_one_push():
     """A valley 16 coefficients wide, 0.3 × the pushed feed's coefficients at its floor, in the
-    middle of a 210 mm line (stretched as a whole to be within the limits): one push raises its
+    middle of a 209 mm line (stretched as a whole to be within the limits): one push raises its
     floor to ≥ 0.8 of them (0.917 measured; its groups of ≤ 16 alone reach 0.638, as they bend
     the flanks that the jerk holds), within the limits, only raising."""
     line = SegmentPath([Line([-100, -30, Z], [100, 30, Z])])
