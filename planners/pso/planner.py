@@ -30,9 +30,9 @@ Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficie
 the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
 block's best) stays within the limits at the stations (Deb's feasibility rule); after each
 iteration the context is pushed to the limits (feed.push: a notch filled toward its
-neighbours, a valley toward its rims, then each coefficient, or groups of up to 16 neighbours, raised by the largest step
-that keeps their stations within the limits: a repair operator in the sense of Michalewicz's
-GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above
+neighbours, a valley toward its rims, then each coefficient, or groups of up to 16 neighbours,
+raised by the largest step that keeps their stations within the limits: a repair operator in the
+sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above
 a limit, the limit is held lower at the stations there, the context is brought within it again
 (feed.start_within) and the swarm goes on (_search).
 
@@ -143,12 +143,7 @@ def _plan(name, path, machine, limits, *, seed, particles, iterations, margin, s
     T = machine.servo_period_s
     rng = np.random.default_rng(seed)
     settings = swarm_settings(name, grid_mm, polish_linearisations)
-    pieces = topp3.pieces_of(path, machine, limits, settings)
-    a_ra = [jerk_free_a(p) for p in pieces]
-    stops = _near_stops(pieces, a_ra)
-    if stops:
-        pieces = topp3.pieces_of(path, machine, limits, settings, stops)
-        a_ra = [jerk_free_a(p) for p in pieces]
+    pieces, a_ra, stops = swarm_pieces(path, machine, limits, settings)
     seed_prof = plan_joint(path, machine, limits) if seed_profile is None else seed_profile
 
     feeds, starts = [], []
@@ -230,6 +225,18 @@ def swarm_settings(name: str = "pso", grid_mm: float = 0.1, linearisations: int 
     return topp3.Settings(name, grid_mm, max_linearisations=max(linearisations, 1),
                           station_radii=SWARM_STATION_RADII, station_min_mm=SWARM_STATION_MIN_MM,
                           knot_stations=True, join_grading=True)
+
+
+def swarm_pieces(path, machine, limits, settings):
+    """(the swarm's rest-to-rest pieces, TOPP2-RA's ṡ² on each, the near-stops they also end at):
+    the path's pieces, split again at _near_stops where there are any."""
+    pieces = topp3.pieces_of(path, machine, limits, settings)
+    a_ra = [jerk_free_a(p) for p in pieces]
+    stops = _near_stops(pieces, a_ra)
+    if stops:
+        pieces = topp3.pieces_of(path, machine, limits, settings, stops)
+        a_ra = [jerk_free_a(p) for p in pieces]
+    return pieces, a_ra, stops
 
 
 def _search(feeds, starts, rng, particles, spread, iterations, budget, t0, T, path, machine, limits, too_slow):
