@@ -58,9 +58,11 @@ CHUNK = 1024              # stations a pass of reads() (its temporaries stay in 
 # the relative raises a push tries on each coefficient, largest first, and the sizes of the
 # groups of neighbours it raises together: with groups of 1–4 only, the swarm stalled within 1 %
 # of its seed where the jerk holds the feed over many knots (cusp_epitrochoid_keops 1.37 ×
-# T_ref; with 8 and 16 1.21 ×: docs/TUNING.md)
+# T_ref; with 8 and 16 1.21 ×: docs/TUNING.md).  Widest first, as the start's climb: single
+# coefficients raised first to their stations' limits leave humps that then hold the groups
+# (cusp_trochoid_lcnc's rise from a tip plateaued at half `optimal`'s feed: docs/TUNING.md)
 PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
-PUSH_GROUPS = (1, 2, 4, 8, 16)
+PUSH_GROUPS = (16, 8, 4, 2, 1)
 # a coefficient below NOTCH × the smaller of its neighbours is a notch, and a push first tries to
 # raise it to these fractions of that neighbour: relative raises (PUSH_STEPS, the swarm's
 # log-steps) take dozens of feasible steps out of one, and the feed crawls there (docs/TUNING.md)

@@ -30,7 +30,7 @@ Search (swarm.py): a cooperative swarm, one small swarm per block of 4 coefficie
 the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the context (every
 block's best) stays within the limits at the stations (Deb's feasibility rule); after each
 iteration the context is pushed to the limits (feed.push: a notch filled toward its
-neighbours, a valley toward its rims, then each coefficient, or groups of up to 16 neighbours,
+neighbours, a valley toward its rims, then groups of 16 neighbours down to each coefficient
 raised by the largest step that keeps their stations within the limits: a repair operator in the
 sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above
 a limit, the limit is held lower at the stations there, the context is brought within it again
