@@ -59,8 +59,8 @@ CHUNK = 1024              # stations a pass of reads() (its temporaries stay in 
 # groups of neighbours it raises together: with groups of 1–4 only, the swarm stalled within 1 %
 # of its seed where the jerk holds the feed over many knots (cusp_epitrochoid_keops 1.37 ×
 # T_ref; with 8 and 16 1.21 ×: docs/TUNING.md).  Widest first, as the start's climb: single
-# coefficients raised first to their stations' limits leave humps that then hold the groups
-# (cusp_trochoid_lcnc's rise from a tip plateaued at half `optimal`'s feed: docs/TUNING.md)
+# coefficients raised first to their stations' limits hold the wider groups after them
+# (cusp_trochoid_lcnc's first piece, pushes alone: 4.5 % slower narrow-first, docs/TUNING.md)
 PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
 PUSH_GROUPS = (16, 8, 4, 2, 1)
 # a coefficient below NOTCH × the smaller of its neighbours is a notch, and a push first tries to
