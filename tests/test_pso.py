@@ -307,6 +307,20 @@ def test_the_start_is_the_target_where_it_holds_and_below_it_by_a_climb_elsewher
     assert np.array_equal(ok, c)
 
 
+def _trochoid_seed_fit(k):
+    """(cusp_trochoid_lcnc's k-th swarm piece, its FeedSpline, the papers' start before the climb:
+    the scurve_joint seed fitted in the spline)."""
+    from harness.corpus.run import CORPUS_DIR
+    from planners.paths import resolve_path
+    from planners.pso.planner import _seed_feed, swarm_pieces
+    from planners.scurve import plan_joint
+    m = load_machine("linuxcnc_delta")
+    path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
+    piece = swarm_pieces(path, m, m.limits, swarm_settings())[0][k]
+    feed = FeedSpline(piece, 0.002)
+    return piece, feed, feed.fit(_seed_feed(plan_joint(path, m, m.limits), piece))
+
+
 def test_the_climb_raises_wide_groups_before_narrow_ones():
     """cusp_trochoid_lcnc's piece after its fourth near-cusp, from the papers' start (the
     scurve_joint seed fitted in the spline, 1.5 × a limit at 117.6 mm): climbed back toward the
@@ -314,15 +328,7 @@ def test_the_climb_raises_wide_groups_before_narrow_ones():
     neighbours already reached the seed, and the start dips to a third of the seed's feed there
     (27.7 against 80.1 mm/s at 117.1 mm; 0.4429 s). Climbed from the widest group the piece holds down to one, they rise
     together: 0.4148 s. Within the limits and below the target either way."""
-    from harness.corpus.run import CORPUS_DIR
-    from planners.paths import resolve_path
-    from planners.pso.planner import _seed_feed, swarm_pieces
-    from planners.scurve import plan_joint
-    m = load_machine("linuxcnc_delta")
-    path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
-    piece = swarm_pieces(path, m, m.limits, swarm_settings())[0][4]
-    feed = FeedSpline(piece, 0.002)
-    target = feed.fit(_seed_feed(plan_joint(path, m, m.limits), piece))
+    piece, feed, target = _trochoid_seed_fit(4)
     assert feed.reads(target)[1].max() > 1.2
     wide = feed._climb_groups()
     assert wide[-1] == 1 and wide[0] <= feed.K - 2 < 2 * wide[0]
@@ -360,16 +366,9 @@ def test_the_push_raises_wide_groups_before_narrow_ones():
     reach their stations' limits one by one and hold the wider groups (0.3578 s); groups of 16
     raised first, down to one, lift neighbours together (0.3423 s). Within the limits and only
     raising either way."""
-    from harness.corpus.run import CORPUS_DIR
-    from planners.paths import resolve_path
     from planners.pso.feed import PUSH_GROUPS
-    from planners.pso.planner import _seed_feed, swarm_pieces
-    from planners.scurve import plan_joint
-    m = load_machine("linuxcnc_delta")
-    path = resolve_path(str(CORPUS_DIR / "cusp_trochoid_lcnc.json"), home=m.home)
-    piece = swarm_pieces(path, m, m.limits, swarm_settings())[0][0]
-    feed = FeedSpline(piece, 0.002)
-    start = feed.start_within(feed.fit(_seed_feed(plan_joint(path, m, m.limits), piece)))
+    _, feed, target = _trochoid_seed_fit(0)
+    start = feed.start_within(target)
     assert PUSH_GROUPS[0] > PUSH_GROUPS[-1] == 1
     times = []
     for groups in (PUSH_GROUPS, PUSH_GROUPS[::-1]):
