@@ -63,6 +63,11 @@ CHUNK = 1024              # stations a pass of reads() (its temporaries stay in 
 # (cusp_trochoid_lcnc's first piece, pushes alone: 4.5 % slower narrow-first, docs/TUNING.md)
 PUSH_STEPS = np.array([0.5, 0.2, 0.08, 0.03, 0.01, 0.003, 0.001])
 PUSH_GROUPS = (16, 8, 4, 2, 1)
+# before those greedy raises, an even round: every group raised by this one small step where
+# its stations allow.  Greedy alone, a pass's first groups rise by up to 1.5 × and take the
+# jerk their neighbours need to rise with them: cusp_trochoid_lcnc's rise after its first tip
+# locked at ~60 mm/s on 7 of 10 seeds, where `optimal` runs 78–97 mm/s (docs/TUNING.md)
+PUSH_EVEN = np.array([0.03])
 # a coefficient below NOTCH × the smaller of its neighbours is a notch, and a push first tries to
 # raise it to these fractions of that neighbour: relative raises (PUSH_STEPS, the swarm's
 # log-steps) take dozens of feasible steps out of one, and the feed crawls there (docs/TUNING.md)
@@ -406,21 +411,22 @@ class FeedSpline:
             c[at[sel]] = C[at[sel], np.broadcast_to(best[:, None], at.shape)[sel]]
 
     def push(self, c, sweeps: int = 1, groups=PUSH_GROUPS):
-        """c with its free coefficients raised, g neighbours at a time for each g of ``groups``, by
-        the largest of PUSH_STEPS that keeps the stations under their support within the limits
-        (none where none does; _raise): w grows with every coefficient (the basis is ≥ 0), so a
-        raise never costs time.  Neighbours are raised alike, or by a ramp rising or falling
+        """c with its free coefficients raised, g neighbours at a time for each g of ``groups``:
+        first all by the even step PUSH_EVEN, then each by the largest of PUSH_STEPS, where that
+        keeps the stations under their support within the limits (none where none does;
+        _raise): w grows with every coefficient (the basis is ≥ 0), so a raise never costs time.  Neighbours are raised alike, or by a ramp rising or falling
         across them (the jerk at a group's edge limits a raise alike where the feed climbs or
         falls there), or, in groups of more than 4, by a half sine (the middle most, the edges
         least: where the jerk holds the feed, a stretch rises only as a whole and smoothly); of
         the feasible raises, the one largest in sum.  Deterministic."""
         c = self._fill_valleys(self._fill_notches(np.array(c, float)))
         for _ in range(sweeps):
-            for g in groups:
-                shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else []) \
-                    + ([np.sin(np.pi * (np.arange(g) + 0.5) / g)] if g > 4 else [])
-                up = np.concatenate([1.0 + np.outer(PUSH_STEPS, sh) for sh in shapes])    # (columns, g)
-                self._raise(c, g, lambda c, rows, ks: up[:, ks].T, (up - 1).sum(axis=1))
+            for steps in (PUSH_EVEN, PUSH_STEPS):
+                for g in groups:
+                    shapes = [np.ones(g)] + ([np.arange(1, g + 1) / g, np.arange(g, 0, -1) / g] if g > 1 else []) \
+                        + ([np.sin(np.pi * (np.arange(g) + 0.5) / g)] if g > 4 else [])
+                    up = np.concatenate([1.0 + np.outer(steps, sh) for sh in shapes])    # (columns, g)
+                    self._raise(c, g, lambda c, rows, ks: up[:, ks].T, (up - 1).sum(axis=1))
         return c
 
     def _fill_notches(self, c):

@@ -31,8 +31,9 @@ the stations the block moves (van den Bergh & Engelbrecht's CPSO-S_K); the conte
 block's best) stays within the limits at the stations (Deb's feasibility rule); after each
 iteration the context is pushed to the limits (feed.push: a notch filled toward its
 neighbours, a valley toward its rims, then groups of 16 neighbours down to each coefficient
-raised by the largest step that keeps their stations within the limits: a repair operator in the
-sense of Michalewicz's GENOCOP, toward the boundary where a time-optimal feed lies).  Where its samples at T read above
+raised, all by one small even step first, then each by the largest step that keeps their
+stations within the limits: a repair operator in the sense of Michalewicz's GENOCOP, toward
+the boundary where a time-optimal feed lies).  Where its samples at T read above
 a limit, the limit is held lower at the stations there, the context is brought within it again
 (feed.start_within) and the swarm goes on (_search).
 
