@@ -387,7 +387,7 @@ def test_an_even_round_first_keeps_the_swarm_from_locking_a_rise(monkeypatch):
     from the papers' start, rng seeds 0–5: with the push's greedy steps alone, a pass's first
     groups rise up to 1.5 × and take the jerk the rise after the tip needs (median 0.3535 s;
     the feed at 1.5 mm 54.5–78.9 mm/s, `optimal` 97); an even round of 3 % first, where the
-    stations allow, leaves the rise free (median 0.3427 s, 67–94 mm/s)."""
+    stations allow, leaves the rise free (median 0.3427 s, 67–93 mm/s)."""
     from planners.pso import feed as feed_module
     from planners.pso.swarm import BlockSwarm
     piece, feed, target = _trochoid_seed_fit(0)
@@ -509,8 +509,8 @@ def test_a_swarm_stretched_across_many_pieces_gets_the_rounds_they_need():
     profile within the limits (the row fell back to its seed). With 8 a piece it returns its own,
     within the limits at T; on stations that resolve the feet (SWARM_STATION_MIN_MM) within
     1.10 × the corpus's converged reference (1.0872 measured; 1.0987 before the push's even
-    round, 1.1026 before its wide groups first, 1.1309 before the start's wide climb and the valley fill, 1.2139 on the engine's 1 µm
-    floor)."""
+    round, 1.1026 before its wide groups first, 1.1309 before the start's wide climb and the
+    valley fill, 1.2139 on the engine's 1 µm floor)."""
     import json
     from harness.corpus.run import CORPUS_DIR
     from planners.paths import resolve_path

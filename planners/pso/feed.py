@@ -414,11 +414,12 @@ class FeedSpline:
         """c with its free coefficients raised, g neighbours at a time for each g of ``groups``:
         first all by the even step PUSH_EVEN, then each by the largest of PUSH_STEPS, where that
         keeps the stations under their support within the limits (none where none does;
-        _raise): w grows with every coefficient (the basis is ≥ 0), so a raise never costs time.  Neighbours are raised alike, or by a ramp rising or falling
-        across them (the jerk at a group's edge limits a raise alike where the feed climbs or
-        falls there), or, in groups of more than 4, by a half sine (the middle most, the edges
-        least: where the jerk holds the feed, a stretch rises only as a whole and smoothly); of
-        the feasible raises, the one largest in sum.  Deterministic."""
+        _raise): w grows with every coefficient (the basis is ≥ 0), so a raise never costs time.
+        Neighbours are raised alike, or by a ramp rising or falling across them (the jerk at a
+        group's edge limits a raise alike where the feed climbs or falls there), or, in groups
+        of more than 4, by a half sine (the middle most, the edges least: where the jerk holds
+        the feed, a stretch rises only as a whole and smoothly); of the feasible raises, the one
+        largest in sum.  Deterministic."""
         c = self._fill_valleys(self._fill_notches(np.array(c, float)))
         for _ in range(sweeps):
             for steps in (PUSH_EVEN, PUSH_STEPS):
