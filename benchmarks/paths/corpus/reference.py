@@ -15,15 +15,16 @@ chord-error term, the jerk a G1 join's jump of q″ reads as at T) and the path'
 The problem (the planners' constraint set): per rest-to-rest piece (split at exact-stop
 corners, ṡ = s̈ = 0 at its ends), minimise the time subject to |q′ṡ| ≤ V, |q″ṡ² + q′s̈| ≤ A,
 |q‴ṡ³ + 3q″ṡs̈ + q′s⃛| ≤ J per joint, ṡ ≤ min(F_max, programmed F, chord-error cap) and, at a
-G1 join and at a NURBS knot where q″ jumps (knot_jumps), |jerk + κṡ²| ≤ J (κ =
-JUMP_READ_FACTOR·Δq″/T, Δq″ signed from the left side to the right) on either side: the jump
-reads at T as that jerk.  The third differences at T read it over 3 periods, so the nodes within
-2·READ_REACH periods of the join hold |jerk + w·κṡ²| ≤ J too, w = read_envelope of their time
-from it (1 within READ_REACH): with |jerk| ≤ J there, enough for every third difference whatever
-the samples' phase (VERSION 7; VERSION 6 held the join's node alone and its profiles read up to
-1.99 × J at T on the CAM programs; VERSION 7–9 held |jerk| + w·|κ|ṡ², which also charged the
-jump to a jerk of the other sign, and lay up to 0.6 % above `optimal`'s profiles on the joins'
-paths).
+G1 join and at a NURBS knot where q″ jumps (knot_jumps), the jump read at T: every third
+difference whose window holds the join reads the joint jerk averaged by its kernel (the quadratic
+B-spline over 3 periods) plus the jump κṡ² weighted by where it falls in the window (κ =
+JUMP_READ_FACTOR·Δq″/T, Δq″ signed from the left side to the right). The rows hold that read
+within J for the windows centred δ periods from the join, δ = −1.375 … 1.375 by ⅛ (KERNEL_PHASES):
+whatever the samples' phase, to the read's change over 1/16 period (VERSION 11, add_kernel_reads;
+VERSION 7–10 held |jerk + w·κṡ²| ≤ J pointwise at every node within 3 periods, w = 1 within 1.5:
+sufficient, but a window reads the jerk's average, and those rows held it off J at every point
+of it: they lay up to 1.2 % above `optimal`'s feasible profiles on the joins' paths; VERSION 6 held
+the join's node alone and its profiles read up to 1.99 × J at T).
 
 The transcription: per rest piece, nodes fixed along the arc length and s(t) a cubic on every
 cell between two of them (a constant path jerk s⃛ over the cell's own duration Δt): at the
@@ -68,9 +69,9 @@ from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, break
 from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
-# bump when the transcription or its inputs change: every cached entry is redone (VERSION 10: the
-# joins' reads signed, |jerk + w·κṡ²| ≤ J with κ the jump's sign, not |jerk| + w·|κ|ṡ²)
-VERSION = 10
+# bump when the transcription or its inputs change: every cached entry is redone (VERSION 11: a
+# join's reads are the third differences' kernel averages, not a pointwise envelope)
+VERSION = 11
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
@@ -83,6 +84,14 @@ CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2�
 # a join's read is imposed at the nodes within 2·READ_REACH periods of it at the start's node
 # times widened by READ_SLACK; a solution with a node closer outside that set is solved again with it
 READ_SLACK = 1.2
+# a join's reads are held for the windows centred these many periods from it (step ¼; step ½
+# let the G64 head of tests/test_reference.py read 1.023 × J a quarter period off), each cell's
+# share of a window's average by a composite trapezoid whose intervals are at most KERNEL_H
+# periods at the start's durations (one interval a cell let contour_keops's 1-period cells read
+# 1.011 × J at T)
+KERNEL_STEP = 0.125
+KERNEL_PHASES = np.arange(-1.5 + KERNEL_STEP, 1.5 - 1e-9, KERNEL_STEP)
+KERNEL_H = 0.2
 READ_ROUNDS = 8
 # max_cpu_time and max_iter stop a solve that runs away, never shorten one that converges (a stop
 # is an error of the path; the largest CAM grids need up to ~1700 s: corpus README; VERSION 8's
@@ -271,22 +280,75 @@ class PieceData:
         self.s, self.scale, self.period = s, (tu, vu), T / tu
 
 
-def read_envelope(u):
-    """The share of a join's read (κṡ² at the join's speed) held off the jerk at u ≥ 0 periods
-    from the join, as a CasADi expression: 1 within READ_REACH, then join_read_weight(u −
-    READ_REACH) (planners/constraints.py: 1 − 4x²/3 to x = ½, then 2(1.5 − x)²/3), 0 from
-    2·READ_REACH on.  Sufficient for every third difference at T, whatever the samples' phase:
-    the one centred c reads ∫jerk·K(t − c)dt + κṡ²·join_read_weight(c), K its kernel (mass 1,
-    support ±READ_REACH), and over that support the envelope is ≥ join_read_weight(c)."""
+def bspline2(x):
+    """The quadratic B-spline on [0, 3] (mass 1; planners.constraints.third_difference_weight),
+    0 outside, as a CasADi expression: the kernel of a third difference at T. In truncated
+    powers, ½[x₊² − 3(x−1)₊² + 3(x−2)₊² − (x−3)₊²]: four fmax, not a nest of if_else (its
+    derivatives are a third of the NLP's build)."""
     import casadi as ca
-    x = u - READ_REACH
-    return ca.if_else(x < 0, 1.0, ca.if_else(x < 0.5, 1 - 4 * x * x / 3,
-                                             ca.if_else(x < READ_REACH, 2 * (READ_REACH - x) ** 2 / 3, 0.0)))
+    p = [ca.fmax(x - k, 0) for k in range(4)]
+    return (p[0] * p[0] - 3 * p[1] * p[1] + 3 * p[2] * p[2] - p[3] * p[3]) / 2
+
+
+def add_join_node_reads(D: PieceData, add, v, a, j, b):
+    """The cold start's rows (VERSION 6's): |jerk + κṡ²| ≤ J at each join's node, either side with
+    that side's cell, κ signed (TII 2022's read at T of the window centred on the join). Not
+    enough at T (a window off the join reads the jump and the jerk beside it: up to 1.99 × J on
+    the CAM programs); add_kernel_reads replaces them once the nodes' times are known."""
+    m = j.shape[0]
+    for i, kap in D.kappa.items():
+        for cell, (q1, q2, q3) in ((i - 1, D.left), (i, D.right)):
+            if 0 <= cell < m:
+                for k in range(3):
+                    jerk = v[i] * (q3[i, k] * b[i] + 3 * q2[i, k] * a[i]) + q1[i, k] * j[cell]
+                    add(jerk + kap[k] * b[i], -1.0, 1.0)
+
+
+def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0):
+    """Every join's reads at T, whatever the samples' phase: the third difference centred c
+    (c − t_join = δ periods, δ ∈ KERNEL_PHASES) reads the joint jerk averaged by its kernel
+    K(t − c) = bspline2((t − c)/T + 1.5)/T, plus each jump within its window weighted by
+    bspline2 at the jump, κṡ²·join_read_weight (the jumps of every join near, not only this
+    one's). The average is a composite trapezoid over each cell near the join, the jerk linear
+    between the cell's two ends (their rows above), in intervals of at most KERNEL_H periods at
+    the durations ``dt0`` (the start's)."""
+    import casadi as ca
+    P = D.period
+    r1, r2, r3 = D.right
+    l1, l2, l3 = D.left
+    m = dt.shape[0]
+    rule = {}
+    for c in range(m):
+        k = int(min(max(math.ceil(dt0[c] / (KERNEL_H * P)), 1), 256))
+        w = np.full(k + 1, 1.0 / k)
+        w[[0, -1]] /= 2
+        rule[c] = (np.linspace(0.0, 1.0, k + 1), w)
+    for i in D.kappa:
+        near = sorted(set(reads.get(i, ())) | {i})
+        cells = sorted({c for n in near for c in (n - 1, n) if 0 <= c < m})
+        jumps = [n for n in near if n in D.kappa]
+        ends = {}
+        for c in cells:
+            ends[c] = [(v[c] * (r3[c, k] * b[c] + 3 * r2[c, k] * a[c]) + r1[c, k] * j[c],
+                        v[c + 1] * (l3[c + 1, k] * b[c + 1] + 3 * l2[c + 1, k] * a[c + 1]) + l1[c + 1, k] * j[c])
+                       for k in range(3)]
+        for delta in KERNEL_PHASES:
+            centre = tn[i] + delta * P
+            kern = {c: [bspline2((tn[c] + th * dt[c] - centre) / P + 1.5) / P for th in rule[c][0]] for c in cells}
+            for k in range(3):
+                read = 0
+                for c in cells:
+                    fs, fe = ends[c][k]
+                    read += dt[c] * sum(w * ((1 - th) * fs + th * fe) * K
+                                        for w, th, K in zip(rule[c][1], rule[c][0], kern[c]))
+                for n in jumps:
+                    read += D.kappa[n][k] * b[n] * bspline2((tn[n] - centre) / P + 1.5) / JUMP_READ_FACTOR
+                add(read, -1.0, 1.0)
 
 
 def read_nodes(D: PieceData, dt, reach=1.0) -> dict:
     """Per join node, the other nodes less than ``reach`` × 2·READ_REACH periods from it at the
-    cells' durations ``dt`` (scaled): where read_envelope is not 0."""
+    cells' durations ``dt`` (scaled): the nodes a window reading the join's jump can reach."""
     t = np.concatenate([[0.0], np.cumsum(dt)])
     return {i: {int(c) for c in np.nonzero(np.abs(t - t[i]) < reach * 2 * READ_REACH * D.period)[0] if c != i}
             for i in D.kappa}
@@ -329,25 +391,18 @@ def solve_piece(D: PieceData, warm=None, reads=None):
         add(v[1:] * (l3[1:, k] * b[1:] + 3 * l2[1:, k] * a[1:]) + l1[1:, k] * j, -1.0, 1.0)
     # ṡ ≥ 0 inside a cell too (at its half time)
     add(v[:-1] + 0.5 * a[:-1] * dt + j * dt * dt / 8, 0.0, np.inf)
-    # a G1 join: |jerk + κṡ²| ≤ J either side, with that side's cell (TII 2022's read at T), κ
-    # signed, and at each node c of ``reads`` |jerk + w·κṡ²| ≤ J, ṡ the join's, w = read_envelope
-    # of c's time from it: the third differences whose window holds c read the jump too, with
-    # a weight between 0 and w whatever the phase, and both ends hold (|jerk| ≤ J: the rows above)
-    timed = any(reads.values()) if reads else False
+    # a G1 join: its jump of q″ reads at T as a jerk in every third difference whose window holds
+    # it; with ``reads`` (the nodes near each join) every such window's read, whatever the phase,
+    # from the start's solve (no reads) the join's node alone
+    timed = reads is not None and bool(D.kappa)
     if timed:
-        # the nodes' times as variables, tied by their cells: a read's weight then depends on
-        # two of them, not on the sum of every cell between (dense rows and Hessian blocks)
+        # the nodes' times as variables, tied by their cells: a window's kernel weights then depend
+        # on a few of them, not on the sum of every cell between (dense rows and Hessian blocks)
         tn = ca.SX.sym("tn", n)
         add(tn[1:] - tn[:-1] - dt, 0.0, 0.0)
-    for i, kap in D.kappa.items():
-        near = sorted((reads or {}).get(i, ()))
-        for c in [i] + near:
-            w = 1.0 if c == i else read_envelope(ca.fabs(tn[c] - tn[i]) / D.period)
-            for cell, (q1, q2, q3) in ((c - 1, D.left), (c, D.right)):
-                if 0 <= cell < m:
-                    for k in range(3):
-                        jerk = v[c] * (q3[c, k] * b[c] + 3 * q2[c, k] * a[c]) + q1[c, k] * j[cell]
-                        add(jerk + w * kap[k] * b[i], -1.0, 1.0)
+        add_kernel_reads(D, add, v, a, j, dt, b, tn, reads, np.asarray(warm[2]))
+    else:
+        add_join_node_reads(D, add, v, a, j, b)
     vmax = np.minimum(D.vmax, 1e6)
     lbx = np.concatenate([np.zeros(n), np.full(n, -np.inf), np.zeros(m), np.full(m, -np.inf)])
     ubx = np.concatenate([vmax, np.full(n, np.inf), np.full(m, np.inf), np.full(m, np.inf)])
@@ -572,7 +627,7 @@ def check_at_T(path, machine, prof):
 def entry_key(entry) -> str:
     """What a cached reference depends on: the path file's bytes, the machine, the settings."""
     h = hashlib.sha256((HERE / entry["file"]).read_bytes())
-    h.update(json.dumps([entry["machine"], VERSION, BASE_NODES, LEVELS, TURN_RAD]).encode())
+    h.update(json.dumps([entry["machine"], VERSION, BASE_NODES, LEVELS, TURN_RAD, KERNEL_STEP, KERNEL_H]).encode())
     return h.hexdigest()[:16]
 
 
