@@ -84,11 +84,11 @@ CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2�
 # a join's read is imposed at the nodes within 2·READ_REACH periods of it at the start's node
 # times widened by READ_SLACK; a solution with a node closer outside that set is solved again with it
 READ_SLACK = 1.2
-# a join's reads are held for the windows centred these many periods from it (step ¼; step ½
-# let the G64 head of tests/test_reference.py read 1.023 × J a quarter period off), each cell's
-# share of a window's average by a composite trapezoid whose intervals are at most KERNEL_H
-# periods at the start's durations (one interval a cell let contour_keops's 1-period cells read
-# 1.011 × J at T)
+# a join's reads are held for the windows centred these many periods from it, by KERNEL_STEP
+# (by ½ the G64 head of tests/test_reference.py read 1.023 × J a quarter period off, by ¼
+# contour_keops 1.011 × J at T: the read bulges between two held phases), each cell's share of a
+# window's average by a composite trapezoid whose intervals are at most KERNEL_H periods at the
+# start's durations (its error on the head: 0.003 × J)
 KERNEL_STEP = 0.125
 KERNEL_PHASES = np.arange(-1.5 + KERNEL_STEP, 1.5 - 1e-9, KERNEL_STEP)
 KERNEL_H = 0.2
@@ -282,9 +282,8 @@ class PieceData:
 
 def bspline2(x):
     """The quadratic B-spline on [0, 3] (mass 1; planners.constraints.third_difference_weight),
-    0 outside, as a CasADi expression: the kernel of a third difference at T. In truncated
-    powers, ½[x₊² − 3(x−1)₊² + 3(x−2)₊² − (x−3)₊²]: four fmax, not a nest of if_else (its
-    derivatives are a third of the NLP's build)."""
+    0 outside, as a CasADi expression: the kernel of a third difference at T, in truncated
+    powers ½[x₊² − 3(x−1)₊² + 3(x−2)₊² − (x−3)₊²]."""
     import casadi as ca
     p = [ca.fmax(x - k, 0) for k in range(4)]
     return (p[0] * p[0] - 3 * p[1] * p[1] + 3 * p[2] * p[2] - p[3] * p[3]) / 2
