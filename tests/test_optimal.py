@@ -509,8 +509,10 @@ def _delayed_s(pieces, T, path, delay):
 
 def test_read_phases_hold_the_joint_jerk_at_every_phase_they_read(monkeypatch):
     """A G64 square's blend joins read at T at the one phase of the harness's clock are
-    repaired there only: with its start ¾ T late the same profile reads 1.04 × J. With
-    read_phases=4 the repairs read four phases and every one holds J, at the same time."""
+    repaired there only; the SOCP's window rows (topp3.Settings.window_reads) hold every phase
+    but to their linearisation: with its start ¼–¾ T late the same profile reads up to 1.0016 × J
+    (1.04 × J with the rows at the graded stations before them). With read_phases=4 the
+    repairs read four phases and every one holds J, at the same time."""
     from planners.paths.gcode import parse_gcode, program_path
     from planners.profile import Profile
     path = program_path(parse_gcode("G21 G90 G64 P0.04\nG0 X-25 Y-25 Z-250\nG1 X25 F1200\nY25\nX-25\n"))
@@ -530,7 +532,7 @@ def test_read_phases_hold_the_joint_jerk_at_every_phase_they_read(monkeypatch):
         times[phases] = p.execution_time_s
         worst[phases] = [command_metrics(KOSSEL, path.point(s), p.T, s)["joint_peak_ratio"]["jerk"]
                          for s in (_delayed_s(pieces, p.T, path, d * p.T) for d in (0, 0.25, 0.5, 0.75))]
-    assert max(worst[1]) > 1.01, worst[1]              # the path exercises the phase
+    assert 1 + 1e-4 < max(worst[1]) <= 1.003, worst[1]   # the path exercises the phase
     assert max(worst[4]) <= 1 + 1e-6, worst[4]
     assert times[4] == pytest.approx(times[1], rel=1e-3)
 

@@ -33,6 +33,7 @@ import dataclasses
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
+from scipy.sparse.linalg import splu
 
 # copp's floor of a_lin in the jerk rows' tangent and the stationary bounds (its
 # a_linearization_floor)
@@ -59,6 +60,10 @@ WARM_MU = 1e-4
 # the band's diagonal regularisation (+ on the primal unknowns, − on the equalities' multipliers):
 # keeps the LU defined where a station's rows are all inactive
 REGULARISATION = 1e-11
+# rows wider than this many unknowns: the Newton system is factored as a sparse matrix (_Sparse)
+BAND_SPAN = 24
+# ... and the rows of more than this many unknowns are summed into it as dense blocks
+WIDE_ROW = 8
 # refinement steps of the corrector's Newton solve, until its residual is below REFINE_TOL of its
 # right side (the predictor's only sets the centring)
 REFINE_STEPS = 1
@@ -87,6 +92,7 @@ class Rows:
                 r2.append((k, sg * d2[:, m], sg * d1[:, m], a[:, m]))
                 r3.append((k, sg * d3[:, m], sg * 3 * d2[:, m], sg * d1[:, m], np.zeros(len(k)), j[:, m]))
         self._r2, self._r3 = r2, r3
+        self.linear = []        # add_linear's blocks
         self._joint_rows = (len(r2), len(r3))       # the rows added after them: add_2nd, add_3rd
         self._sorted = None
 
@@ -102,6 +108,12 @@ class Rows:
         jmax = np.broadcast_to(np.ravel(jmax), ca.shape)
         self._r3.append((np.full(len(ca), station), ca, np.ravel(cb), np.ravel(cc), np.ravel(cd), jmax))
         self._sorted = None
+
+    def add_linear(self, cols, vals, rhs):
+        """Rows vals·x[cols] ≤ rhs over the unknowns x = (a_0, b_0, a_1, b_1, …): ``cols`` (w), ``vals``
+        (m × w), ``rhs`` (m).  A window solve holds the blocks whose unknowns all lie inside it;
+        copp-py's Robot has no such rows (copp_robot leaves them out)."""
+        self.linear.append((np.asarray(cols, np.int64), np.asarray(vals, float), np.asarray(rhs, float)))
 
     def copp_robot(self):
         """The same rows as a copp-py Robot: for Clarabel where the IPM has no solution, and TOPP2-RA."""
@@ -281,6 +293,10 @@ def solve(rows: Rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), station
     inv = 1.0 / ds[k]
     p.le_rows([(2 * k, ca_lin[right]), (2 * k + 1, cb[right] - cc[right] * inv), (2 * k + 3, cc[right] * inv)],
               rhs[right])
+    # add_linear's blocks inside the window
+    for cols, vals, rhs in rows.linear:
+        if cols.min() >= 2 * lo and cols.max() <= 2 * (lo + n) + 1:
+            p.le_rows([(np.full(len(rhs), c - 2 * lo), vals[:, j]) for j, c in enumerate(cols)], rhs)
     # objective Σ w_k/√a_k over k = 1 … n − 1 (copp's get_weight_a_topp3)
     w = np.zeros(n + 1)
     w[1:n] = 0.5 * (s[2:] - s[:-2])
@@ -373,6 +389,8 @@ class _Problem:
         if start is not None and start.band.matches(G, E):
             start.band.load(G, E)
             band = start.band
+        elif _span(G) > BAND_SPAN:
+            band, start = _Sparse(G, E, station), None
         else:
             band, start = _Band(G, E, station), None
         x, its, f, last = _ipm(G, h, E, e, wf, is_a, x0, band, where, start)
@@ -403,9 +421,7 @@ class _Band:
         nv, ne = G.shape[1], E.shape[0]
         self.nv, self.N = nv, nv + ne
         self.pattern = _pattern(G, E)
-        first = np.minimum.reduceat(E.indices, E.indptr[:-1]) if ne else np.zeros(0, int)
-        key = np.concatenate([station * 4.0 + (np.arange(nv) % 2), station[first] * 4.0 + 2 + np.arange(ne) / (ne + 1.0)])
-        order = np.argsort(key, kind="stable")
+        order = _station_order(E, station)
         self.pos = np.empty(self.N, int)
         self.pos[order] = np.arange(self.N)
         # every pair of a row's entries, each once (the product is symmetric): the term
@@ -482,6 +498,84 @@ class _Band:
         rhs[self.pos[self.nv:]] = ry
         sol, _ = lapack.dgbtrs(lu, self.k, self.k, rhs, piv)
         return sol[self.pos[:self.nv]], sol[self.pos[self.nv:]]
+
+
+def _station_order(E, station):
+    """The Newton system's unknowns (x, then E's multipliers) station by station, each equality's
+    multiplier after the first station it touches."""
+    nv, ne = len(station), E.shape[0]
+    first = np.minimum.reduceat(E.indices, E.indptr[:-1]) if ne else np.zeros(0, int)
+    key = np.concatenate([station * 4.0 + (np.arange(nv) % 2), station[first] * 4.0 + 2 + np.arange(ne) / (ne + 1.0)])
+    return np.argsort(key, kind="stable")
+
+
+def _span(G) -> int:
+    """The widest row of G, in columns (unknowns are ordered station by station)."""
+    if G.shape[0] == 0 or G.nnz == 0:
+        return 0
+    nz = np.diff(G.indptr) > 0
+    lo = np.minimum.reduceat(G.indices, G.indptr[:-1][nz])
+    hi = np.maximum.reduceat(G.indices, G.indptr[:-1][nz])
+    return int(np.max(hi - lo))
+
+
+class _Sparse:
+    """The reduced Newton system of _Band, factored by SuperLU (scipy.sparse.linalg.splu) in the
+    stations' order, for rows wider than BAND_SPAN columns (the G1 joins' window reads,
+    topp3.Piece._window_reads): dgbtrf's cost grows with the square of the widest row over the
+    whole piece, a sparse LU's only where the wide rows are.  The wide rows come in blocks on
+    one set of columns (a join's), whose share of Gᵀ·diag(σ)·G is a dense product Vᵀ·diag(σ)·V."""
+
+    def __init__(self, G, E, station):
+        self.nv, self.N = G.shape[1], G.shape[1] + E.shape[0]
+        self.pattern = _pattern(G, E)
+        self.order = _station_order(E, station)
+        cnt = np.diff(G.indptr)
+        wide = np.flatnonzero(cnt > WIDE_ROW)
+        groups = {}
+        for r in wide:
+            groups.setdefault(G.indices[G.indptr[r]:G.indptr[r + 1]].tobytes(), []).append(r)
+        self.blocks = [(np.array(rs), G.indices[G.indptr[rs[0]]:G.indptr[rs[0] + 1]].copy()) for rs in groups.values()]
+        self.narrow = np.flatnonzero(cnt <= WIDE_ROW)
+        self.load(G, E)
+
+    def matches(self, G, E) -> bool:
+        return all(np.array_equal(p, q) for p, q in zip(self.pattern, _pattern(G, E)))
+
+    def load(self, G, E):
+        """G's and E's values (on this pattern)."""
+        self.Gn = G[self.narrow]
+        self.Gnt = self.Gn.T.tocsr()
+        self.V = [G[rs][:, cols].toarray() for rs, cols in self.blocks]
+        o = self.order
+        self.EK = sp.bmat([[None, E.T], [E, None]], format="csr")[o][:, o].tocsc()
+        self.reg = np.r_[np.full(self.nv, REGULARISATION), np.full(self.N - self.nv, -REGULARISATION)]
+
+    def factor(self, sigma, hdiag):
+        H = (self.Gnt @ sp.diags(sigma[self.narrow]) @ self.Gn).tocoo()
+        ri, ci, dv = [H.row, np.arange(self.N)], [H.col, np.arange(self.N)], [H.data, self.reg + np.r_[hdiag, np.zeros(self.N - self.nv)]]
+        for (rs, cols), V in zip(self.blocks, self.V):
+            ri.append(np.repeat(cols, len(cols)))
+            ci.append(np.tile(cols, len(cols)))
+            dv.append(((V.T * sigma[rs]) @ V).ravel())
+        inv = np.empty(self.N, int)
+        inv[self.order] = np.arange(self.N)
+        K = sp.csc_matrix((np.concatenate(dv), (inv[np.concatenate(ri)], inv[np.concatenate(ci)])),
+                          shape=(self.N, self.N)) + self.EK
+        try:
+            # in the stations' order the fill stays within each row's reach; the diagonal pivots
+            # of the regularised quasi-definite system
+            return splu(K, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        except RuntimeError:        # exactly singular
+            return None
+
+    def solve(self, fac, rx, ry):
+        if fac is None:
+            raise NoSolution("singular Newton system")
+        rhs = np.r_[rx, ry]
+        sol = np.empty(self.N)
+        sol[self.order] = fac.solve(rhs[self.order])
+        return sol[:self.nv], sol[self.nv:]
 
 
 def warm_start(start, G, h):

@@ -8,7 +8,9 @@ cap; the G1-join reads).  Two transcriptions:
   ≤ GRID_MM apart and ≤ STATION_RADII curvature radii (closer than `copp`'s, down to
   STATION_MIN_MM at µm tips) and graded 2× outward from every G1 join
   (topp3.Settings.join_grading: the SOCP's chord time is the profile's time also where the feed
-  falls near 0 at a G64 corner), the feed cap held at every cell's middle too
+  falls near 0 at a G64 corner), every G1 join's jump held as each third difference at T
+  reads it, whatever the samples' phase (topp3.Settings.window_reads), the feed cap held at
+  every cell's middle too
   (topp3.Settings.midpoint_cap), the jerk limit linearised by tangents (a restriction: the time
   never grows from one linearisation to the next; they stop where the next is predicted to gain
   < LIN_PREDICTED: topp3.linearisation_cost), checked at T and repaired in windows where a
@@ -270,7 +272,8 @@ def _settings(grid_mm, f, knots=(), extra=(), read_phases=1) -> topp3.Settings:
     """optimal's engine settings on stations ``f`` times closer than grid_mm / STATION_RADII,
     with cells at ``knots`` (topp3.binding_knots) and the stations ``extra`` (topp3.speed_stations)."""
     return topp3.Settings("optimal", grid_mm / f, station_radii=STATION_RADII / f, station_min_mm=STATION_MIN_MM,
-                          join_grading=True, read_slack=CHAIN_MARGIN / 2, midpoint_cap=True, knot_cells=knots,
+                          join_grading=True, window_reads=True, read_slack=CHAIN_MARGIN / 2, midpoint_cap=True,
+                          knot_cells=knots,
                           extra_stations=extra, read_phases=read_phases, lin_predicted=LIN_PREDICTED)
 
 

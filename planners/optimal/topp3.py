@@ -25,7 +25,11 @@ a ≤ cap² at the stations.  At a G1 join (a station) |jerk + κṡ²| ≤ J wi
 reads the jump with its sign), for the one-sided derivatives either side: κa = √a·κ√a; on the
 side where the read adds to the jerk, κ√a is replaced by its tangent at a_lin (√a is concave,
 so the tangent row is the stricter), on the other the row is |jerk| ≤ J (the read dropped: a
-restriction too).
+restriction too).  `optimal` (Settings.window_reads) holds the jump as every third difference at
+T whose window holds it reads it instead: the kernel's average of q̈ = q′s̈ + q″ṡ², linear in
+(a, b) on the linearisation's time map, at 23 phases about each join (Piece._window_reads); the
+pointwise rows held the jerk off J at every station near a join where only a window's average
+has to be, 0.1–2.3 % of the time on the corpus's join paths (docs/TUNING.md).
 
 Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s the
 magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile far from the
@@ -118,6 +122,11 @@ GRADED_MIN_MM = 1e-6
 MAX_REPAIRS = 20
 TIGHTEN_EXTRA = 1e-3
 MAX_STRETCHES = 24
+# Settings.window_reads: the centres of the third differences held about each G1 join, in periods
+# from it (a window centred further than 1.5 periods off does not hold the jump), by ⅛ period: the
+# corpus reference's phases (benchmarks/paths/corpus/reference.py KERNEL_PHASES: by ¼ its profiles
+# read up to 1.013 × J between two centres)
+READ_CENTRES = np.arange(-11, 12) / 8
 # a local stretch (timewarp.py) with more bumps than this gives way to the uniform one
 # (reads above all along a piece: a bump per τ of it)
 MAX_BUMPS = 4000
@@ -151,6 +160,8 @@ class Settings:
     ``knot_cells``: arc lengths of NURBS knots (binding_knots) to hold as a station without jerk
     rows and one KNOT_CELL_MM either side (KNOT_CELL_MM).
     ``join_grading``: stations graded 2× outward from every G1 join (_graded, GRADED_MIN_MM).
+    ``window_reads``: a G1 join's jump held as every third difference at T reads it, whatever
+    the samples' phase (Piece._window_reads), in place of the rows at the join's graded stations.
     ``extra_stations``: arc lengths to hold as stations too (speed_stations).
     ``read_slack``: the samples at T are repaired only where they read a joint limit above
     1 + read_slack (a planner that hands the engine its joint limits less a margin lets its
@@ -176,6 +187,7 @@ class Settings:
     knot_stations: bool = False
     knot_cells: tuple = ()
     join_grading: bool = False
+    window_reads: bool = False
     extra_stations: tuple = ()
     read_slack: float = 0.0
     midpoint_cap: bool = False
@@ -309,6 +321,23 @@ def _join_rows(machine, path, grid, joins, T_scaled):
     return out
 
 
+def _one_sided(deriv, joins):
+    """((q′, q″) on the right of each station, (q′, q″) on its left): the stations' own values,
+    a G1 join's station its two sides' (joins: _join_rows)."""
+    right = [deriv[1].copy(), deriv[2].copy()]
+    left = [deriv[1].copy(), deriv[2].copy()]
+    for i, D1, D2, *_ in joins:
+        left[0][i], left[1][i] = D1[0], D2[0]
+        right[0][i], right[1][i] = D1[1], D2[1]
+    return tuple(right), tuple(left)
+
+
+def _read_kernel(tau, P):
+    """G(τ) = [Λ(τ/P − ½) − Λ(τ/P + ½)]/P²: a third difference at period P reads ∫q̈(t)·G(t − c)dt."""
+    hat = lambda u: np.maximum(1 - np.abs(u), 0.0)
+    return (hat(tau / P - 0.5) - hat(tau / P + 0.5)) / (P * P)
+
+
 class Piece:
     """One rest-to-rest piece as a COPP problem in scaled time (t_u = A/J); ``reference``: the
     profile (a at the stations) the first solve is linearised around, TOPP2-RA's where None;
@@ -346,17 +375,31 @@ class Piece:
         self.cap2 = (cap * self.tu) ** 2
         self.path_cap2 = self.cap2.copy()          # F_max and the chord-error cap: caps along s
         self.deriv = joint_derivs(machine, path, e, cart=cart, fit_scale=True)
-        # a third difference at T reads the jump wherever the join lies in its 3-period window,
-        # weighted by join_read_weight: graded stations within 1.5 periods' travel (at the join's
-        # cap) of a join hold its read too, so weighted, with their own q′, q″, q‴ (without, the
-        # SOCP used the whole J there and the repairs at T did not converge on cam_blend_kossel)
-        self.join_reads = list(self.joins)
-        for (i, *_, kappa), v in zip(self.joins, travel):
+        self.period = T / self.tu
+        # the joins whose reads the window rows hold (Settings.window_reads, _window_reads); without,
+        # the rows at the graded stations within READ_REACH periods' travel
+        self.window_joins = list(self.joins) if settings.window_reads else []
+        pointwise = [] if settings.window_reads else [(row, travel[k] if travel else None) for k, row in enumerate(self.joins)]
+        if self.window_joins:
+            self.sides = _one_sided(self.deriv, self.joins)
+        # at a window join's station each side's own jerk ≤ J (the window rows read the jump)
+        self.join_reads = [(i, D1, D2, D3, np.zeros(D1.shape[1])) for i, D1, D2, D3, _ in self.window_joins]
+        for (i, D1, D2, D3, kappa), v in pointwise:
+            # a third difference at T reads the jump wherever the join lies in its 3-period
+            # window, weighted by join_read_weight: graded stations within 1.5 periods' travel
+            # (at the join's cap) of a join hold its read too, so weighted, with their own q′,
+            # q″, q‴ (without, the SOCP used the whole J there and the repairs at T did not
+            # converge on cam_blend_kossel)
+            self.join_reads.append((i, D1, D2, D3, kappa))
+            if v is None:
+                continue
             d = np.abs(self.grid - self.grid[i]) / max(v, GRADED_MIN_MM)   # periods' travel
             near = np.nonzero((d > 0) & (d < READ_REACH))[0]
             self.join_reads += [(k, *(D[k][None, :] for D in self.deriv[1:]),
                                  kappa * join_read_weight(d[k])) for k in near]
-        for i, *_, kappa in self.join_reads:   # |κ|ṡ² ≤ 2J, which |jerk| ≤ J and |jerk + κṡ²| ≤ J imply
+        for i, *_, kappa in self.joins + [r for r in self.join_reads if r[4].any()]:
+            # |κ|ṡ² ≤ 2J, which |jerk| ≤ J and |jerk + κṡ²| ≤ J imply (and a window centred on
+            # the join, which reads the jerk's average plus κṡ²)
             self.cap2[i] = min(self.cap2[i], 2 * self.lims[2] / np.abs(kappa).max())
         # per station the fraction of each limit (LIMIT_COLUMNS) it is held to: 1 until the
         # check at T reads the limit above 1 in a window over the station (tighten)
@@ -409,6 +452,8 @@ class Piece:
             kap = np.maximum(sg * np.broadcast_to(kappa, D1.shape).ravel()[:, None], 0.0)
             ga = sg * D3.ravel()[:, None] + kap / (2 * r)
             rows.add_3rd(ga, sg * 3 * D2.ravel()[:, None], sg * D1.ravel()[:, None], kap * r / 2, j[i, 0], i)
+        if self.window_joins:
+            self._window_reads(rows, a_lin)
         if self.midpoint_cap:
             # between stations b is linear and a(x) = a_k + 2b_k·x + c·x², so a cell's middle is
             # (3a_k + a_k+1)/4 + b_k·Δ/2 = (a_k + 3a_k+1)/4 − b_k+1·Δ/2.  With the far station within
@@ -425,6 +470,57 @@ class Piece:
             rows.add_2nd(np.ones(len(d)), 2 * d / 3, (2 * C[:-1] + C[1:]) / 3, 0)
             rows.add_2nd(np.ones(len(d)), -2 * d / 3, (C[:-1] + 2 * C[1:]) / 3, 1)
         return rows
+
+    def _window_reads(self, rows, a_lin):
+        """Rows holding every window join's reads at T (Settings.window_reads): the third
+        difference of a joint centred c reads ∫q̈(t)·G(t − c)dt, G(τ) = [Λ(τ/T − ½) − Λ(τ/T + ½)]/T²
+        (Λ the unit hat: the third difference's kernel, the quadratic B-spline, differentiated
+        once onto q̈), and q̈ = q′·s̈ + q″·ṡ² is linear in (a, b) wherever s(t) is known: here the
+        time map of a_lin (ṡ linear in time over each cell), so the rows are a linearisation
+        like the jerk's tangents.  A jump of q″ (each side's q′, q″ at a join's station) is read
+        with its kernel weight, as are the jerk beside it and any other join's jump in the
+        window.  Held at every centre c − t_join ∈ READ_CENTRES periods, |read| ≤ J per joint;
+        the integral by 2-point Gauss between the kernels' breaks (every ⅛ period from the join)
+        and the stations' times (exact where q̈·G is a cubic in t)."""
+        g, P = self.grid, self.period
+        n = len(g) - 1
+        v = np.sqrt(np.maximum(np.asarray(a_lin, float), 0.0))
+        dt = 2 * np.diff(g) / np.maximum(v[:-1] + v[1:], 1e-300)
+        t = np.concatenate([[0.0], np.cumsum(dt)])
+        (R1, R2), (L1, L2) = self.sides
+        reach = (READ_CENTRES.max() + 1.5) * P
+        breaks = np.arange(-round(reach / P * 8), round(reach / P * 8) + 1) * P / 8
+        node, half = np.polynomial.legendre.leggauss(2)
+        for i, *_ in self.window_joins:
+            lo_t, hi_t = max(t[i] - reach, 0.0), min(t[i] + reach, t[-1])
+            k0 = max(int(np.searchsorted(t, lo_t, side="right")) - 1, 0)
+            k1 = min(int(np.searchsorted(t, hi_t, side="left")), n)
+            bp = np.unique(np.concatenate([t[i] + breaks, t[k0:k1 + 1]]))
+            bp = bp[(bp >= lo_t) & (bp <= hi_t)]
+            mid, hw = (bp[:-1] + bp[1:]) / 2, np.diff(bp) / 2
+            tp = (mid[:, None] + hw[:, None] * node[None, :]).ravel()
+            wp = (hw[:, None] * half[None, :]).ravel()
+            c = np.clip(np.searchsorted(t, tp, side="right") - 1, 0, n - 1)
+            tau, D = tp - t[c], g[c + 1] - g[c]
+            x = np.clip(v[c] * tau + (v[c + 1] - v[c]) * tau * tau / (2 * dt[c]), 0.0, D)
+            th = (x / D)[:, None]
+            q1 = (1 - th) * R1[c] + th * L1[c + 1]
+            q2 = (1 - th) * R2[c] + th * L2[c + 1]
+            # a(x) = a_c + 2b_c·x + (b_c+1 − b_c)·x²/Δ and b(x) = b_c + (b_c+1 − b_c)·x/Δ
+            xx = (x * x / D)[:, None]
+            coef = (q2, q2 * (2 * x[:, None] - xx) + q1 * (1 - th), q2 * xx + q1 * th)
+            base, width = 2 * k0, 2 * (k1 - k0) + 2
+            K = wp[None, :] * _read_kernel(tp[None, :] - (t[i] + READ_CENTRES[:, None] * P), P)
+            vals = []
+            for m in range(q1.shape[1]):
+                M = np.zeros((len(tp), width))
+                for col, cf in zip((2 * c, 2 * c + 1, 2 * c + 3), coef):
+                    np.add.at(M, (np.arange(len(tp)), col - base), cf[:, m])
+                vals.append(K @ M)
+            vals = np.concatenate([np.concatenate(vals), -np.concatenate(vals)])
+            used = np.flatnonzero(np.abs(vals).max(axis=0) > 0)
+            jmax = self.lims[2] * self.factor[k0:k1 + 1, 2].min()
+            rows.add_linear(base + used, vals[:, used], np.full(len(vals), jmax))
 
     def solve(self, settings):
         """(TOPP3 profile, node times in scaled time).  The first time: linearised around
