@@ -29,7 +29,7 @@ restriction too).  `optimal` (Settings.window_reads) holds the jump as every thi
 T whose window holds it reads it instead: the kernel's average of q̈ = q′s̈ + q″ṡ², linear in
 (a, b) on the linearisation's time map, at 23 phases about each join (Piece._window_reads); the
 pointwise rows held the jerk off J at every station near a join where only a window's average
-has to be, 0.1–2.3 % of the time on the corpus's join paths (docs/TUNING.md).
+has to be: 0.01–5.4 % of the time on the corpus's join paths (docs/TUNING.md).
 
 Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s the
 magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile far from the
@@ -384,13 +384,13 @@ class Piece:
             self.sides = _one_sided(self.deriv, self.joins)
         # at a window join's station each side's own jerk ≤ J (the window rows read the jump)
         self.join_reads = [(i, D1, D2, D3, np.zeros(D1.shape[1])) for i, D1, D2, D3, _ in self.window_joins]
-        for (i, D1, D2, D3, kappa), v in pointwise:
+        self.join_reads += [row for row, _ in pointwise]
+        for (i, *_, kappa), v in pointwise:
             # a third difference at T reads the jump wherever the join lies in its 3-period
             # window, weighted by join_read_weight: graded stations within 1.5 periods' travel
             # (at the join's cap) of a join hold its read too, so weighted, with their own q′,
             # q″, q‴ (without, the SOCP used the whole J there and the repairs at T did not
             # converge on cam_blend_kossel)
-            self.join_reads.append((i, D1, D2, D3, kappa))
             if v is None:
                 continue
             d = np.abs(self.grid - self.grid[i]) / max(v, GRADED_MIN_MM)   # periods' travel
