@@ -29,27 +29,41 @@ def clarabel(rows, a_lin, lo=0, a_ends=(0.0, 0.0), b_ends=(0.0, 0.0), stationary
     return topp3.copp.solver.topp3_socp.solve_expert(prob, topp3.Settings("copp").clarabel())
 
 
-def test_the_band_solves_the_newton_system_as_a_dense_solve_does():
-    # rows coupling one station's (a, b) with the next's, as the engine's do, with σ over 20
-    # decades; the band stores the upper triangle of Gᵀ·diag(σ)·G and mirrors it
+def _random_rows(rng, n, m, wide_every=0):
+    """(G, E): m rows over the unknowns (a_0, b_0, …) of n stations, each coupling a station's
+    (a, b) with the next's as the engine's do, every ``wide_every``-th up to 30 unknowns wide (the
+    joins' window reads); E the engine's b-linear equalities."""
     import scipy.sparse as sp
-    rng = np.random.default_rng(7)
-    n = 40
     nv, rows = 2 * n, []
-    for r in range(300):
-        c = rng.choice(np.arange(2 * int(rng.integers(0, n - 1)), 2 * n)[:4], size=int(rng.integers(1, 4)),
-                       replace=False)
+    for r in range(m):
+        lo = 2 * int(rng.integers(0, n - 2))
+        wide = bool(wide_every) and r % wide_every == 0
+        pool = np.arange(lo, min(lo + (30 if wide else 4), nv))
+        c = rng.choice(pool, size=min(len(pool), int(rng.integers(1, 4)) + (20 if wide else 0)), replace=False)
         rows.append((np.full(len(c), r), c, rng.normal(size=len(c))))
     G = sp.csr_matrix((np.concatenate([v for *_, v in rows]), (np.concatenate([r for r, _, _ in rows]),
-                                                               np.concatenate([c for _, c, _ in rows]))), shape=(300, nv))
+                                                               np.concatenate([c for _, c, _ in rows]))), shape=(m, nv))
     k = np.arange(n - 1)
     E = sp.csr_matrix((np.r_[np.ones(n - 1), -np.ones(n - 1), rng.random(n - 1), rng.random(n - 1)],
                        (np.tile(k, 4), np.r_[2 * k, 2 * k + 2, 2 * k + 1, 2 * k + 3])), shape=(n - 1, nv))
-    band = ipm._Band(G, E, np.arange(nv) // 2)
-    sigma = 10.0 ** rng.uniform(-10, 10, 300)
-    hd = np.where(np.arange(nv) % 2 == 0, rng.random(nv), 0.0)
-    rx, ry = rng.normal(size=nv), rng.normal(size=n - 1)
-    dx, dy = band.solve(band.factor(sigma, hd), rx, ry)
+    return G, E
+
+
+@pytest.mark.parametrize("kind", ["band", "sparse"])
+def test_the_newton_system_is_solved_as_a_dense_solve_does(kind):
+    # σ over 20 decades. The band (dgbtrf) stores the upper triangle of Gᵀ·diag(σ)·G and mirrors
+    # it; the sparse factor (SuperLU in the stations' order) takes the rows wider than BAND_SPAN
+    # next to the narrow ones, as dense blocks
+    import scipy.sparse as sp
+    rng = np.random.default_rng(7)
+    n, m = 60, 400
+    G, E = _random_rows(rng, n, m, wide_every=10 if kind == "sparse" else 0)
+    assert (ipm._span(G) > ipm.BAND_SPAN) == (kind == "sparse")
+    lu = (ipm._Sparse if kind == "sparse" else ipm._Band)(G, E, np.arange(2 * n) // 2)
+    sigma = 10.0 ** rng.uniform(-10, 10, m)
+    hd = np.where(np.arange(2 * n) % 2 == 0, rng.random(2 * n), 0.0)
+    rx, ry = rng.normal(size=2 * n), rng.normal(size=n - 1)
+    dx, dy = lu.solve(lu.factor(sigma, hd), rx, ry)
     K = np.block([[np.diag(hd + ipm.REGULARISATION) + (G.T @ sp.diags(sigma) @ G).toarray(), E.T.toarray()],
                   [E.toarray(), -ipm.REGULARISATION * np.eye(n - 1)]])
     want = np.linalg.solve(K, np.r_[rx, ry])
@@ -135,33 +149,3 @@ def test_the_engine_solves_by_the_ipm_and_falls_back_to_clarabel(monkeypatch):
     q = solve("ipm")
     assert q.info["ipm_fallbacks"] > 0
     assert q.execution_time_s == c.execution_time_s
-
-
-def test_the_sparse_factor_solves_the_newton_system_as_a_dense_solve_does():
-    # rows up to 30 unknowns wide (the G1 joins' window reads) next to the narrow ones, σ over
-    # 20 decades: ipm._Sparse (SuperLU in the stations' order) against numpy's dense solve
-    import scipy.sparse as sp
-    rng = np.random.default_rng(11)
-    n = 60
-    nv, rows = 2 * n, []
-    for r in range(400):
-        lo = 2 * int(rng.integers(0, n - 2))
-        wide = r % 10 == 0
-        pool = np.arange(lo, min(lo + (30 if wide else 4), nv))
-        c = rng.choice(pool, size=min(len(pool), int(rng.integers(1, 4)) + (20 if wide else 0)), replace=False)
-        rows.append((np.full(len(c), r), c, rng.normal(size=len(c))))
-    G = sp.csr_matrix((np.concatenate([v for *_, v in rows]), (np.concatenate([r for r, _, _ in rows]),
-                                                               np.concatenate([c for _, c, _ in rows]))), shape=(400, nv))
-    assert ipm._span(G) > ipm.BAND_SPAN
-    k = np.arange(n - 1)
-    E = sp.csr_matrix((np.r_[np.ones(n - 1), -np.ones(n - 1), rng.random(n - 1), rng.random(n - 1)],
-                       (np.tile(k, 4), np.r_[2 * k, 2 * k + 2, 2 * k + 1, 2 * k + 3])), shape=(n - 1, nv))
-    lu = ipm._Sparse(G, E, np.arange(nv) // 2)
-    sigma = 10.0 ** rng.uniform(-10, 10, 400)
-    hd = np.where(np.arange(nv) % 2 == 0, rng.random(nv), 0.0)
-    rx, ry = rng.normal(size=nv), rng.normal(size=n - 1)
-    dx, dy = lu.solve(lu.factor(sigma, hd), rx, ry)
-    K = np.block([[np.diag(hd + ipm.REGULARISATION) + (G.T @ sp.diags(sigma) @ G).toarray(), E.T.toarray()],
-                  [E.toarray(), -ipm.REGULARISATION * np.eye(n - 1)]])
-    want = np.linalg.solve(K, np.r_[rx, ry])
-    assert np.allclose(np.r_[dx, dy], want, rtol=1e-6, atol=1e-9 * np.abs(want).max())
