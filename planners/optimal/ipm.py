@@ -21,7 +21,9 @@ Clarabel solves it as a conic program: one sparse KKT system of every row and co
 QDLDL and refined at each iteration (what that costs: docs/TUNING.md).  Here the objective is kept as it is (separable, convex in a > 0) and every
 row couples two neighbouring stations, so with the unknowns ordered station by station the
 reduced Newton system [∇²f + Gᵀ(Z/S)G, Eᵀ; E, 0] is banded (half-bandwidth 5) and LAPACK's
-banded LU (dgbtrf) factors it in O(n).  Mehrotra's predictor-corrector (Nocedal & Wright,
+banded LU (dgbtrf) factors it in O(n).  Rows that couple many stations (`optimal`'s window reads
+of a G1 join: Rows.add_linear) would widen that band over the whole piece: with them the system
+is factored by SuperLU in the same order (_Sparse).  Mehrotra's predictor-corrector (Nocedal & Wright,
 Numerical Optimization, 2nd ed., §14.2, for the inequalities; the objective's Hessian is
 diagonal) with one step length for primal and dual.  A piece's next linearisation starts from the
 last one's iterate (warm_start), on the same band layout.
@@ -530,6 +532,8 @@ class _Sparse:
         self.nv, self.N = G.shape[1], G.shape[1] + E.shape[0]
         self.pattern = _pattern(G, E)
         self.order = _station_order(E, station)
+        self.pos = np.empty(self.N, int)          # an unknown's place in that order
+        self.pos[self.order] = np.arange(self.N)
         cnt = np.diff(G.indptr)
         wide = np.flatnonzero(cnt > WIDE_ROW)
         groups = {}
@@ -558,9 +562,7 @@ class _Sparse:
             ri.append(np.repeat(cols, len(cols)))
             ci.append(np.tile(cols, len(cols)))
             dv.append(((V.T * sigma[rs]) @ V).ravel())
-        inv = np.empty(self.N, int)
-        inv[self.order] = np.arange(self.N)
-        K = sp.csc_matrix((np.concatenate(dv), (inv[np.concatenate(ri)], inv[np.concatenate(ci)])),
+        K = sp.csc_matrix((np.concatenate(dv), (self.pos[np.concatenate(ri)], self.pos[np.concatenate(ci)])),
                           shape=(self.N, self.N)) + self.EK
         try:
             # in the stations' order the fill stays within each row's reach; the diagonal pivots

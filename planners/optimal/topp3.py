@@ -29,7 +29,7 @@ restriction too).  `optimal` (Settings.window_reads) holds the jump as every thi
 T whose window holds it reads it instead: the kernel's average of q̈ = q′s̈ + q″ṡ², linear in
 (a, b) on the linearisation's time map, at 23 phases about each join (Piece._window_reads); the
 pointwise rows held the jerk off J at every station near a join where only a window's average
-has to be: 0.01–5.4 % of the time on the corpus's join paths (docs/TUNING.md).
+has to be (what that cost: docs/TUNING.md).
 
 Time is scaled by t_u = A/J of the joints (limits V·t_u, A·t_u², J·t_u³): in mm and s the
 magnitudes of a, b and the jerk lie far apart and Clarabel returned a profile far from the
