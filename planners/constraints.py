@@ -53,6 +53,14 @@ def third_difference_weight(u: float) -> float:
     return u * u / 2 if u < 1 else (-2 * u * u + 6 * u - 3) / 2 if u < 2 else (3 - u) ** 2 / 2
 
 
+def second_derivative_kernel(tau, T: float):
+    """G(τ) = [Λ(τ/T − ½) − Λ(τ/T + ½)]/T² (Λ the unit hat): a third difference at period T
+    centred c reads ∫q̈(t)·G(t − c)dt, the kernel of third_difference_weight integrated by parts
+    onto the second derivative."""
+    hat = lambda u: np.maximum(1 - np.abs(u), 0.0)
+    return (hat(tau / T - 0.5) - hat(tau / T + 0.5)) / (T * T)
+
+
 def join_read_weight(d: float) -> float:
     """The read of a G1 join's jump (κṡ², κ = JUMP_READ_FACTOR·Δq″/T) by the third difference
     centred d periods from it, as a fraction of the read at the join: 1 − 4d²/3 to d = ½, then

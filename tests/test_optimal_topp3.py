@@ -506,15 +506,15 @@ def test_station_floor_lets_a_micron_tip_have_its_stations():
 
 
 def test_the_window_kernel_reads_a_jump_and_a_smooth_acceleration_as_the_third_difference():
-    """topp3._read_kernel G: ∫q̈(t)·G(t − c)dt is the third difference (q(c + 1.5T) − 3q(c + ½T)
+    """constraints.second_derivative_kernel G: ∫q̈(t)·G(t − c)dt is the third difference (q(c + 1.5T) − 3q(c + ½T)
     + 3q(c − ½T) − q(c − 1.5T))/T³, computed here from q directly: for a jump of q″ d periods
     from the centre (q = ½(t − t_j)₊²: third_difference_weight(1.5 − d)/T) and for q = sin."""
-    from planners.constraints import third_difference_weight
+    from planners.constraints import second_derivative_kernel, third_difference_weight
     T = 1e-3
     t = np.linspace(-2 * T, 2 * T, 400001)
     w = np.full(len(t), t[1] - t[0])
     w[[0, -1]] /= 2
-    G = topp3._read_kernel(t, T)
+    G = second_derivative_kernel(t, T)
     third = lambda q: (q(1.5 * T) - 3 * q(0.5 * T) + 3 * q(-0.5 * T) - q(-1.5 * T)) / T ** 3
     for d in np.linspace(-1.5, 1.5, 13):
         tj = -d * T                                     # the centre d periods after the jump

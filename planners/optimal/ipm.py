@@ -541,6 +541,7 @@ class _Sparse:
             groups.setdefault(G.indices[G.indptr[r]:G.indptr[r + 1]].tobytes(), []).append(r)
         self.blocks = [(np.array(rs), G.indices[G.indptr[rs[0]]:G.indptr[rs[0] + 1]].copy()) for rs in groups.values()]
         self.narrow = np.flatnonzero(cnt <= WIDE_ROW)
+        self.reg = np.r_[np.full(self.nv, REGULARISATION), np.full(self.N - self.nv, -REGULARISATION)]
         self.load(G, E)
 
     def matches(self, G, E) -> bool:
@@ -553,7 +554,6 @@ class _Sparse:
         self.V = [G[rs][:, cols].toarray() for rs, cols in self.blocks]
         o = self.order
         self.EK = sp.bmat([[None, E.T], [E, None]], format="csr")[o][:, o].tocsc()
-        self.reg = np.r_[np.full(self.nv, REGULARISATION), np.full(self.N - self.nv, -REGULARISATION)]
 
     def factor(self, sigma, hdiag):
         H = (self.Gnt @ sp.diags(sigma[self.narrow]) @ self.Gn).tocoo()

@@ -64,7 +64,7 @@ import numpy as np
 from planners.constraints import (JUMP_READ_FACTOR, READ_REACH, PathTable, PlanningError, cartesian_derivs,
                                   check_limits, check_path, cross_norm, curvature_splits, feed_cap,
                                   interior_knots, join_jumps, join_read_weight, joint_derivs, rest_pieces,
-                                  station_grid)
+                                  second_derivative_kernel, station_grid)
 from planners.optimal import ipm, timewarp
 from planners.optimal.ipm import LIN_FLOOR
 from planners.profile import Profile, Rest
@@ -332,12 +332,6 @@ def _one_sided(deriv, joins):
     return tuple(right), tuple(left)
 
 
-def _read_kernel(tau, P):
-    """G(τ) = [Λ(τ/P − ½) − Λ(τ/P + ½)]/P²: a third difference at period P reads ∫q̈(t)·G(t − c)dt."""
-    hat = lambda u: np.maximum(1 - np.abs(u), 0.0)
-    return (hat(tau / P - 0.5) - hat(tau / P + 0.5)) / (P * P)
-
-
 class Piece:
     """One rest-to-rest piece as a COPP problem in scaled time (t_u = A/J); ``reference``: the
     profile (a at the stations) the first solve is linearised around, TOPP2-RA's where None;
@@ -397,7 +391,7 @@ class Piece:
             near = np.nonzero((d > 0) & (d < READ_REACH))[0]
             self.join_reads += [(k, *(D[k][None, :] for D in self.deriv[1:]),
                                  kappa * join_read_weight(d[k])) for k in near]
-        for i, *_, kappa in self.joins + [r for r in self.join_reads if r[4].any()]:
+        for i, *_, kappa in (self.joins if self.window_joins else self.join_reads):
             # |κ|ṡ² ≤ 2J, which |jerk| ≤ J and |jerk + κṡ²| ≤ J imply (and a window centred on
             # the join, which reads the jerk's average plus κṡ²)
             self.cap2[i] = min(self.cap2[i], 2 * self.lims[2] / np.abs(kappa).max())
@@ -510,7 +504,7 @@ class Piece:
             xx = (x * x / D)[:, None]
             coef = (q2, q2 * (2 * x[:, None] - xx) + q1 * (1 - th), q2 * xx + q1 * th)
             base, width = 2 * k0, 2 * (k1 - k0) + 2
-            K = wp[None, :] * _read_kernel(tp[None, :] - (t[i] + READ_CENTRES[:, None] * P), P)
+            K = wp[None, :] * second_derivative_kernel(tp[None, :] - (t[i] + READ_CENTRES[:, None] * P), P)
             vals = []
             for m in range(q1.shape[1]):
                 M = np.zeros((len(tp), width))
