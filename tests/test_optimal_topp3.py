@@ -582,3 +582,29 @@ def test_window_reads_are_faster_than_the_rows_at_the_graded_stations(tmp_path):
         assert len(p.window_joins) == (6 if window else 0)
         out[window] = p.solve(st)[1][-1] * p.tu
     assert out[True] < out[False] * 0.999
+
+
+def test_repair_windows_hold_every_join_block_they_touch_whole(tmp_path):
+    """A window solve holds only the window-row blocks wholly inside it (ipm.solve), so a repair
+    window is widened over every join's block it cuts (_covering).  At G64 P0.01 corners, the
+    jerk tightened two stations past the second join: the window reaches the speed valleys and
+    cut the third join's block (507…516 of 0…772); with the block dropped its reads came out
+    at 1.30 × J, held whole 1.0045 × J (the rows rebuilt on the new time map: a linearisation)."""
+    assert topp3._covering([(5, 20), (40, 50)], [(0, 6), (18, 25), (45, 47), (52, 60)]) == [(0, 25), (40, 50)]
+    assert topp3._covering([(5, 20), (24, 30)], [(18, 25)]) == [(5, 30)]
+    assert topp3._covering([(5, 20)], []) == [(5, 20)]
+    path = _corners(tmp_path, 0.01)
+    st = optimal._settings(optimal.GRID_MM, 1)
+    (p,) = topp3.pieces_of(path, KEOPS, KEOPS.limits, st)
+    prof, _ = p.solve(st)
+    blocks = [(int(c.min()) // 2, int(c.max()) // 2) for c, _, _ in p._rows(prof.a).linear]
+    k = p.window_joins[2][0] + 2
+    p.factor[k, 2] *= 0.8
+    p.changed[k] = True
+    windows = topp3._windows(p.changed, p.grid, prof.a, topp3.WINDOW_TU * math.sqrt(prof.a[k]), topp3.WINDOW_STATIONS)
+    assert any(b0 <= hi and b1 >= lo and (b0 < lo or b1 > hi) for lo, hi in windows for b0, b1 in blocks)
+    new, _ = p.solve(st)
+    x = np.empty(2 * len(p.grid))
+    x[0::2], x[1::2] = new.a, new.b
+    worst = max(float(np.max(vals @ x[cols] / rhs)) for cols, vals, rhs in p._rows(new.a).linear)
+    assert worst < 1.01
