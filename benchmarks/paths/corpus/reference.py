@@ -39,7 +39,8 @@ path-parameter form before it, VERSION 5, weighted 1/ṡ by a five-point ds/dσ 
 NURBS knot and curvature peak, equidistributed between them by a monitor that adds nodes per
 radian turned, graded towards the rest ends and slow points as s ∝ σ³ (each side of a point
 its own zone: VERSION 8). The grids are nested
-(each halves every cell of the one before); the times of the last three give the observed
+(each halves every cell of the one before; LEVELS of them, a fourth where their bar is wide and
+it stays small: WIDE_BAR); the times of the last three give the observed
 order p and the Richardson limit T* = T₃ + (T₃ − T₂)/(2^p − 1), and the error bar is the
 larger of |T* − T₃| and the change of T* from the previous triple. The finest profile is
 sampled at T and checked with planners.verify.command_metrics (``check_at_T``).
@@ -75,6 +76,12 @@ VERSION = 11
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
+# ... and one more while the bar is above WIDE_BAR of T* and the next grid has ≤ WIDE_NODES nodes
+# (meander_keops's three grids 3.6426 → 3.6350 → 3.6298 s had order 0.56 and a 0.30 % bar; the
+# fourth, 3.6271 s, order 0.90 and 0.14 %); a CAM program's fourth grid (37 000–92 000 nodes)
+# would take hours
+WIDE_BAR = 2e-3
+WIDE_NODES = 25_000
 SLOW_FRACTION = 0.25           # a break whose speed cap is below this part of F_max is graded like a stop
 TURN_RAD = 0.1                 # level 0: a node at least every 0.1 rad of turn
 PEAK_PROMINENCE = 1e-9         # a curvature peak's prominence over κ below this is rounding
@@ -303,15 +310,18 @@ def add_join_node_reads(D: PieceData, add, v, a, j, b):
                     add(jerk + kap[k] * b[i], -1.0, 1.0)
 
 
-def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0):
+def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0, lifted):
     """Every join's reads at T, whatever the samples' phase: the third difference centred c
     (c − t_join = δ periods, δ ∈ KERNEL_PHASES) reads the joint jerk averaged by its kernel
     K(t − c) = bspline2((t − c)/T + 1.5)/T, plus each jump within its window weighted by
     bspline2 at the jump, κṡ²·join_read_weight (the jumps of every join near, not only this
     one's). The average is a composite trapezoid over each cell near the join, the jerk linear
     between the cell's two ends (their rows above), in intervals of at most KERNEL_H periods at
-    the durations ``dt0`` (the start's)."""
-    import casadi as ca
+    the durations ``dt0`` (the start's). Each cell's start time from the join is a variable of
+    its own (``lifted(k)``: k new unknowns), tied to ``tn`` by a linear row: every term of a read
+    then depends on one cell's unknowns, so the rows' Hessian is block-diagonal by cell (through
+    the join's time every window coupled all its cells: nlpsol built that Hessian in 160 of 250 s
+    of meander_keops's finest grid). The same rows, the same problem."""
     P = D.period
     r1, r2, r3 = D.right
     l1, l2, l3 = D.left
@@ -322,27 +332,41 @@ def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0):
         w = np.full(k + 1, 1.0 / k)
         w[[0, -1]] /= 2
         rule[c] = (np.linspace(0.0, 1.0, k + 1), w)
-    for i in D.kappa:
-        near = sorted(set(reads.get(i, ())) | {i})
-        cells = sorted({c for n in near for c in (n - 1, n) if 0 <= c < m})
-        jumps = [n for n in near if n in D.kappa]
+    for i, (cells, jumps) in read_cells(D, reads, m).items():
+        rel = lifted(len(cells))
+        add(rel - (tn[cells] - tn[i]), 0.0, 0.0)
+        since = {c: rel[k] for k, c in enumerate(cells)}
         ends = {}
         for c in cells:
             ends[c] = [(v[c] * (r3[c, k] * b[c] + 3 * r2[c, k] * a[c]) + r1[c, k] * j[c],
                         v[c + 1] * (l3[c + 1, k] * b[c + 1] + 3 * l2[c + 1, k] * a[c + 1]) + l1[c + 1, k] * j[c])
                        for k in range(3)]
         for delta in KERNEL_PHASES:
-            centre = tn[i] + delta * P
-            kern = {c: [bspline2((tn[c] + th * dt[c] - centre) / P + 1.5) / P for th in rule[c][0]] for c in cells}
+            # each cell's weights of its start and end jerk in this window's average
+            weights = {}
+            for c in cells:
+                th, w = rule[c]
+                K = [wk * bspline2((since[c] + t * dt[c]) / P - delta + 1.5) / P for t, wk in zip(th, w)]
+                weights[c] = (dt[c] * sum(Kk * (1 - t) for Kk, t in zip(K, th)), dt[c] * sum(Kk * t for Kk, t in zip(K, th)))
             for k in range(3):
                 read = 0
                 for c in cells:
                     fs, fe = ends[c][k]
-                    read += dt[c] * sum(w * ((1 - th) * fs + th * fe) * K
-                                        for w, th, K in zip(rule[c][1], rule[c][0], kern[c]))
+                    read += weights[c][0] * fs + weights[c][1] * fe
                 for n in jumps:
-                    read += D.kappa[n][k] * b[n] * bspline2((tn[n] - centre) / P + 1.5) / JUMP_READ_FACTOR
+                    at = 0.0 if n == i else since.get(n, tn[n] - tn[i])
+                    read += D.kappa[n][k] * b[n] * bspline2(at / P - delta + 1.5) / JUMP_READ_FACTOR
                 add(read, -1.0, 1.0)
+
+
+def read_cells(D: PieceData, reads, m) -> dict:
+    """Per join node (D.kappa's order): the cells whose jerk its windows average (either side of
+    each node in ``reads``) and the join nodes among them, whose jumps they read."""
+    out = {}
+    for i in D.kappa:
+        near = sorted(set(reads.get(i, ())) | {i})
+        out[i] = (sorted({c for n in near for c in (n - 1, n) if 0 <= c < m}), [n for n in near if n in D.kappa])
+    return out
 
 
 def read_nodes(D: PieceData, dt, reach=1.0) -> dict:
@@ -399,7 +423,13 @@ def solve_piece(D: PieceData, warm=None, reads=None):
         # on a few of them, not on the sum of every cell between (dense rows and Hessian blocks)
         tn = ca.SX.sym("tn", n)
         add(tn[1:] - tn[:-1] - dt, 0.0, 0.0)
-        add_kernel_reads(D, add, v, a, j, dt, b, tn, reads, np.asarray(warm[2]))
+        rel = []
+
+        def lifted(k):
+            rel.append(ca.SX.sym(f"rel{len(rel)}", k))
+            return rel[-1]
+
+        add_kernel_reads(D, add, v, a, j, dt, b, tn, reads, np.asarray(warm[2]), lifted)
     else:
         add_join_node_reads(D, add, v, a, j, b)
     vmax = np.minimum(D.vmax, 1e6)
@@ -412,10 +442,12 @@ def solve_piece(D: PieceData, warm=None, reads=None):
     x0 = np.clip(x0, lbx, ubx)
     x = ca.vertcat(v, a, dt, j)
     if timed:
-        x = ca.vertcat(x, tn)
-        lbx = np.concatenate([lbx, [0.0], np.zeros(n - 1)])
-        ubx = np.concatenate([ubx, [0.0], np.full(n - 1, np.inf)])
-        x0 = np.concatenate([x0, [0.0], np.cumsum(x0[2 * n:2 * n + m])])
+        x = ca.vertcat(x, tn, *rel)
+        t0 = np.concatenate([[0.0], np.cumsum(x0[2 * n:2 * n + m])])
+        nrel = sum(r.shape[0] for r in rel)
+        lbx = np.concatenate([lbx, [0.0], np.zeros(n - 1), np.full(nrel, -np.inf)])
+        ubx = np.concatenate([ubx, [0.0], np.full(n - 1, np.inf), np.full(nrel, np.inf)])
+        x0 = np.concatenate([x0, t0] + [t0[cells] - t0[i] for i, (cells, _) in read_cells(D, reads, m).items()])
     nlp = {"x": x, "f": ca.sum1(dt), "g": ca.vertcat(*g)}
     opts = IPOPT if warm is None else {**IPOPT, **IPOPT_WARM}
     solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt": opts, "print_time": False})
@@ -537,9 +569,10 @@ def richardson(T):
     return Ts, err, p
 
 
-def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
+def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None, wide_nodes=0):
     """The refinement study of one path: {"grids": [...], "T_reference_s", "error_s", "order",
-    "check_at_T"}."""
+    "check_at_T"}: ``levels`` grids and, while their bar is above WIDE_BAR of T* and the next
+    grid has at most ``wide_nodes`` nodes, one more."""
     limits = machine.limits
     J = limits.joint
     tu = J.a / J.j
@@ -565,7 +598,8 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
                                [sj for sj, _ in joins if s0 < sj < s1]])
         maps.append(Map(path, s0, s1, br, h, ell, slow))
     grids, warm, prof = [], [None] * len(maps), None
-    for level in range(levels):
+    level = 0
+    while level < levels or _wide([g["T_s"] for g in grids]) and 2 * grids[-1]["nodes"] <= wide_nodes:
         t0 = time.process_time()
         total, iters, nodes, prof = 0.0, 0, 0, []
         for k, ((s0, s1), mp) in enumerate(zip(pieces, maps)):
@@ -584,9 +618,16 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None):
         grids.append(g)
         if log:
             log(f"  level {level}: {nodes} nodes T = {total:.9f} s ({g['solve_s']} s CPU, {iters} it)")
+        level += 1
     Ts, err, p = richardson([g["T_s"] for g in grids])
     return {"T_reference_s": Ts, "error_s": err, "order": None if math.isnan(p) else p, "grids": grids,
             "check_at_T": check_at_T(path, machine, prof)}
+
+
+def _wide(T) -> bool:
+    """Whether the grids' times ``T`` leave a bar above WIDE_BAR of their limit."""
+    Ts, err, _ = richardson(T)
+    return err > WIDE_BAR * Ts
 
 
 def sample_profile(prof, T, delay=0.0):
@@ -626,7 +667,7 @@ def check_at_T(path, machine, prof):
 def entry_key(entry) -> str:
     """What a cached reference depends on: the path file's bytes, the machine, the settings."""
     h = hashlib.sha256((HERE / entry["file"]).read_bytes())
-    h.update(json.dumps([entry["machine"], VERSION, BASE_NODES, LEVELS, TURN_RAD, KERNEL_STEP, KERNEL_H]).encode())
+    h.update(json.dumps([entry["machine"], VERSION, BASE_NODES, LEVELS, TURN_RAD, KERNEL_STEP, KERNEL_H, WIDE_BAR, WIDE_NODES]).encode())
     return h.hexdigest()[:16]
 
 
@@ -672,7 +713,7 @@ def main(argv=None):
         print(f"{e['name']} ({e['machine']}):", flush=True)
         t0 = time.process_time()
         try:
-            r = reference(path, m, log=lambda s: print(s, flush=True))
+            r = reference(path, m, log=lambda s: print(s, flush=True), wide_nodes=WIDE_NODES)
         except RuntimeError as err:
             print(f"{e['name']}: {err}", file=sys.stderr)
             continue
