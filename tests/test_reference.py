@@ -35,6 +35,34 @@ def test_richardson_recovers_a_second_order_limit():
     assert (Ts, err, math.isnan(p)) == (1.001, pytest.approx(0.003), True)
 
 
+def test_a_fourth_grid_where_three_leave_a_wide_bar_and_it_stays_small(monkeypatch):
+    """After LEVELS grids, reference() adds one while the bar is above WIDE_BAR of T* and the
+    next grid has at most ``wide_nodes`` nodes. The solves stubbed with a first-order time
+    T = 1 + c/cells: T* = 1 exactly and the bar is the last correction c/cells, so on the grids
+    of 172, 344, 688 cells c = 2 leaves 0.29 % (a fourth grid, 1376 cells: 0.15 %), c = 1 0.15 %."""
+    R = _ref()
+    m = load_machine("kossel")
+    path = SegmentPath([Line([0, 0, -300], [0, 0, -290])])
+
+    def stub(c):
+        def solve(D, warm, where):
+            n = len(D.s)
+            x = (D.s - D.s[0]) / (D.scale[0] * D.scale[1])
+            return 1.0 + c / (n - 1), np.ones(n), np.zeros(n), np.diff(x), np.zeros(n - 1), 1, "Solve_Succeeded"
+        return solve
+
+    monkeypatch.setattr(R, "check_at_T", lambda *a: {})
+    out = {}
+    for c, wide_nodes in ((2.0, 10 ** 6), (2.0, 1000), (1.0, 10 ** 6)):
+        monkeypatch.setattr(R, "solve_with_reads", stub(c))
+        r = R.reference(path, m, levels=3, base_nodes=100, wide_nodes=wide_nodes)
+        out[c, wide_nodes] = ([g["nodes"] for g in r["grids"]], r["T_reference_s"], r["error_s"])
+    n, Ts, err = out[2.0, 1000]
+    assert n == [173, 345, 689] and Ts == pytest.approx(1.0, abs=1e-12) and err == pytest.approx(2 / 688)
+    assert out[2.0, 10 ** 6][0] == n + [1377] and out[2.0, 10 ** 6][2] == pytest.approx(2 / 1376)
+    assert out[1.0, 10 ** 6][0] == n
+
+
 def test_a_slow_point_is_graded_on_each_side_by_that_side_s_room():
     """Map's grading around a slow point c: within its zone ℓ the map adds G = (3ℓ^⅔d^⅓ − d)/h
     cells at d from c, so next to c the nodes lie at d ∝ σ³ (d₂/d₁ = 8, d₃/d₂ = 27/8) and the
