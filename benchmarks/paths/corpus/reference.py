@@ -57,6 +57,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.interpolate import PchipInterpolator
 from scipy.signal import peak_prominences
 
@@ -322,41 +323,39 @@ def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0, lifted):
     then depends on one cell's unknowns, so the rows' Hessian is block-diagonal by cell (through
     the join's time every window coupled all its cells: nlpsol built that Hessian in 160 of 250 s
     of meander_keops's finest grid). The same rows, the same problem."""
+    import casadi as ca
     P = D.period
-    r1, r2, r3 = D.right
-    l1, l2, l3 = D.left
     m = dt.shape[0]
-    rule = {}
-    for c in range(m):
-        k = int(min(max(math.ceil(dt0[c] / (KERNEL_H * P)), 1), 256))
-        w = np.full(k + 1, 1.0 / k)
-        w[[0, -1]] /= 2
-        rule[c] = (np.linspace(0.0, 1.0, k + 1), w)
+    per_cell = [int(min(max(math.ceil(dt0[c] / (KERNEL_H * P)), 1), 256)) for c in range(m)]
+    # the window centred δ periods from the join reads its kernel at (t − t_join)/P − δ + 1.5
+    shift = ca.DM(1.5 - KERNEL_PHASES).T
     for i, (cells, jumps) in read_cells(D, reads, m).items():
         rel = lifted(len(cells))
         add(rel - (tn[cells] - tn[i]), 0.0, 0.0)
-        since = {c: rel[k] for k, c in enumerate(cells)}
-        ends = {}
-        for c in cells:
-            ends[c] = [(v[c] * (r3[c, k] * b[c] + 3 * r2[c, k] * a[c]) + r1[c, k] * j[c],
-                        v[c + 1] * (l3[c + 1, k] * b[c + 1] + 3 * l2[c + 1, k] * a[c + 1]) + l1[c + 1, k] * j[c])
-                       for k in range(3)]
-        for delta in KERNEL_PHASES:
-            # each cell's weights of its start and end jerk in this window's average
-            weights = {}
-            for c in cells:
-                th, w = rule[c]
-                K = [wk * bspline2((since[c] + t * dt[c]) / P - delta + 1.5) / P for t, wk in zip(th, w)]
-                weights[c] = (dt[c] * sum(Kk * (1 - t) for Kk, t in zip(K, th)), dt[c] * sum(Kk * t for Kk, t in zip(K, th)))
-            for k in range(3):
-                read = 0
-                for c in cells:
-                    fs, fe = ends[c][k]
-                    read += weights[c][0] * fs + weights[c][1] * fe
-                for n in jumps:
-                    at = 0.0 if n == i else since.get(n, tn[n] - tn[i])
-                    read += D.kappa[n][k] * b[n] * bspline2(at / P - delta + 1.5) / JUMP_READ_FACTOR
-                add(read, -1.0, 1.0)
+        # the quadrature points of every cell (its share θ of the cell, the trapezoid's weight)
+        owner = np.concatenate([np.full(per_cell[c] + 1, q) for q, c in enumerate(cells)])
+        th = np.concatenate([np.linspace(0.0, 1.0, per_cell[c] + 1) for c in cells])
+        w = np.concatenate([np.r_[0.5, np.ones(per_cell[c] - 1), 0.5] / per_cell[c] for c in cells])
+        at = (rel[owner.tolist()] + ca.DM(th) * dt[[cells[q] for q in owner]]) / P
+        K = ca.diag(ca.DM(w / P)) @ bspline2(ca.repmat(at, 1, len(KERNEL_PHASES)) + ca.repmat(shift, len(th), 1))
+        # each cell's weights of its start and end jerk in each window's average (cells × phases)
+        span = ca.diag(dt[cells])
+        ws = span @ (ca.DM(sp.csc_matrix(((1 - th), (owner, np.arange(len(th)))), shape=(len(cells), len(th)))) @ K)
+        we = span @ (ca.DM(sp.csc_matrix((th, (owner, np.arange(len(th)))), shape=(len(cells), len(th)))) @ K)
+        nxt = [c + 1 for c in cells]
+        reads_k = []
+        for k in range(3):
+            fs = v[cells] * (ca.DM(D.right[2][cells, k]) * b[cells] + 3 * ca.DM(D.right[1][cells, k]) * a[cells]) \
+                + ca.DM(D.right[0][cells, k]) * j[cells]
+            fe = v[nxt] * (ca.DM(D.left[2][nxt, k]) * b[nxt] + 3 * ca.DM(D.left[1][nxt, k]) * a[nxt]) \
+                + ca.DM(D.left[0][nxt, k]) * j[cells]
+            read = ws.T @ fs + we.T @ fe
+            for n in jumps:
+                since = 0.0 if n == i else (rel[cells.index(n)] if n in cells else tn[n] - tn[i])
+                read += D.kappa[n][k] * b[n] * bspline2(since / P + shift.T) / JUMP_READ_FACTOR
+            reads_k.append(read)
+        # row by row as before: per phase, per joint
+        add(ca.vec(ca.horzcat(*reads_k).T), -1.0, 1.0)
 
 
 def read_cells(D: PieceData, reads, m) -> dict:
