@@ -77,10 +77,9 @@ VERSION = 11
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
-# ... and one more while the bar is above WIDE_BAR of T* and the next grid has ≤ WIDE_NODES nodes
-# (meander_keops's three grids 3.6426 → 3.6350 → 3.6298 s had order 0.56 and a 0.30 % bar; the
-# fourth, 3.6271 s, order 0.90 and 0.14 %); a CAM program's fourth grid (37 000–92 000 nodes)
-# would take hours
+# ... and one more while the bar is above WIDE_BAR of T* and the next grid has ≤ WIDE_NODES nodes:
+# three grids can stop short of the asymptotic range (an observed order well below 1, the bar
+# wide: corpus README, forty-fifth session), and a CAM program's fourth grid would take hours
 WIDE_BAR = 2e-3
 WIDE_NODES = 25_000
 SLOW_FRACTION = 0.25           # a break whose speed cap is below this part of F_max is graded like a stop
@@ -321,8 +320,8 @@ def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0, lifted):
     the durations ``dt0`` (the start's). Each cell's start time from the join is a variable of
     its own (``lifted(k)``: k new unknowns), tied to ``tn`` by a linear row: every term of a read
     then depends on one cell's unknowns, so the rows' Hessian is block-diagonal by cell (through
-    the join's time every window coupled all its cells: nlpsol built that Hessian in 160 of 250 s
-    of meander_keops's finest grid). The same rows, the same problem."""
+    the join's time every window coupled all its cells, and CasADi's Hessian of them dominated
+    the solve). The same rows, the same problem."""
     import casadi as ca
     P = D.period
     m = dt.shape[0]
