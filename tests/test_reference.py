@@ -181,8 +181,8 @@ def test_a_join_s_rows_read_what_its_samples_read_at_t(monkeypatch):
     sv, sa, sdt, sj, stn = (ca.SX.sym(x, k) for x, k in (("v", n), ("a", n), ("dt", mc), ("j", mc), ("tn", n)))
     rows, rel = [], []
 
-    def lifted(k):
-        rel.append(ca.SX.sym(f"rel{len(rel)}", k))
+    def lifted(cells, i):
+        rel.append(ca.SX.sym(f"rel{len(rel)}", len(cells)))
         return rel[-1]
 
     # the reads' rows (−1 ≤ read ≤ 1), not the ties of the lifted cell times (= 0)

@@ -318,7 +318,7 @@ def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0, lifted):
     one's). The average is a composite trapezoid over each cell near the join, the jerk linear
     between the cell's two ends (their rows above), in intervals of at most KERNEL_H periods at
     the durations ``dt0`` (the start's). Each cell's start time from the join is a variable of
-    its own (``lifted(k)``: k new unknowns), tied to ``tn`` by a linear row: every term of a read
+    its own (``lifted(cells, i)``: an unknown per cell), tied to ``tn`` by a linear row: every term of a read
     then depends on one cell's unknowns, so the rows' Hessian is block-diagonal by cell (through
     the join's time every window coupled all its cells, and CasADi's Hessian of them dominated
     the solve). The same rows, the same problem."""
@@ -329,7 +329,7 @@ def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0, lifted):
     # the window centred δ periods from the join reads its kernel at (t − t_join)/P − δ + 1.5
     shift = ca.DM(1.5 - KERNEL_PHASES).T
     for i, (cells, jumps) in read_cells(D, reads, m).items():
-        rel = lifted(len(cells))
+        rel = lifted(cells, i)
         add(rel - (tn[cells] - tn[i]), 0.0, 0.0)
         # the quadrature points of every cell (its share θ of the cell, the trapezoid's weight)
         owner = np.concatenate([np.full(per_cell[c] + 1, q) for q, c in enumerate(cells)])
@@ -421,10 +421,13 @@ def solve_piece(D: PieceData, warm=None, reads=None):
         # on a few of them, not on the sum of every cell between (dense rows and Hessian blocks)
         tn = ca.SX.sym("tn", n)
         add(tn[1:] - tn[:-1] - dt, 0.0, 0.0)
-        rel = []
+        rel, rel0 = [], []
+        t0 = np.concatenate([[0.0], np.cumsum(np.maximum(warm[2], 0.0))])
 
-        def lifted(k):
-            rel.append(ca.SX.sym(f"rel{len(rel)}", k))
+        def lifted(cells, i):
+            """The cells' start times since node i as unknowns, started at the warm start's."""
+            rel.append(ca.SX.sym(f"rel{len(rel)}", len(cells)))
+            rel0.append(t0[cells] - t0[i])
             return rel[-1]
 
         add_kernel_reads(D, add, v, a, j, dt, b, tn, reads, np.asarray(warm[2]), lifted)
@@ -441,11 +444,10 @@ def solve_piece(D: PieceData, warm=None, reads=None):
     x = ca.vertcat(v, a, dt, j)
     if timed:
         x = ca.vertcat(x, tn, *rel)
-        t0 = np.concatenate([[0.0], np.cumsum(x0[2 * n:2 * n + m])])
         nrel = sum(r.shape[0] for r in rel)
         lbx = np.concatenate([lbx, [0.0], np.zeros(n - 1), np.full(nrel, -np.inf)])
         ubx = np.concatenate([ubx, [0.0], np.full(n - 1, np.inf), np.full(nrel, np.inf)])
-        x0 = np.concatenate([x0, t0] + [t0[cells] - t0[i] for i, (cells, _) in read_cells(D, reads, m).items()])
+        x0 = np.concatenate([x0, t0, *rel0])
     nlp = {"x": x, "f": ca.sum1(dt), "g": ca.vertcat(*g)}
     opts = IPOPT if warm is None else {**IPOPT, **IPOPT_WARM}
     solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt": opts, "print_time": False})
