@@ -38,7 +38,7 @@ BUILTIN = {
     "pso": ("planners.pso", "plan"),                 # the particle swarm alone (Erwinski et al.)
     "pso_socp": ("planners.pso", "plan_socp"),       # the swarm polished by the TOPP3-SOCP (memetic)
     "toppra": ("planners.optimal.toppra", "plan"),
-    "optimal": ("planners.optimal", "plan"),
+    "optimal": ("planners.optimal.planner", "plan"),
     "copp": ("planners.optimal.copp", "plan"),       # COPP's TOPP3-SOCP (copp-py): a second jerk-limited reference
     "linuxcnc": ("planners.linuxcnc", "plan"),   # the real LinuxCNC 2.9, run headless
 }

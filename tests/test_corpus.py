@@ -15,8 +15,10 @@ import pytest
 
 import planners
 from harness.cli import main as cli_main
-from harness.corpus import (CORPUS_DIR, QUICK_PATHS, Row, below_reference, load_manifest, performance_profile, ratios,
-                            run_corpus, seed_spread, summary, swarm_spread, write_markdown)
+from harness.corpus.analysis import (below_reference, performance_profile, ratios, seed_spread, summary,
+                                     swarm_spread)
+from harness.corpus.report import write_markdown
+from harness.corpus.run import CORPUS_DIR, QUICK_PATHS, Row, load_manifest, run_corpus
 from kins import load_machine
 from planners.constraints import PathTable, check_path_in_workspace, join_jumps, joint_derivs
 from planners.paths import load_path
@@ -156,7 +158,7 @@ def test_corpus_quick_command(tmp_path, capsys):
 
 def test_an_interrupted_corpus_keeps_its_rows_and_resume_plans_only_the_rest(tmp_path, monkeypatch, capsys):
     import harness.corpus.run as corpus_run
-    import harness.sweep
+    from harness.corpus import journal
     from harness.corpus.journal import JOURNAL
     real, calls, stop_at = corpus_run.run_one, [], [2]
 
@@ -185,15 +187,18 @@ def test_an_interrupted_corpus_keeps_its_rows_and_resume_plans_only_the_rest(tmp
     assert len(rows) == 6
     for r in kept:
         assert float(rows[(r["path"], r["planner"])]["execution_time_s"]) == r["execution_time_s"]
-    # rows made by other code are planned again
-    monkeypatch.setattr(harness.sweep, "code_version", lambda: "other")
+    # the rows of a planner whose code changed are planned again, the others' are kept
+    code = journal.planner_code
+    monkeypatch.setattr(journal, "planner_code", lambda name: "other" if name == "trapezoid" else code(name))
     assert cli_main(args + ["--resume"]) == 0
-    assert "6 made by other code planned again" in capsys.readouterr().out and len(calls) == 12
+    out = capsys.readouterr().out
+    assert "3 rows kept" in out and "3 made by other code planned again" in out
+    assert len(calls) == 9 and {k for _, k in calls[6:]} == {"trapezoid"}
     # one run at a time writes a folder's rows
     from harness.outdir import run_lock
     with run_lock(tmp_path):
         assert cli_main(args + ["--resume"]) == 2
-    assert "another pkmbench run is writing" in capsys.readouterr().err and len(calls) == 12
+    assert "another pkmbench run is writing" in capsys.readouterr().err and len(calls) == 9
 
 
 def test_scurve_and_trapezoid_keep_their_cartesian_limits_on_the_quick_paths():
@@ -505,3 +510,54 @@ def test_join_jumps_into_a_micron_arc_are_the_ik_jacobian_times_its_curvature():
     s_join = min(got, key=lambda s: abs(s - 5.0))
     assert s_join == pytest.approx(5.0, abs=1e-9)
     assert got[s_join] == pytest.approx(np.abs(jac_n) / rho, rel=1e-3)
+
+
+def test_a_corpus_row_is_keyed_by_the_code_its_planner_imports(tmp_path):
+    """pso_socp's rows depend on the TOPP3-SOCP engine but not on `optimal`'s own planner.py;
+    an edit to what a planner imports changes its key, an edit elsewhere does not."""
+    import shutil
+
+    from harness.corpus.journal import ROW_MODULES
+    from harness.sweep.suite import closure_version, import_closure
+    from kins.resources import REPO
+    from planners.registry import BUILTIN
+
+    for d in ("kins", "planners", "harness"):
+        shutil.copytree(REPO / d, tmp_path / d, ignore=shutil.ignore_patterns("__pycache__"))
+
+    def mods(name):
+        return [BUILTIN[name][0], *ROW_MODULES]
+
+    rel = {f.relative_to(tmp_path).as_posix() for f in import_closure(mods("pso_socp"), tmp_path)}
+    assert {"planners/pso/swarm.py", "planners/optimal/topp3.py", "planners/optimal/ipm.py", "kins/keops.py",
+            "planners/verify.py", "harness/corpus/run.py"} <= rel
+    assert not rel & {"planners/optimal/planner.py", "harness/corpus/report.py", "harness/sweep/engine.py"}
+    before = {n: closure_version(mods(n), tmp_path) for n in ("pso_socp", "optimal", "scurve_joint")}
+    with open(tmp_path / "planners/optimal/planner.py", "a") as f:
+        f.write("# an edit to the yardstick alone\n")
+    after = {n: closure_version(mods(n), tmp_path) for n in before}
+    assert after["optimal"] != before["optimal"]
+    assert after["pso_socp"] == before["pso_socp"] and after["scurve_joint"] == before["scurve_joint"]
+    with open(tmp_path / "planners/optimal/ipm.py", "a") as f:
+        f.write("# an edit to the engine both use\n")
+    again = {n: closure_version(mods(n), tmp_path) for n in before}
+    assert again["optimal"] != after["optimal"] and again["pso_socp"] != after["pso_socp"]
+    assert again["scurve_joint"] == before["scurve_joint"]
+    with open(tmp_path / "kins/machine.py", "a") as f:     # the check at T: every row
+        f.write("# an edit to the kinematics\n")
+    assert all(closure_version(mods(n), tmp_path) != again[n] for n in before)
+
+
+def test_the_import_closure_follows_relative_nested_and_from_imports(tmp_path):
+    pkg = tmp_path / "planners" / "x"
+    pkg.mkdir(parents=True)
+    (tmp_path / "planners" / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("from .a import f\n")
+    (pkg / "a.py").write_text("def f():\n    from planners.x import b\n    return b\n")
+    (pkg / "b.py").write_text("from planners.x import c, nothing\nimport numpy\n")
+    (pkg / "c.py").write_text("")
+    (pkg / "unused.py").write_text("")
+    from harness.sweep.suite import import_closure
+    got = [f.relative_to(tmp_path).as_posix() for f in import_closure(["planners.x"], tmp_path)]
+    assert got == ["planners/__init__.py", "planners/x/__init__.py", "planners/x/a.py", "planners/x/b.py",
+                   "planners/x/c.py"]

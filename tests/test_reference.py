@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from harness.corpus import CORPUS_DIR, load_manifest
+from harness.corpus.run import CORPUS_DIR, load_manifest
 from kins import load_machine
 from planners.paths import Line, NurbsPath, SegmentPath
 

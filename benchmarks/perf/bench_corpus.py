@@ -19,7 +19,8 @@ DEFAULT = ("trapezoid", "scurve", "scurve_joint", "toppra")
 
 
 def main(planners=DEFAULT, paths=None) -> dict:
-    from harness.corpus import load_manifest, run_corpus, select, summary
+    from harness.corpus.analysis import summary
+    from harness.corpus.run import load_manifest, run_corpus, select
     sel = [(e, list(planners)) for e in select(load_manifest(), paths)]
     S = summary(run_corpus(sel))
     return {k: {"paths": s["paths"], "profiles": s["profiles"], "plan_median_s": round(s["plan_median_s"], 4),

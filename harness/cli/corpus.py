@@ -38,7 +38,7 @@ def add_arguments(p) -> None:
                    help="runs of each stochastic planner (pso) per path, seeds 0 … N−1 (default 10)")
     p.add_argument("--resume", action="store_true",
                    help="keep the rows an interrupted run into OUT finished (OUT/rows.jsonl, made by the same "
-                        "code) and plan only the rest")
+                        "code of their planner) and plan only the rest")
     p.add_argument("--store", default=None,
                    help="results store folder the rows are appended to (default: $PKMBENCH_STORE "
                         "or results/store; 'none' = do not append)")
@@ -46,8 +46,9 @@ def add_arguments(p) -> None:
 
 def main(args) -> int:
     import planners
-    from harness.corpus import (FAST_PLANNERS, SEEDS, CorpusError, entries_from_suite, load_manifest,
-                                load_reference, select, summary)
+    from harness.corpus.analysis import load_reference, summary
+    from harness.corpus.run import FAST_PLANNERS, SEEDS, CorpusError, load_manifest, select
+    from harness.corpus.suite import entries_from_suite
     seeds = SEEDS if args.seeds is None else args.seeds
     if seeds < 1:
         raise CliError(f"--seeds {args.seeds}: need at least 1")
@@ -91,12 +92,13 @@ def main(args) -> int:
 
 def _run(selection, seeds, out, resume):
     """The rows (each kept in OUT/rows.jsonl as it ends) and the tables written from them."""
-    from harness.corpus import load_reference, run_corpus, write_outputs
+    from harness.corpus.analysis import load_reference
+    from harness.corpus.report import write_outputs
+    from harness.corpus.run import run_corpus
     from harness.corpus.journal import Journal
-    from harness.sweep import code_version
     n = sum(len(ps) for _, ps in selection)
     print(f"corpus: {len(selection)} paths, {n} plans → {out}")
-    journal = Journal(out, code_version(), resume)
+    journal = Journal(out, resume)
     if resume:
         print(f"resumed: {journal.summary()}")
     reference = load_reference()

@@ -2,16 +2,11 @@
 the independent check at T, each run against the path's converged minimum time.
 
     run       the manifest, the selection, a row per (path, planner, seed)
+    suite     a suite file's paths as corpus entries
+    journal   the rows kept as they end, keyed by the code each planner's row runs
     analysis  the reference, the ratios, the performance profile (harness.perfprofile), summaries
     report    corpus.csv, corpus.md and the figures
-"""
-from harness.corpus.analysis import (below_reference, best_times, load_reference, performance_profile, ratios,
-                                     seed_spread, spread, summary, swarm_spread)
-from harness.corpus.report import write_csv, write_markdown, write_outputs
-from harness.corpus.run import (CORPUS_DIR, FAST_PLANNERS, MANIFEST, QUICK_PATHS, SEEDS, CorpusError, Row,
-                                entries_from_suite, load_manifest, run_corpus, run_one, select)
 
-__all__ = ["CORPUS_DIR", "FAST_PLANNERS", "MANIFEST", "QUICK_PATHS", "SEEDS", "CorpusError", "Row",
-           "below_reference", "best_times", "entries_from_suite", "load_manifest", "load_reference",
-           "performance_profile", "ratios", "run_corpus", "run_one", "select", "seed_spread", "spread", "summary",
-           "swarm_spread", "write_csv", "write_markdown", "write_outputs"]
+Nothing is imported here: importing run.py (the rows) must not import the reports, whose
+code a row does not depend on (harness.corpus.journal keys rows by what they import).
+"""

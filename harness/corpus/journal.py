@@ -1,7 +1,11 @@
 """The rows of a corpus run, kept as each one ends: OUT/rows.jsonl, one JSON line per row with
-the code version that made it. A run of hours (pso over 10 seeds on 44 paths) that is stopped
-keeps what it finished; `pkmbench corpus --resume` plans only the rest, and reuses a kept row
-only when the same code made it (harness.sweep.code_version: kins/, planners/, harness/, FMUs).
+the code that made it. A run of hours (pso over 10 seeds on 44 paths) that is stopped keeps
+what it finished; `pkmbench corpus --resume` plans only the rest, and reuses a kept row only
+when its planner's code is the same (:func:`planner_code`).
+
+A row's code is what its plan and its check import (harness.sweep.suite.import_closure), not
+all of kins/, planners/ and harness/ with the FMUs: the corpus runs no FMU, and a change to
+`optimal` alone must not throw away CPU-hours of `pso_socp` rows.
 
 The tables and figures (corpus.csv, corpus.md, the PNGs) are written when every row is there;
 a run removes an earlier run's at its start, so an interrupted run leaves no table that looks
@@ -9,24 +13,39 @@ complete.
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 from dataclasses import asdict, fields
 from pathlib import Path
 
 from harness.corpus.run import Row
+from harness.sweep.suite import closure_version, code_version
+from planners import registry
 
 JOURNAL = "rows.jsonl"
 TABLES = ("corpus.csv", "corpus.md", "performance_profile.png", "ratio_to_reference.png")
 _FIELDS = {f.name for f in fields(Row)}
+ROW_MODULES = ("harness.corpus.run",)    # plans a row and checks it at T
+
+
+@functools.cache
+def planner_code(name: str) -> str:
+    """Hash of the code a corpus row of planner ``name`` runs: the import closure of its module
+    (planners.registry.BUILTIN) and of the row's check. A plug-in or ``module:function`` planner
+    lives outside the repository: all of its code (code_version) and its installed version."""
+    if name in registry.BUILTIN:
+        return closure_version([registry.BUILTIN[name][0], *ROW_MODULES])
+    return f"{code_version()}+{name}@{registry.plugin_version(name) or ''}"
 
 
 class Journal:
-    """OUT/rows.jsonl of one corpus run. ``resume``: keep the rows made by ``code`` (``kept``:
-    key → Row); else start afresh. Either way the earlier run's tables are removed."""
+    """OUT/rows.jsonl of one corpus run. ``resume``: keep the rows whose planner's ``code``
+    (name → hash; default :func:`planner_code`) made them (``kept``: key → Row); else start
+    afresh. Either way the earlier run's tables are removed."""
 
-    def __init__(self, out: Path, code: str, resume: bool):
-        self.file, self.code = Path(out) / JOURNAL, code
+    def __init__(self, out: Path, resume: bool, code=None):
+        self.file, self.code = Path(out) / JOURNAL, code or planner_code
         self.kept: dict[tuple, Row] = {}
         self.other_code = self.unreadable = 0
         for name in TABLES:
@@ -46,13 +65,13 @@ class Journal:
             except (ValueError, KeyError, TypeError):
                 self.unreadable += 1        # a line cut by the interruption, or not ours
                 continue
-            if d.get("code") != self.code:
+            if d.get("code") != self.code(row.planner):
                 self.other_code += 1
                 continue
             self.kept[row.key] = row
 
     def _line(self, r: Row) -> str:
-        return json.dumps({"code": self.code, "row": asdict(r)}) + "\n"
+        return json.dumps({"code": self.code(r.planner), "row": asdict(r)}) + "\n"
 
     def add(self, r: Row) -> None:
         """Append a finished row (flushed to disk: a killed run keeps it)."""

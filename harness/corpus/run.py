@@ -21,7 +21,6 @@ from pathlib import Path
 import numpy as np
 
 import planners
-from harness.sweep.suite import SuiteError, suite_runs
 from kins import load_machine
 from kins.resources import REPO
 from planners import registry
@@ -128,34 +127,6 @@ def select(entries: list[dict], globs: str | None = None, quick: bool = False) -
     out = [e for e in entries if any(fnmatch.fnmatch(e["name"], p) or fnmatch.fnmatch(e["file"], p) for p in pats)]
     if not out:
         raise CorpusError(f"--paths {globs}: matches no corpus path (names: {', '.join(e['name'] for e in entries)})")
-    return out
-
-
-def entries_from_suite(file) -> list[tuple[dict, list[str]]]:
-    """(entry, planners) of every path of a suite file's [[run]] tables (corpus paths are
-    described by the manifest; any other path file gets kind '-')."""
-    import tomllib
-
-    try:
-        text = Path(file).read_text()
-        suite = tomllib.loads(text)
-        runs = suite_runs(suite, str(file), text)
-    except OSError as e:
-        raise CorpusError(f"{file}: cannot read suite: {e.strerror}") from None
-    except (tomllib.TOMLDecodeError, SuiteError) as e:
-        raise CorpusError(f"{file}: {e}") from None
-    by_file = {}
-    try:
-        by_file = {(CORPUS_DIR / e["file"]).resolve(): e for e in load_manifest()}
-    except CorpusError:
-        pass
-    out = []
-    for machines, paths, planners_, _max_feed, _gcode in runs:
-        for m in machines:
-            for p in paths:
-                f = Path(p) if Path(p).is_absolute() else REPO / p
-                e = by_file.get(f.resolve(), {"name": Path(p).stem, "file": str(f), "kind": "-"})
-                out.append((dict(e, machine=m, file=str(f)), list(planners_)))
     return out
 
 

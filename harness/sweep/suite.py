@@ -30,6 +30,7 @@ of its machine and path files, so a worker on another host needs only the code.
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import json
 import math
@@ -351,10 +352,11 @@ def make_task(machine_file: Path, path_file: Path, planner: str, seed: int = 0,
     }
 
 
-def _hash_files(files) -> str:
+def _hash_files(files, root: Path | None = None) -> str:
     """Hash of (repo-relative name, content) pairs: equal across clones of the repository."""
     h = hashlib.sha256()
-    for name, f in sorted((repo_relative(f), f) for f in files):
+    rel = repo_relative if root is None else (lambda f: f.relative_to(root).as_posix())
+    for name, f in sorted((rel(f), f) for f in files):
         h.update(name.encode() + b"\0")
         h.update(hashlib.sha256(f.read_bytes()).digest())
     return h.hexdigest()
@@ -366,6 +368,53 @@ def code_version(extra: list[Path] = ()) -> str:
     files += list(FMU_DIR.glob("*.fmu")) if FMU_DIR.exists() else []
     files += [Path(e) for e in extra]
     return _hash_files([f for f in files if f.exists()])
+
+
+def _module_file(name: str, root: Path) -> Path | None:
+    parts = name.split(".")
+    if parts[0] not in CODE_DIRS:
+        return None
+    base = root.joinpath(*parts)
+    for f in (base / "__init__.py", base.with_suffix(".py")):
+        if f.is_file():
+            return f
+    return None
+
+
+def import_closure(modules, root: Path = REPO) -> list[Path]:
+    """The files of kins/, planners/ and harness/ that importing ``modules`` can run: each one's
+    import statements at any depth (a function's lazy import counts), followed transitively, and
+    every parent package's __init__. By name through importlib (the planner registry) is not
+    followed: the caller names such modules."""
+    found: dict[str, Path | None] = {}
+    todo = list(modules)
+    while todo:
+        parts = todo.pop().split(".")
+        for i in range(1, len(parts) + 1):
+            mod = ".".join(parts[:i])
+            if mod in found:
+                continue
+            f = found[mod] = _module_file(mod, root)
+            if f is None:
+                continue
+            package = mod if f.name == "__init__.py" else mod.rpartition(".")[0]
+            for node in ast.walk(ast.parse(f.read_bytes(), str(f))):
+                if isinstance(node, ast.Import):
+                    todo += [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom):
+                    if node.level:
+                        up = package.split(".")[:len(package.split(".")) - node.level + 1]
+                        base = ".".join(up + ([node.module] if node.module else []))
+                    else:
+                        base = node.module
+                    todo.append(base)
+                    todo += [f"{base}.{a.name}" for a in node.names]   # when the name is a module
+    return sorted(f for f in found.values() if f is not None)
+
+
+def closure_version(modules, root: Path = REPO) -> str:
+    """Hash of :func:`import_closure` of ``modules``: the code that running them depends on."""
+    return _hash_files(import_closure(modules, root), root)
 
 
 def task_key(task: dict, version: str, task_fn: str = "") -> str:
