@@ -608,3 +608,18 @@ def test_repair_windows_hold_every_join_block_they_touch_whole(tmp_path):
     x[0::2], x[1::2] = new.a, new.b
     worst = max(float(np.max(vals @ x[cols] / rhs)) for cols, vals, rhs in p._rows(new.a).linear)
     assert worst < 1.01
+
+
+@pytest.mark.parametrize("blend", [0.01, 0.5])
+def test_the_repairs_at_T_never_make_stations_faster_than_they_are_alone(tmp_path, blend):
+    """optimal solves the coarse stations again with their repairs only where their time alone is
+    below its best (_socp_within_limits): the repairs add rows to the same problem, so they only
+    slow it. G64 corners on keops, where joins read above at T and the repairs run."""
+    path = _corners(tmp_path, blend)
+    inner = KEOPS.limits.joint_scaled(1 - optimal.CHAIN_MARGIN)
+    st = optimal._settings(optimal.GRID_MM, 1 / optimal.STATION_REFINEMENT)
+    pieces = topp3.pieces_of(path, KEOPS, inner, st)
+    alone = topp3.station_time(pieces, st)
+    prof = topp3.solve(path, KEOPS, inner, st, pieces)
+    assert prof.info["tightened"]                          # it was repaired
+    assert prof.info["continuous_time_s"] >= alone * (1 - 1e-9)

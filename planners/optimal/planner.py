@@ -289,21 +289,22 @@ def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profil
     REPAIR_COST of the time the stations alone allowed (and the last refinement gained as
     much): the limits hold at the stations, so finer stations leave less to read between them
     and to repair.  A refinement that has no solution or is no faster ends the search; the
-    coarse stations, repaired too, are the last candidate (_faster_within).  The fastest profile
-    within the limits is returned.  Never another planner's profile: without a profile within
-    the limits a PlanningError names the path and the limit."""
+    coarse stations, repaired too, are the last candidate (_faster_within) where their time at
+    the stations alone is below the best's.  The fastest profile within the limits is returned.
+    Never another planner's profile: without a profile within the limits a PlanningError names
+    the path and the limit."""
     why, best = [], None
     inner = limits.joint_scaled(1 - CHAIN_MARGIN)
     coarse = _settings(grid_mm, 1 / STATION_REFINEMENT, read_phases=read_phases)
     try:
         prev = coarse_pieces = topp3.pieces_of(path, machine, inner, coarse)
-        relax_prev = topp3.station_time(prev, coarse)
+        relax_prev = coarse_time = topp3.station_time(prev, coarse)
         knots = topp3.binding_knots(prev, path, machine, inner)
         extra = topp3.speed_stations(prev)
         # the coarse stations lack them: their time is no measure of the spacing's gain
         relax_prev = None if extra else relax_prev
     except PlanningError:           # the finer stations are solved from TOPP2-RA's profile
-        prev, relax_prev, knots, extra, coarse_pieces = None, None, (), (), None
+        prev, relax_prev, knots, extra, coarse_pieces, coarse_time = None, None, (), (), None, None
     for level in range(REFINE_LEVELS + 1):
         settings = _settings(grid_mm, STATION_REFINEMENT ** level, knots, extra, read_phases)
         try:
@@ -334,7 +335,9 @@ def _socp_within_limits(path, machine, limits, grid_mm, read_phases=1) -> Profil
         repairs_cost = t_new > (1 + REPAIR_COST) * relax and gain >= REPAIR_COST
         if not (repairs_cost or abs(spacing_gain) > SPACING_GAIN):
             break
-    if coarse_pieces is not None:
+    # the repairs at T only add rows to the coarse stations' problem: where its stations alone
+    # are no faster than the best, repaired it cannot be faster either
+    if coarse_pieces is not None and (best is None or coarse_time < best.info["continuous_time_s"]):
         best = _faster_within(best, coarse_pieces, coarse, path, machine, inner, limits, why)
     if best is None:
         raise PlanningError(f"optimal: {getattr(path, 'source', 'the path')}: no profile within the limits at T; "
