@@ -95,6 +95,33 @@ def test_suite_lists_every_corpus_path_once():
     assert sorted(files) == sorted(want)
 
 
+
+def test_a_suite_s_paths_are_corpus_entries_with_the_manifest_s_names(tmp_path):
+    """`pkmbench corpus --suite`: each suite path on each machine is an entry; a corpus path
+    carries its manifest entry (name, kind), any other path its file's stem and kind '-'."""
+    from harness.corpus.run import CorpusError
+    from harness.corpus.suite import entries_from_suite
+    by_name = {e["name"]: e for e in load_manifest()}
+    corpus = f"benchmarks/paths/corpus/{by_name['contour_lcnc']['file']}"
+    other = tmp_path / "line.ngc"
+    other.write_text("G21 G90\nG0 X0 Y0 Z-300\nF600\nG1 X10\nM2\n")
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'name = "s"\n[[run]]\nmachine = "kossel"\npaths = ["{corpus}", "{other}"]\n'
+                     f'planners = ["trapezoid", "scurve"]\n[[run]]\nmachine = "keops"\npaths = ["{other}"]\n'
+                     f'planners = ["trapezoid"]\n')
+    got = entries_from_suite(suite)
+    assert [(e["name"], e["machine"], e["kind"], p) for e, p in got] == [
+        ("contour_lcnc", "kossel", by_name["contour_lcnc"]["kind"], ["trapezoid", "scurve"]),
+        ("line", "kossel", "-", ["trapezoid", "scurve"]),
+        ("line", "keops", "-", ["trapezoid"])]
+    assert got[0][0]["file"] == str(CORPUS_DIR / by_name["contour_lcnc"]["file"])
+    suite.write_text("[[run]\n")
+    with pytest.raises(CorpusError, match="s.toml"):
+        entries_from_suite(suite)
+    with pytest.raises(CorpusError, match="cannot read suite"):
+        entries_from_suite(tmp_path / "missing.toml")
+
+
 # -- the performance profile -----------------------------------------------------------------
 def _row(path, planner, T=math.nan, feasible=False, status="ok"):
     return Row(path, "m", "k", planner, status, T, feasible, True, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 1.0)
