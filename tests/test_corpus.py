@@ -95,7 +95,6 @@ def test_suite_lists_every_corpus_path_once():
     assert sorted(files) == sorted(want)
 
 
-
 def test_a_suite_s_paths_are_corpus_entries_with_the_manifest_s_names(tmp_path):
     """`pkmbench corpus --suite`: each suite path on each machine is an entry; a corpus path
     carries its manifest entry (name, kind), any other path its file's stem and kind '-'."""

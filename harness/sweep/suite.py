@@ -402,9 +402,9 @@ def import_closure(modules, root: Path = REPO) -> list[Path]:
                 if isinstance(node, ast.Import):
                     todo += [a.name for a in node.names]
                 elif isinstance(node, ast.ImportFrom):
-                    if node.level:
-                        up = package.split(".")[:len(package.split(".")) - node.level + 1]
-                        base = ".".join(up + ([node.module] if node.module else []))
+                    if node.level:      # from .x (level 1: this package), from ..x (its parent) …
+                        up = package.rsplit(".", node.level - 1)[0]
+                        base = f"{up}.{node.module}" if node.module else up
                     else:
                         base = node.module
                     todo.append(base)
