@@ -178,20 +178,13 @@ def test_a_join_s_rows_read_what_its_samples_read_at_t(monkeypatch):
     D, reads, (_, v, a, dt, j, _, _) = [c for c in calls if c[1] is not None and c[0].s[0] == 0.0][-1]
     assert len(finest["prof"]) == 1 and len(D.kappa) >= 5          # one rest piece, its joins
     n, mc = len(v), len(dt)
-    sv, sa, sdt, sj, stn = (ca.SX.sym(x, k) for x, k in (("v", n), ("a", n), ("dt", mc), ("j", mc), ("tn", n)))
-    rows, rel = [], []
-
-    def lifted(cells, i):
-        rel.append(ca.SX.sym(f"rel{len(rel)}", len(cells)))
-        return rel[-1]
-
-    # the reads' rows (−1 ≤ read ≤ 1), not the ties of the lifted cell times (= 0)
-    R.add_kernel_reads(D, lambda e, lo, hi: lo < 0 and rows.append(e), sv, sa, sj, sdt, sv * sv, stn, reads, dt,
-                       lifted)
-    f = ca.Function("reads", [sv, sa, sdt, sj, stn, *rel], [ca.vertcat(*rows)])
+    sv, sa, sdt, sj = (ca.SX.sym(x, k) for x, k in (("v", n), ("a", n), ("dt", mc), ("j", mc)))
+    rows = []
+    # the reads' rows (−1 ≤ read ≤ 1) with the kernel's weights at the solution's own times
+    R.add_kernel_reads(D, lambda e, lo, hi: rows.append(e), sv, sa, sj, sv * sv, reads, dt)
+    f = ca.Function("reads", [sv, sa, sdt, sj], [ca.vertcat(*rows)])
     tn = np.concatenate([[0.0], np.cumsum(dt)])
-    since = [tn[cells] - tn[i] for i, (cells, _) in R.read_cells(D, reads, mc).items()]
-    model = np.asarray(f(v, a, dt, j, tn, *since)).reshape(len(D.kappa), len(R.KERNEL_PHASES), 3)
+    model = np.asarray(f(v, a, dt, j)).reshape(len(D.kappa), len(R.KERNEL_PHASES), 3)
     assert np.abs(model).max() <= 1.0 + 1e-6
     T, J = m.servo_period_s, m.limits.joint.j
     tu = D.scale[0]
@@ -205,6 +198,31 @@ def test_a_join_s_rows_read_what_its_samples_read_at_t(monkeypatch):
             exact = differences(Q, T, rest=False)["jerk"][0] / J
             worst = max(worst, float(np.abs(exact - read).max()))
     assert worst < 0.01, worst           # the quadrature: 0.0031 × J here (docs/TUNING.md)
+
+
+def test_the_kernel_weights_times_settle_where_undamped_they_flip_between_two_solutions(monkeypatch):
+    """The first rest piece of pocket_kossel (two G64 lines, a 158° blend), its level 0 at the
+    corpus's node spacing: solved again with the weights at each solution's times, it flips
+    between two solutions 0.028 periods apart; stepping the weights' times halfway once a move
+    fails to halve settles it within FIX_TOL, and there the rows are the solution's own reads."""
+    from planners.paths.gcode import parse_gcode, program_path
+    R = _ref()
+    text = "\n".join((CORPUS_DIR / "pocket_kossel.ngc").read_text().splitlines()[:7]) + "\nM2\n"
+    path = program_path(parse_gcode(text, "pocket_kossel_head.ngc"))
+    m = load_machine("kossel")
+    base = 600 * path.length / 302.366          # the corpus path's spacing (its length 302.366 mm)
+    rounds = []
+    r = R.reference(path, m, levels=1, base_nodes=base, round_log=rounds.append)
+    moves = [float(x.split("moved ")[1].split()[0]) for x in rounds]
+    assert moves[-1] < R.FIX_TOL and ", step 0.5" in rounds[-1]
+    assert r["grids"][0]["nodes"] == 107
+    monkeypatch.setattr(R, "FIX_STEP_MIN", 1.0)
+    monkeypatch.setattr(R, "FIX_ROUNDS", 12)
+    flips = []
+    with pytest.raises(RuntimeError, match=r"piece 0 .* level 0: after 12 solves"):
+        R.reference(path, m, levels=1, base_nodes=base, round_log=flips.append)
+    T = [float(x.split("T ")[1].split()[0]) for x in flips]
+    assert abs(T[-1] - T[-3]) < 1e-8 < abs(T[-1] - T[-2])           # a 2-cycle, not a slow drift
 
 
 @pytest.mark.slow
@@ -228,7 +246,7 @@ def test_a_g64_program_s_reference_keeps_the_jerk_at_t_whatever_the_phase(monkey
         s = R.sample_profile(finest["prof"], T, delay=d * T)
         assert command_metrics(m, path.point(s), T, s)["joint_peak_ratio"]["jerk"] <= 1.005, d
     monkeypatch.setattr(R, "check_at_T", check)
-    monkeypatch.setattr(R, "add_kernel_reads", lambda D, add, v, a, j, dt, b, tn, reads, dt0, lifted:
+    monkeypatch.setattr(R, "add_kernel_reads", lambda D, add, v, a, j, b, reads, dt0:
                         R.add_join_node_reads(D, add, v, a, j, b))
     alone = R.reference(path, m, levels=2, base_nodes=CAM_BASE_NODES)
     assert alone["check_at_T"]["joint_peak_ratio"]["jerk"] > 1.3

@@ -19,8 +19,10 @@ G1 join and at a NURBS knot where q″ jumps (knot_jumps), the jump read at T: e
 difference whose window holds the join reads the joint jerk averaged by its kernel (the quadratic
 B-spline over 3 periods) plus the jump κṡ² weighted by where it falls in the window (κ =
 JUMP_READ_FACTOR·Δq″/T, Δq″ signed from the left side to the right). The rows hold that read
-within J for the windows centred δ periods from the join, δ = −1.375 … 1.375 by ⅛ (KERNEL_PHASES):
-whatever the samples' phase, to the read's change over 1/16 period (VERSION 11, add_kernel_reads;
+within J for the windows centred δ periods from the join, δ = −1.4375 … 1.4375 by 1/16 (KERNEL_PHASES):
+whatever the samples' phase, to the read's change over 1/32 period, the kernel's weights evaluated
+at the last solve's times and solved again until they stop moving (VERSION 12, add_kernel_reads;
+VERSION 11 held the same rows with the times as unknowns of the weights, by ⅛;
 VERSION 7–10 held |jerk + w·κṡ²| ≤ J pointwise at every node within 3 periods, w = 1 within 1.5:
 sufficient, but a window reads the jerk's average, and those rows held it off J at every point
 of it: they lay up to 1.2 % above `optimal`'s feasible profiles on the joins' paths; VERSION 6 held
@@ -72,8 +74,9 @@ from planners.paths import resolve_path  # noqa: E402
 
 OUT = HERE / "reference.json"
 # bump when the transcription or its inputs change: every cached entry is redone (VERSION 11: a
-# join's reads are the third differences' kernel averages, not a pointwise envelope)
-VERSION = 11
+# join's reads are the third differences' kernel averages, not a pointwise envelope; VERSION 12:
+# their weights fixed at the last solve's times and iterated, the phases by 1/16)
+VERSION = 12
 # the grids: level 0 has about BASE_NODES nodes (the monitor's), each next one halves every cell
 BASE_NODES = 600
 LEVELS = 3
@@ -93,13 +96,17 @@ CONTINUOUS = 1e3               # a knot's Δq″ below this many times q‴'s 2�
 READ_SLACK = 1.2
 # a join's reads are held for the windows centred these many periods from it, by KERNEL_STEP
 # (by ½ the G64 head of tests/test_reference.py read 1.023 × J a quarter period off, by ¼
-# contour_keops 1.011 × J at T: the read bulges between two held phases), each cell's share of a
-# window's average by a composite trapezoid whose intervals are at most KERNEL_H periods at the
-# start's durations (its error on the head: 0.003 × J)
-KERNEL_STEP = 0.125
+# contour_keops 1.011 × J at T, by ⅛ with VERSION 12's weights 1.0069: the read bulges between two
+# held phases), each cell's share of a window's average by a composite trapezoid whose intervals
+# are at most KERNEL_H periods at the weights' durations (its error on the head: 0.003 × J)
+KERNEL_STEP = 0.0625
 KERNEL_PHASES = np.arange(-1.5 + KERNEL_STEP, 1.5 - 1e-9, KERNEL_STEP)
 KERNEL_H = 0.2
-READ_ROUNDS = 8
+# the kernel's weights are evaluated at the start's times: solved again until no node's time moves
+# by FIX_TOL periods (cam_blend_kossel's level 0: 11 solves, each move ~0.3 × the last)
+FIX_TOL = 1e-4
+FIX_ROUNDS = 40
+FIX_STEP_MIN = 1 / 16
 # max_cpu_time and max_iter stop a solve that runs away, never shorten one that converges (a stop
 # is an error of the path; the largest CAM grids need up to ~1700 s: corpus README; VERSION 8's
 # cold level 0 of cam_dense_lcnc ran out of 1500 iterations)
@@ -289,11 +296,10 @@ class PieceData:
 
 def bspline2(x):
     """The quadratic B-spline on [0, 3] (mass 1; planners.constraints.third_difference_weight),
-    0 outside, as a CasADi expression: the kernel of a third difference at T, in truncated
-    powers ½[x₊² − 3(x−1)₊² + 3(x−2)₊² − (x−3)₊²]."""
-    import casadi as ca
-    p = [ca.fmax(x - k, 0) for k in range(4)]
-    return (p[0] * p[0] - 3 * p[1] * p[1] + 3 * p[2] * p[2] - p[3] * p[3]) / 2
+    0 outside: the kernel of a third difference at T."""
+    x = np.asarray(x, float)
+    return np.where((x <= 0) | (x >= 3), 0.0,
+                    np.where(x < 1, x * x / 2, np.where(x < 2, (-2 * x * x + 6 * x - 3) / 2, (3 - x) ** 2 / 2)))
 
 
 def add_join_node_reads(D: PieceData, add, v, a, j, b):
@@ -310,37 +316,38 @@ def add_join_node_reads(D: PieceData, add, v, a, j, b):
                     add(jerk + kap[k] * b[i], -1.0, 1.0)
 
 
-def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0, lifted):
+def add_kernel_reads(D: PieceData, add, v, a, j, b, reads, dt0):
     """Every join's reads at T, whatever the samples' phase: the third difference centred c
     (c − t_join = δ periods, δ ∈ KERNEL_PHASES) reads the joint jerk averaged by its kernel
     K(t − c) = bspline2((t − c)/T + 1.5)/T, plus each jump within its window weighted by
     bspline2 at the jump, κṡ²·join_read_weight (the jumps of every join near, not only this
     one's). The average is a composite trapezoid over each cell near the join, the jerk linear
-    between the cell's two ends (their rows above), in intervals of at most KERNEL_H periods at
-    the durations ``dt0`` (the start's). Each cell's start time from the join is a variable of
-    its own (``lifted(cells, i)``: an unknown per cell), tied to ``tn`` by a linear row: every term of a read
-    then depends on one cell's unknowns, so the rows' Hessian is block-diagonal by cell (through
-    the join's time every window coupled all its cells, and CasADi's Hessian of them dominated
-    the solve). The same rows, the same problem."""
+    between the cell's two ends (their rows above), in intervals of at most KERNEL_H periods.
+    The kernel's weights are numbers, evaluated at the cells' durations ``dt0`` (the start's):
+    each read is linear in the cells' end jerks, and solve_with_reads solves again from each
+    solution until its times are the ones the weights were evaluated at (VERSION 11 made the
+    cells' times unknowns of the weights: the same rows at the solution, but CasADi's Hessian
+    of them took 11 GB on cam_blend_kossel's level 0 before IPOPT started)."""
     import casadi as ca
     P = D.period
-    m = dt.shape[0]
+    m = j.shape[0]
+    dt0 = np.maximum(np.asarray(dt0, float), 0.0)
+    t0 = np.concatenate([[0.0], np.cumsum(dt0)])
     per_cell = [int(min(max(math.ceil(dt0[c] / (KERNEL_H * P)), 1), 256)) for c in range(m)]
     # the window centred δ periods from the join reads its kernel at (t − t_join)/P − δ + 1.5
-    shift = ca.DM(1.5 - KERNEL_PHASES).T
+    shift = 1.5 - KERNEL_PHASES
     for i, (cells, jumps) in read_cells(D, reads, m).items():
-        rel = lifted(cells, i)
-        add(rel - (tn[cells] - tn[i]), 0.0, 0.0)
         # the quadrature points of every cell (its share θ of the cell, the trapezoid's weight)
         owner = np.concatenate([np.full(per_cell[c] + 1, q) for q, c in enumerate(cells)])
         th = np.concatenate([np.linspace(0.0, 1.0, per_cell[c] + 1) for c in cells])
         w = np.concatenate([np.r_[0.5, np.ones(per_cell[c] - 1), 0.5] / per_cell[c] for c in cells])
-        at = (rel[owner.tolist()] + ca.DM(th) * dt[[cells[q] for q in owner]]) / P
-        K = ca.diag(ca.DM(w / P)) @ bspline2(ca.repmat(at, 1, len(KERNEL_PHASES)) + ca.repmat(shift, len(th), 1))
+        span = dt0[cells]
+        at = ((t0[cells] - t0[i])[owner] + th * span[owner]) / P
+        K = (w / P)[:, None] * bspline2(at[:, None] + shift[None, :])
         # each cell's weights of its start and end jerk in each window's average (cells × phases)
-        span = ca.diag(dt[cells])
-        ws = span @ (ca.DM(sp.csc_matrix(((1 - th), (owner, np.arange(len(th)))), shape=(len(cells), len(th)))) @ K)
-        we = span @ (ca.DM(sp.csc_matrix((th, (owner, np.arange(len(th)))), shape=(len(cells), len(th)))) @ K)
+        to_start = sp.csc_matrix((1 - th, (owner, np.arange(len(th)))), shape=(len(cells), len(th)))
+        to_end = sp.csc_matrix((th, (owner, np.arange(len(th)))), shape=(len(cells), len(th)))
+        ws, we = ca.DM(span[:, None] * (to_start @ K)), ca.DM(span[:, None] * (to_end @ K))
         nxt = [c + 1 for c in cells]
         reads_k = []
         for k in range(3):
@@ -350,8 +357,8 @@ def add_kernel_reads(D: PieceData, add, v, a, j, dt, b, tn, reads, dt0, lifted):
                 + ca.DM(D.left[0][nxt, k]) * j[cells]
             read = ws.T @ fs + we.T @ fe
             for n in jumps:
-                since = 0.0 if n == i else (rel[cells.index(n)] if n in cells else tn[n] - tn[i])
-                read += D.kappa[n][k] * b[n] * bspline2(since / P + shift.T) / JUMP_READ_FACTOR
+                weight = bspline2((t0[n] - t0[i]) / P + shift) / JUMP_READ_FACTOR
+                read += D.kappa[n][k] * b[n] * ca.DM(weight)
             reads_k.append(read)
         # row by row as before: per phase, per joint
         add(ca.vec(ca.horzcat(*reads_k).T), -1.0, 1.0)
@@ -375,10 +382,11 @@ def read_nodes(D: PieceData, dt, reach=1.0) -> dict:
             for i in D.kappa}
 
 
-def solve_piece(D: PieceData, warm=None, reads=None):
+def solve_piece(D: PieceData, warm=None, reads=None, at=None):
     """One piece's NLP: (time in s, then per node ṡ, s̈ and per cell its duration and path jerk,
     all scaled; IPOPT iterations, status). ``warm``: (v, a, dt, j) on this grid; ``reads``: per
-    join node the nodes whose jerk holds the join's read weighted by their time from it."""
+    join node the nodes whose jerk holds the join's read weighted by their time from it, the
+    kernel's weights at the cells' durations ``at`` (default: the warm start's)."""
     import casadi as ca   # casadi only where a piece is solved (the cache answers the rest)
 
     tu, vu = D.scale
@@ -415,22 +423,8 @@ def solve_piece(D: PieceData, warm=None, reads=None):
     # a G1 join: its jump of q″ reads at T as a jerk in every third difference whose window holds
     # it; with ``reads`` (the nodes near each join) every such window's read, whatever the phase,
     # from the start's solve (no reads) the join's node alone
-    timed = reads is not None and bool(D.kappa)
-    if timed:
-        # the nodes' times as variables, tied by their cells: a window's kernel weights then depend
-        # on a few of them, not on the sum of every cell between (dense rows and Hessian blocks)
-        tn = ca.SX.sym("tn", n)
-        add(tn[1:] - tn[:-1] - dt, 0.0, 0.0)
-        rel, rel0 = [], []
-        t0 = np.concatenate([[0.0], np.cumsum(np.maximum(warm[2], 0.0))])
-
-        def lifted(cells, i):
-            """The cells' start times since node i as unknowns, started at the warm start's."""
-            rel.append(ca.SX.sym(f"rel{len(rel)}", len(cells)))
-            rel0.append(t0[cells] - t0[i])
-            return rel[-1]
-
-        add_kernel_reads(D, add, v, a, j, dt, b, tn, reads, np.asarray(warm[2]), lifted)
+    if reads is not None and D.kappa:
+        add_kernel_reads(D, add, v, a, j, b, reads, warm[2] if at is None else at)
     else:
         add_join_node_reads(D, add, v, a, j, b)
     vmax = np.minimum(D.vmax, 1e6)
@@ -442,12 +436,6 @@ def solve_piece(D: PieceData, warm=None, reads=None):
     x0 = np.concatenate(initial_guess(D, dx, vmax) if warm is None else warm)
     x0 = np.clip(x0, lbx, ubx)
     x = ca.vertcat(v, a, dt, j)
-    if timed:
-        x = ca.vertcat(x, tn, *rel)
-        nrel = sum(r.shape[0] for r in rel)
-        lbx = np.concatenate([lbx, [0.0], np.zeros(n - 1), np.full(nrel, -np.inf)])
-        ubx = np.concatenate([ubx, [0.0], np.full(n - 1, np.inf), np.full(nrel, np.inf)])
-        x0 = np.concatenate([x0, t0, *rel0])
     nlp = {"x": x, "f": ca.sum1(dt), "g": ca.vertcat(*g)}
     opts = IPOPT if warm is None else {**IPOPT, **IPOPT_WARM}
     solver = ca.nlpsol("reference", "ipopt", nlp, {"ipopt": opts, "print_time": False})
@@ -458,13 +446,16 @@ def solve_piece(D: PieceData, warm=None, reads=None):
     return (float(res["f"]) * tu, *parts, int(st.get("iter_count", -1)), st["return_status"])
 
 
-def solve_with_reads(D: PieceData, warm, where: str):
+def solve_with_reads(D: PieceData, warm, where: str, log=None):
     """solve_piece with the joins' reads at the nodes near them: from a cold start first without
     them (IPOPT finds the coupled problem from a cold start far slower than from a warm one),
-    then with the nodes near at the start's times (READ_SLACK wider) and, while
-    the solution has a node within 2·READ_REACH periods of a join outside that set, again from
-    the solution with it added (the envelope is 0 beyond, so the set need only hold the nodes
-    near at the solution)."""
+    then with the nodes near at the start's times (READ_SLACK wider) and the kernel's weights at
+    the start's durations, again from each solution while its times are FIX_TOL periods or more
+    from the ones the weights were read at, or it has a node within 2·READ_REACH periods of a
+    join outside the set (added; the kernel is 0 beyond). The last solve's rows are its own
+    reads. The weights' times step towards each solution's, by half as much each time a step
+    fails to halve the move (undamped, a pocket_kossel piece flipped between two solutions
+    0.028 periods apart)."""
     iters = 0
     if warm is None:
         Tk, v, a, dt, j, iters, status = _solved(solve_piece(D), where)
@@ -472,17 +463,27 @@ def solve_with_reads(D: PieceData, warm, where: str):
             return Tk, v, a, dt, j, iters, status
         warm = (v, a, dt, j)
     reads = read_nodes(D, warm[2], READ_SLACK)
-    for _ in range(READ_ROUNDS):
-        Tk, v, a, dt, j, it, status = _solved(solve_piece(D, warm, reads), where)
+    at, step, last = np.maximum(np.asarray(warm[2], float), 0.0), 1.0, math.inf
+    for r in range(FIX_ROUNDS):
+        Tk, v, a, dt, j, it, status = _solved(solve_piece(D, warm, reads, at), where)
         iters += it
+        if not D.kappa:
+            return Tk, v, a, dt, j, iters, status
+        move = float(np.max(np.abs(np.cumsum(dt) - np.cumsum(at)))) / D.period
         missing = {i: c - reads[i] for i, c in read_nodes(D, dt).items() if c - reads[i]}
-        if not missing:
+        if log:
+            log(f"    {where} round {r}: T {Tk:.9f} s, times moved {move:.3g} periods, step {step:g}")
+        if not missing and move < FIX_TOL:
             return Tk, v, a, dt, j, iters, status
         for i, c in missing.items():
             reads[i] |= c
+        if move > last / 2:
+            step = max(step / 2, FIX_STEP_MIN)
+        last = move
+        at = at + step * (np.maximum(dt, 0.0) - at)
         warm = (v, a, dt, j)
-    raise RuntimeError(f"{where}: the nodes within {2 * READ_REACH} periods of a join still grew after "
-                       f"{READ_ROUNDS} solves")
+    raise RuntimeError(f"{where}: after {FIX_ROUNDS} solves a node's time still moved {move:.3g} periods "
+                       f"or the nodes within {2 * READ_REACH} periods of a join still grew")
 
 
 def _solved(result, where: str):
@@ -569,10 +570,11 @@ def richardson(T):
     return Ts, err, p
 
 
-def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None, wide_nodes=0):
+def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None, wide_nodes=0, round_log=None):
     """The refinement study of one path: {"grids": [...], "T_reference_s", "error_s", "order",
     "check_at_T"}: ``levels`` grids and, while their bar is above WIDE_BAR of T* and the next
-    grid has at most ``wide_nodes`` nodes, one more."""
+    grid has at most ``wide_nodes`` nodes, one more. ``log``: a line per grid; ``round_log``: a
+    line per solve of a piece with joins."""
     limits = machine.limits
     J = limits.joint
     tu = J.a / J.j
@@ -607,7 +609,8 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None, wid
             D = PieceData(path, machine, limits, s, brk, joins, tu)
             x = (s - s[0]) / (D.scale[0] * D.scale[1])
             w = None if warm[k] is None else refine_warm(*warm[k], x)
-            Tk, v, a, dt, j, it, status = solve_with_reads(D, w, f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}")
+            Tk, v, a, dt, j, it, status = solve_with_reads(D, w, f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}",
+                                                           round_log)
             warm[k] = (x, v, a, dt, j)
             total += Tk
             iters += it
@@ -667,7 +670,7 @@ def check_at_T(path, machine, prof):
 def entry_key(entry) -> str:
     """What a cached reference depends on: the path file's bytes, the machine, the settings."""
     h = hashlib.sha256((HERE / entry["file"]).read_bytes())
-    h.update(json.dumps([entry["machine"], VERSION, BASE_NODES, LEVELS, TURN_RAD, KERNEL_STEP, KERNEL_H, WIDE_BAR, WIDE_NODES]).encode())
+    h.update(json.dumps([entry["machine"], VERSION, BASE_NODES, LEVELS, TURN_RAD, KERNEL_STEP, KERNEL_H, FIX_TOL, FIX_STEP_MIN, WIDE_BAR, WIDE_NODES]).encode())
     return h.hexdigest()[:16]
 
 
@@ -687,6 +690,7 @@ def main(argv=None):
     ap.add_argument("--paths", default="*", help="comma-separated globs of corpus path names")
     ap.add_argument("--force", action="store_true", help="solve again even where the cache is current")
     ap.add_argument("--out", default=str(OUT))
+    ap.add_argument("--verbose", action="store_true", help="a line per solve of a piece with joins, not only per grid")
     args = ap.parse_args(argv)
     entries = json.loads((HERE / "manifest.json").read_text())["paths"]
     pats = [p.strip() for p in args.paths.split(",") if p.strip()]
@@ -713,7 +717,8 @@ def main(argv=None):
         print(f"{e['name']} ({e['machine']}):", flush=True)
         t0 = time.process_time()
         try:
-            r = reference(path, m, log=lambda s: print(s, flush=True), wide_nodes=WIDE_NODES)
+            say = lambda s: print(s, flush=True)  # noqa: E731
+            r = reference(path, m, log=say, wide_nodes=WIDE_NODES, round_log=say if args.verbose else None)
         except RuntimeError as err:
             print(f"{e['name']}: {err}", file=sys.stderr)
             continue
