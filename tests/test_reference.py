@@ -203,8 +203,8 @@ def test_a_join_s_rows_read_what_its_samples_read_at_t(monkeypatch):
 def test_the_kernel_weights_times_settle_where_undamped_they_flip_between_two_solutions(monkeypatch):
     """The first rest piece of pocket_kossel (two G64 lines, a 158° blend), its level 0 at the
     corpus's node spacing: solved again with the weights at each solution's times, it flips
-    between two solutions 0.028 periods apart; stepping the weights' times halfway once a move
-    fails to halve settles it within FIX_TOL, and there the rows are the solution's own reads."""
+    between two solutions 0.028 periods apart; relaxed (Aitken's step) it settles within
+    FIX_TOL, where the rows are its own reads."""
     from planners.paths.gcode import parse_gcode, program_path
     R = _ref()
     text = "\n".join((CORPUS_DIR / "pocket_kossel.ngc").read_text().splitlines()[:7]) + "\nM2\n"
@@ -214,7 +214,8 @@ def test_the_kernel_weights_times_settle_where_undamped_they_flip_between_two_so
     rounds = []
     r = R.reference(path, m, levels=1, base_nodes=base, round_log=rounds.append)
     moves = [float(x.split("moved ")[1].split()[0]) for x in rounds]
-    assert moves[-1] < R.FIX_TOL and ", step 0.5" in rounds[-1]
+    steps = [float(x.split("step ")[1]) for x in rounds]
+    assert moves[-1] < R.FIX_TOL and min(steps) < 0.9
     assert r["grids"][0]["nodes"] == 107
     monkeypatch.setattr(R, "FIX_STEP_MIN", 1.0)
     monkeypatch.setattr(R, "FIX_ROUNDS", 12)

@@ -103,7 +103,8 @@ KERNEL_STEP = 0.0625
 KERNEL_PHASES = np.arange(-1.5 + KERNEL_STEP, 1.5 - 1e-9, KERNEL_STEP)
 KERNEL_H = 0.2
 # the kernel's weights are evaluated at the start's times: solved again until no node's time moves
-# by FIX_TOL periods (cam_blend_kossel's level 0: 11 solves, each move ~0.3 × the last)
+# by FIX_TOL periods (cam_blend_kossel's level 0: 11 solves, each move ~0.3 × the last), the
+# weights' times relaxed by a step in [FIX_STEP_MIN, 1]
 FIX_TOL = 1e-4
 FIX_ROUNDS = 40
 FIX_STEP_MIN = 1 / 16
@@ -453,9 +454,8 @@ def solve_with_reads(D: PieceData, warm, where: str, log=None):
     the start's durations, again from each solution while its times are FIX_TOL periods or more
     from the ones the weights were read at, or it has a node within 2·READ_REACH periods of a
     join outside the set (added; the kernel is 0 beyond). The last solve's rows are its own
-    reads. The weights' times step towards each solution's, by half as much each time a step
-    fails to halve the move (undamped, a pocket_kossel piece flipped between two solutions
-    0.028 periods apart)."""
+    reads. The weights' times step towards each solution's by Aitken's relaxation (undamped, a
+    pocket_kossel piece flipped between two solutions 0.028 periods apart)."""
     iters = 0
     if warm is None:
         Tk, v, a, dt, j, iters, status = _solved(solve_piece(D), where)
@@ -463,13 +463,15 @@ def solve_with_reads(D: PieceData, warm, where: str, log=None):
             return Tk, v, a, dt, j, iters, status
         warm = (v, a, dt, j)
     reads = read_nodes(D, warm[2], READ_SLACK)
-    at, step, last = np.maximum(np.asarray(warm[2], float), 0.0), 1.0, math.inf
+    at, step, last = np.maximum(np.asarray(warm[2], float), 0.0), 1.0, None
     for r in range(FIX_ROUNDS):
         Tk, v, a, dt, j, it, status = _solved(solve_piece(D, warm, reads, at), where)
         iters += it
         if not D.kappa:
             return Tk, v, a, dt, j, iters, status
-        move = float(np.max(np.abs(np.cumsum(dt) - np.cumsum(at)))) / D.period
+        # how far each node's time lies from where the weights read it
+        off = np.cumsum(dt) - np.cumsum(at)
+        move = float(np.max(np.abs(off))) / D.period
         missing = {i: c - reads[i] for i, c in read_nodes(D, dt).items() if c - reads[i]}
         if log:
             log(f"    {where} round {r}: T {Tk:.9f} s, times moved {move:.3g} periods, step {step:g}")
@@ -477,9 +479,11 @@ def solve_with_reads(D: PieceData, warm, where: str, log=None):
             return Tk, v, a, dt, j, iters, status
         for i, c in missing.items():
             reads[i] |= c
-        if move > last / 2:
-            step = max(step / 2, FIX_STEP_MIN)
-        last = move
+        if last is not None and float((off - last) @ (off - last)) > 0:
+            # Aitken's dynamic relaxation (Irons & Tuck 1969; Küttler & Wall, Comput. Mech. 2008):
+            # the step that zeroes the offset along its last change
+            step = float(np.clip(-step * (last @ (off - last)) / ((off - last) @ (off - last)), FIX_STEP_MIN, 1.0))
+        last = off
         at = at + step * (np.maximum(dt, 0.0) - at)
         warm = (v, a, dt, j)
     raise RuntimeError(f"{where}: after {FIX_ROUNDS} solves a node's time still moved {move:.3g} periods "
