@@ -479,10 +479,11 @@ def solve_with_reads(D: PieceData, warm, where: str, log=None):
             return Tk, v, a, dt, j, iters, status
         for i, c in missing.items():
             reads[i] |= c
-        if last is not None and float((off - last) @ (off - last)) > 0:
+        change = None if last is None else off - last
+        if change is not None and float(change @ change) > 0:
             # Aitken's dynamic relaxation (Irons & Tuck 1969; Küttler & Wall, Comput. Mech. 2008):
             # the step that zeroes the offset along its last change
-            step = float(np.clip(-step * (last @ (off - last)) / ((off - last) @ (off - last)), FIX_STEP_MIN, 1.0))
+            step = float(np.clip(-step * (last @ change) / (change @ change), FIX_STEP_MIN, 1.0))
         last = off
         at = at + step * (np.maximum(dt, 0.0) - at)
         warm = (v, a, dt, j)
