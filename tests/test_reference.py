@@ -178,13 +178,13 @@ def test_a_join_s_rows_read_what_its_samples_read_at_t(monkeypatch):
     D, reads, (_, v, a, dt, j, _, _) = [c for c in calls if c[1] is not None and c[0].s[0] == 0.0][-1]
     assert len(finest["prof"]) == 1 and len(D.kappa) >= 5          # one rest piece, its joins
     n, mc = len(v), len(dt)
-    sv, sa, sdt, sj = (ca.SX.sym(x, k) for x, k in (("v", n), ("a", n), ("dt", mc), ("j", mc)))
+    sv, sa, sj = (ca.SX.sym(x, k) for x, k in (("v", n), ("a", n), ("j", mc)))
     rows = []
     # the reads' rows (−1 ≤ read ≤ 1) with the kernel's weights at the solution's own times
     R.add_kernel_reads(D, lambda e, lo, hi: rows.append(e), sv, sa, sj, sv * sv, reads, dt)
-    f = ca.Function("reads", [sv, sa, sdt, sj], [ca.vertcat(*rows)])
+    f = ca.Function("reads", [sv, sa, sj], [ca.vertcat(*rows)])
     tn = np.concatenate([[0.0], np.cumsum(dt)])
-    model = np.asarray(f(v, a, dt, j)).reshape(len(D.kappa), len(R.KERNEL_PHASES), 3)
+    model = np.asarray(f(v, a, j)).reshape(len(D.kappa), len(R.KERNEL_PHASES), 3)
     assert np.abs(model).max() <= 1.0 + 1e-6
     T, J = m.servo_period_s, m.limits.joint.j
     tu = D.scale[0]
@@ -210,7 +210,8 @@ def test_the_kernel_weights_times_settle_where_undamped_they_flip_between_two_so
     text = "\n".join((CORPUS_DIR / "pocket_kossel.ngc").read_text().splitlines()[:7]) + "\nM2\n"
     path = program_path(parse_gcode(text, "pocket_kossel_head.ngc"))
     m = load_machine("kossel")
-    base = 600 * path.length / 302.366          # the corpus path's spacing (its length 302.366 mm)
+    whole = next(e for e in load_manifest() if e["name"] == "pocket_kossel")
+    base = R.BASE_NODES * path.length / whole["length_mm"]       # the corpus path's node spacing
     rounds = []
     r = R.reference(path, m, levels=1, base_nodes=base, round_log=rounds.append)
     moves = [float(x.split("moved ")[1].split()[0]) for x in rounds]
