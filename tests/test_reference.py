@@ -45,7 +45,7 @@ def test_a_fourth_grid_where_three_leave_a_wide_bar_and_it_stays_small(monkeypat
     path = SegmentPath([Line([0, 0, -300], [0, 0, -290])])
 
     def stub(c):
-        def solve(D, warm, where, log=None):
+        def solve(D, warm, where, log=None, resume=None, save=None):
             n = len(D.s)
             x = (D.s - D.s[0]) / (D.scale[0] * D.scale[1])
             return 1.0 + c / (n - 1), np.ones(n), np.zeros(n), np.diff(x), np.zeros(n - 1), 1, "Solve_Succeeded"
@@ -200,18 +200,23 @@ def test_a_join_s_rows_read_what_its_samples_read_at_t(monkeypatch):
     assert worst < 0.01, worst           # the quadrature: 0.0031 × J here (docs/TUNING.md)
 
 
+def _pocket_head(R):
+    """pocket_kossel's first 7 lines (one rest piece with a 158° blend), its machine and the
+    corpus path's node spacing as base_nodes."""
+    from planners.paths.gcode import parse_gcode, program_path
+    text = "\n".join((CORPUS_DIR / "pocket_kossel.ngc").read_text().splitlines()[:7]) + "\nM2\n"
+    path = program_path(parse_gcode(text, "pocket_kossel_head.ngc"))
+    whole = next(e for e in load_manifest() if e["name"] == "pocket_kossel")
+    return path, load_machine("kossel"), R.BASE_NODES * path.length / whole["length_mm"]
+
+
 def test_the_kernel_weights_times_settle_where_undamped_they_flip_between_two_solutions(monkeypatch):
     """The first rest piece of pocket_kossel (two G64 lines, a 158° blend), its level 0 at the
     corpus's node spacing: solved again with the weights at each solution's times, it flips
     between two solutions 0.028 periods apart; relaxed (Aitken's step) it settles within
     FIX_TOL, where the rows are its own reads."""
-    from planners.paths.gcode import parse_gcode, program_path
     R = _ref()
-    text = "\n".join((CORPUS_DIR / "pocket_kossel.ngc").read_text().splitlines()[:7]) + "\nM2\n"
-    path = program_path(parse_gcode(text, "pocket_kossel_head.ngc"))
-    m = load_machine("kossel")
-    whole = next(e for e in load_manifest() if e["name"] == "pocket_kossel")
-    base = R.BASE_NODES * path.length / whole["length_mm"]       # the corpus path's node spacing
+    path, m, base = _pocket_head(R)
     rounds = []
     r = R.reference(path, m, levels=1, base_nodes=base, round_log=rounds.append)
     moves = [float(x.split("moved ")[1].split()[0]) for x in rounds]
@@ -225,6 +230,49 @@ def test_the_kernel_weights_times_settle_where_undamped_they_flip_between_two_so
         R.reference(path, m, levels=1, base_nodes=base, round_log=flips.append)
     T = [float(x.split("T ")[1].split()[0]) for x in flips]
     assert abs(T[-1] - T[-3]) < 1e-8 < abs(T[-1] - T[-2])           # a 2-cycle, not a slow drift
+
+
+def test_a_study_stopped_and_gone_on_from_its_checkpoint_ends_with_the_same_numbers(tmp_path):
+    """The pocket_kossel head's two-level study, killed mid-iteration in level 0 (after Aitken's
+    step left 1) and again in level 1, each time gone on from its checkpoint by a new process's
+    worth of state (the file alone): its grids, limit and check at T equal the uninterrupted
+    study's to the bit. A checkpoint of another key is not read; a corrupt one is an error
+    naming the file."""
+    R = _ref()
+    path, m, base = _pocket_head(R)
+    plain = R.reference(path, m, levels=2, base_nodes=base)
+
+    class Killed(Exception):
+        pass
+
+    class KilledAt(R.Checkpoint):
+        def __init__(self, file, key, at):
+            super().__init__(file, key)
+            self.at = at
+
+        def save(self, state):
+            super().save(state)
+            r = state["rounds"]
+            if r and (state["level"], r["round"]) == self.at:
+                raise Killed
+
+    file = tmp_path / "head.pkl"
+    for at in ((0, 3), (1, 2)):
+        with pytest.raises(Killed):
+            R.reference(path, m, levels=2, base_nodes=base, checkpoint=KilledAt(file, "k", at))
+    cp = R.Checkpoint(file, "k")
+    assert (cp.state["level"], cp.state["rounds"]["round"]) == (1, 2)
+    assert cp.state["grids"][0]["T_s"] == plain["grids"][0]["T_s"]
+    logs = []
+    gone_on = R.reference(path, m, levels=2, base_nodes=base, checkpoint=cp, log=logs.append)
+    assert logs[0] == "  resumed at level 1, piece 0, round 2"
+    key = lambda r: ([(g["nodes"], g["T_s"], g["iterations"]) for g in r["grids"]],  # noqa: E731
+                     r["T_reference_s"], r["error_s"], r["check_at_T"])
+    assert key(gone_on) == key(plain)
+    assert R.Checkpoint(file, "another key").state is None
+    file.write_bytes(b"not a pickle")
+    with pytest.raises(RuntimeError, match="head.pkl is unreadable"):
+        R.Checkpoint(file, "k")
 
 
 @pytest.mark.slow

@@ -5,7 +5,9 @@
 Writes benchmarks/paths/corpus/reference.json: per path {"T_reference_s", "error_s", "grids":
 [{"nodes", "T_s", "solve_s", "iterations"}, …], "order", "check_at_T"}. A path whose path file,
 machine and settings are unchanged keeps its entry (its ``key``), so a rerun solves only what
-changed; --force solves again.
+changed; --force solves again. A study writes its state before every solve to
+reference.checkpoints/<path>.pkl (--checkpoints) and, stopped, goes on from there when run again
+with the same key (--restart: afresh): the CAM programs' studies take longer than a session.
 
 This is data, not a planner, and it shares no code with the planners' solvers (topp3, copp,
 toppra, nlp): only the constraint *definitions* of planners/constraints.py (the joint
@@ -54,6 +56,8 @@ import fnmatch
 import hashlib
 import json
 import math
+import os
+import pickle
 import sys
 import time
 from pathlib import Path
@@ -447,7 +451,7 @@ def solve_piece(D: PieceData, warm=None, reads=None, at=None):
     return (float(res["f"]) * tu, *parts, int(st.get("iter_count", -1)), st["return_status"])
 
 
-def solve_with_reads(D: PieceData, warm, where: str, log=None):
+def solve_with_reads(D: PieceData, warm, where: str, log=None, resume=None, save=None):
     """solve_piece with the joins' reads at the nodes near them: from a cold start first without
     them (IPOPT finds the coupled problem from a cold start far slower than from a warm one),
     then with the nodes near at the start's times (READ_SLACK wider) and the kernel's weights at
@@ -455,16 +459,22 @@ def solve_with_reads(D: PieceData, warm, where: str, log=None):
     from the ones the weights were read at, or it has a node within 2·READ_REACH periods of a
     join outside the set (added; the kernel is 0 beyond). The last solve's rows are its own
     reads. The weights' times step towards each solution's by Aitken's relaxation (undamped, a
-    pocket_kossel piece flipped between two solutions 0.028 periods apart)."""
-    iters = 0
-    if warm is None:
-        Tk, v, a, dt, j, iters, status = _solved(solve_piece(D), where)
-        if not D.kappa:
-            return Tk, v, a, dt, j, iters, status
-        warm = (v, a, dt, j)
-    reads = read_nodes(D, warm[2], READ_SLACK)
-    at, step, last = np.maximum(np.asarray(warm[2], float), 0.0), 1.0, None
-    for r in range(FIX_ROUNDS):
+    pocket_kossel piece flipped between two solutions 0.028 periods apart). ``save``: called
+    with the iteration's state before each solve; ``resume``: such a state to go on from."""
+    if resume is None:
+        iters = 0
+        if warm is None:
+            Tk, v, a, dt, j, iters, status = _solved(solve_piece(D), where)
+            if not D.kappa:
+                return Tk, v, a, dt, j, iters, status
+            warm = (v, a, dt, j)
+        reads = read_nodes(D, warm[2], READ_SLACK)
+        at, step, last, first = np.maximum(np.asarray(warm[2], float), 0.0), 1.0, None, 0
+    else:
+        first, iters, warm, reads, at, step, last = (resume[k] for k in ROUND_STATE)
+    for r in range(first, FIX_ROUNDS):
+        if save:
+            save(dict(zip(ROUND_STATE, (r, iters, warm, reads, at, step, last))))
         Tk, v, a, dt, j, it, status = _solved(solve_piece(D, warm, reads, at), where)
         iters += it
         if not D.kappa:
@@ -489,6 +499,9 @@ def solve_with_reads(D: PieceData, warm, where: str, log=None):
         warm = (v, a, dt, j)
     raise RuntimeError(f"{where}: after {FIX_ROUNDS} solves a node's time still moved {move:.3g} periods "
                        f"or the nodes within {2 * READ_REACH} periods of a join still grew")
+
+
+ROUND_STATE = ("round", "iterations", "warm", "reads", "at", "step", "last")
 
 
 def _solved(result, where: str):
@@ -575,11 +588,13 @@ def richardson(T):
     return Ts, err, p
 
 
-def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None, wide_nodes=0, round_log=None):
+def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None, wide_nodes=0, round_log=None,
+              checkpoint=None):
     """The refinement study of one path: {"grids": [...], "T_reference_s", "error_s", "order",
     "check_at_T"}: ``levels`` grids and, while their bar is above WIDE_BAR of T* and the next
     grid has at most ``wide_nodes`` nodes, one more. ``log``: a line per grid; ``round_log``: a
-    line per solve of a piece with joins."""
+    line per solve of a piece with joins; ``checkpoint`` (a Checkpoint): the study's state saved
+    before every solve and gone on from (the CAM programs' studies outlast a session)."""
     limits = machine.limits
     J = limits.joint
     tu = J.a / J.j
@@ -604,29 +619,48 @@ def reference(path, machine, levels=LEVELS, base_nodes=BASE_NODES, log=None, wid
         slow = np.concatenate([slow_points(path, machine, limits, br, joins),
                                [sj for sj, _ in joins if s0 < sj < s1]])
         maps.append(Map(path, s0, s1, br, h, ell, slow))
-    grids, warm, prof = [], [None] * len(maps), None
-    level = 0
-    while level < levels or _wide([g["T_s"] for g in grids]) and 2 * grids[-1]["nodes"] <= wide_nodes:
-        t0 = time.process_time()
-        total, iters, nodes, prof = 0.0, 0, 0, []
-        for k, ((s0, s1), mp) in enumerate(zip(pieces, maps)):
+    # the study so far: what a checkpoint holds, from which the same solves go on
+    st = {"level": 0, "grids": [], "warm": [None] * len(maps), "piece": 0, "T_s": 0.0, "iterations": 0,
+          "nodes": 0, "prof": [], "cpu_s": 0.0, "rounds": None, "finest": None}
+    if checkpoint is not None and checkpoint.state is not None:
+        st = checkpoint.state
+        if log:
+            r = st["rounds"]
+            log(f"  resumed at level {st['level']}, piece {st['piece']}" + (f", round {r['round']}" if r else ""))
+    while (st["level"] < levels or _wide([g["T_s"] for g in st["grids"]])
+           and 2 * st["grids"][-1]["nodes"] <= wide_nodes):
+        level, t0 = st["level"], time.process_time() - st["cpu_s"]
+
+        def keep(rounds):
+            st.update(rounds=rounds, cpu_s=time.process_time() - t0)
+            checkpoint.save(st)
+
+        while st["piece"] < len(pieces):
+            k = st["piece"]
+            (s0, s1), mp = pieces[k], maps[k]
             s, brk = mp.nodes(level)
             D = PieceData(path, machine, limits, s, brk, joins, tu)
             x = (s - s[0]) / (D.scale[0] * D.scale[1])
-            w = None if warm[k] is None else refine_warm(*warm[k], x)
-            Tk, v, a, dt, j, it, status = solve_with_reads(D, w, f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}",
-                                                           round_log)
-            warm[k] = (x, v, a, dt, j)
-            total += Tk
-            iters += it
-            nodes += len(s)
+            w = None if st["warm"][k] is None else refine_warm(*st["warm"][k], x)
+            Tk, v, a, dt, j, it, status = solve_with_reads(
+                D, w, f"piece {k} (s = {s0:.6g}…{s1:.6g}) level {level}", round_log,
+                resume=st["rounds"], save=keep if checkpoint is not None else None)
             tu_, vu = D.scale
-            prof.append((s, v * vu, a * vu / tu_, j * vu / tu_ ** 2, dt * tu_))
-        g = {"nodes": nodes, "T_s": total, "solve_s": round(time.process_time() - t0, 2), "iterations": iters}
-        grids.append(g)
+            st["warm"][k] = (x, v, a, dt, j)
+            st["prof"].append((s, v * vu, a * vu / tu_, j * vu / tu_ ** 2, dt * tu_))
+            st.update(piece=k + 1, T_s=st["T_s"] + Tk, iterations=st["iterations"] + it, nodes=st["nodes"] + len(s))
+            if checkpoint is not None:
+                keep(None)
+        g = {"nodes": st["nodes"], "T_s": st["T_s"], "solve_s": round(time.process_time() - t0, 2),
+             "iterations": st["iterations"]}
+        st["grids"].append(g)
         if log:
-            log(f"  level {level}: {nodes} nodes T = {total:.9f} s ({g['solve_s']} s CPU, {iters} it)")
-        level += 1
+            log(f"  level {level}: {g['nodes']} nodes T = {g['T_s']:.9f} s ({g['solve_s']} s CPU, {g['iterations']} it)")
+        st.update(level=level + 1, piece=0, T_s=0.0, iterations=0, nodes=0, prof=[], cpu_s=0.0, rounds=None,
+                  finest=st["prof"])
+        if checkpoint is not None:
+            checkpoint.save(st)
+    grids, prof = st["grids"], st["finest"]
     Ts, err, p = richardson([g["T_s"] for g in grids])
     return {"T_reference_s": Ts, "error_s": err, "order": None if math.isnan(p) else p, "grids": grids,
             "check_at_T": check_at_T(path, machine, prof)}
@@ -672,6 +706,39 @@ def check_at_T(path, machine, prof):
 
 
 # --- the corpus ---------------------------------------------------------------------------
+class Checkpoint:
+    """A study's state in a file, written before every solve (atomically: a kill leaves the last
+    whole state) and read back when the same study (the same key) starts again: it goes on with
+    the same solves from the same starts, so it ends with the same numbers. Not a result: the
+    file is deleted when the study is written to the reference file. ``cpu_s``: the CPU the
+    study has taken, the processes' before this one's included."""
+
+    def __init__(self, file: Path, key: str):
+        self.file, self.key, self.state, self.before = Path(file), key, None, 0.0
+        self.t0 = time.process_time()
+        try:
+            saved = pickle.loads(self.file.read_bytes())
+        except FileNotFoundError:
+            return
+        except (OSError, pickle.UnpicklingError, EOFError, ValueError) as err:
+            raise RuntimeError(f"checkpoint {self.file} is unreadable ({err}); delete it or run with --restart") from err
+        if saved.get("key") == key:
+            self.state, self.before = saved["state"], saved["cpu_s"]
+
+    @property
+    def cpu_s(self) -> float:
+        return self.before + time.process_time() - self.t0
+
+    def save(self, state):
+        tmp = self.file.with_name(self.file.name + ".tmp")
+        tmp.write_bytes(pickle.dumps({"key": self.key, "state": state, "cpu_s": self.cpu_s},
+                                     protocol=pickle.HIGHEST_PROTOCOL))
+        os.replace(tmp, self.file)
+
+    def clear(self):
+        self.file.unlink(missing_ok=True)
+
+
 def entry_key(entry) -> str:
     """What a cached reference depends on: the path file's bytes, the machine, the settings."""
     h = hashlib.sha256((HERE / entry["file"]).read_bytes())
@@ -696,6 +763,9 @@ def main(argv=None):
     ap.add_argument("--force", action="store_true", help="solve again even where the cache is current")
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--verbose", action="store_true", help="a line per solve of a piece with joins, not only per grid")
+    ap.add_argument("--checkpoints", help="folder of the studies' checkpoints (default: next to --out, "
+                    "<out>.checkpoints/): a study stopped before its end goes on from its last solve")
+    ap.add_argument("--restart", action="store_true", help="start the studies afresh, not from their checkpoints")
     args = ap.parse_args(argv)
     entries = json.loads((HERE / "manifest.json").read_text())["paths"]
     pats = [p.strip() for p in args.paths.split(",") if p.strip()]
@@ -707,7 +777,8 @@ def main(argv=None):
     data.setdefault("paths", {})
     data["method"] = ("piecewise-cubic s(t) between fixed path nodes (ṡ, s̈ at nodes, Δt and s⃛ per cell; CasADi + IPOPT) on nested grids, "
                       "Richardson limit of the last three; see benchmarks/paths/corpus/reference.py")
-    machines = {}
+    machines, failed = {}, []
+    cps = Path(args.checkpoints) if args.checkpoints else Path(args.out).with_suffix(".checkpoints")
     for e in todo:
         key = entry_key(e)
         old = data["paths"].get(e["name"])
@@ -720,25 +791,41 @@ def main(argv=None):
         m = machines.get(e["machine"]) or machines.setdefault(e["machine"], load_machine(e["machine"]))
         path = resolve_path(str(HERE / e["file"]), home=m.home)
         print(f"{e['name']} ({e['machine']}):", flush=True)
-        t0 = time.process_time()
+        try:
+            cps.mkdir(parents=True, exist_ok=True)
+            if args.restart:
+                (cps / f"{e['name']}.pkl").unlink(missing_ok=True)
+            cp = Checkpoint(cps / f"{e['name']}.pkl", key)
+        except (OSError, RuntimeError) as err:
+            print(f"{e['name']}: {err}", file=sys.stderr)
+            failed.append(e["name"])
+            continue
         try:
             say = lambda s: print(s, flush=True)  # noqa: E731
-            r = reference(path, m, log=say, wide_nodes=WIDE_NODES, round_log=say if args.verbose else None)
+            r = reference(path, m, log=say, wide_nodes=WIDE_NODES, round_log=say if args.verbose else None,
+                          checkpoint=cp)
         except RuntimeError as err:
             print(f"{e['name']}: {err}", file=sys.stderr)
+            failed.append(e["name"])
             continue
+        except KeyboardInterrupt:
+            print(f"{e['name']}: interrupted; run again to go on from {cp.file}", file=sys.stderr)
+            return 130
         r = {"key": key, "T_reference_s": r["T_reference_s"], "error_s": r["error_s"], **r,
-             "cpu_s": round(time.process_time() - t0, 1)}
+             "cpu_s": round(cp.cpu_s, 1)}
         data["paths"][e["name"]] = r
         data["paths"] = dict(sorted(data["paths"].items()))
         write(data, args.out)
+        cp.clear()
         c = r["check_at_T"]
         print(f"{e['name']}: T_ref = {r['T_reference_s']:.6f} ± {r['error_s']:.2g} s (order {r['order']}); "
               f"finest at T: {c['execution_time_s']:.6f} s, joint v/a/j {c['joint_peak_ratio']} "
               f"({r['cpu_s']} s CPU)", flush=True)
     data["paths"] = dict(sorted(data["paths"].items()))
     write(data, args.out)
-    return 0
+    if failed:
+        print(f"reference.py: no study of {', '.join(failed)}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
