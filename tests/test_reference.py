@@ -311,11 +311,11 @@ def test_a_g64_program_s_reference_keeps_the_jerk_at_t_whatever_the_phase(monkey
 # near-stops at µm blends: their three grids show no clean order yet).
 # The test fails when one is closed (shrink the set) and when a new one appears.
 NO_REFERENCE = set()
-NOT_CURRENT = {"cam_blend_kossel", "cam_dense_keops", "cam_dense_lcnc", "pocket_lcnc"}
+NOT_CURRENT = {"cam_blend_kossel", "cam_dense_keops", "cam_dense_lcnc"}
 WIDE_BAR = {"cam_blend_kossel", "cam_dense_keops", "cam_dense_lcnc"}
-# finest profiles that read above 1.005 × J at T: VERSION 11's between its held phases (by ⅛;
-# pocket_kossel 1.009 → 1.0004 by 1/16)
-OVER_J = {"pocket_lcnc"}
+# finest profiles that read above 1.005 × J at T: none since VERSION 12 held the phases by 1/16
+# (VERSION 11, by ⅛: pocket_kossel 1.009 → 1.0004, pocket_lcnc 1.0089 → 1.0017)
+OVER_J = set()
 
 
 def test_reference_json_has_a_current_entry_for_every_corpus_path_but_the_known_gaps():
