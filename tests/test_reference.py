@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -270,9 +271,37 @@ def test_a_study_stopped_and_gone_on_from_its_checkpoint_ends_with_the_same_numb
                      r["T_reference_s"], r["error_s"], r["check_at_T"])
     assert key(gone_on) == key(plain)
     assert R.Checkpoint(file, "another key").state is None
-    file.write_bytes(b"not a pickle")
-    with pytest.raises(RuntimeError, match="head.pkl is unreadable"):
-        R.Checkpoint(file, "k")
+    for junk in (b"not a pickle", pickle.dumps([1, 2]), pickle.dumps({"key": "k"})):
+        file.write_bytes(junk)
+        with pytest.raises(RuntimeError, match="head.pkl is unreadable"):
+            R.Checkpoint(file, "k")
+
+
+def test_a_study_written_keeps_the_studies_another_run_wrote_meanwhile(tmp_path, monkeypatch, capsys):
+    """Two runs on one reference file (a path per core): each writes its study into the file as it
+    is then, so the other's, written while this one solved, is kept; the entry is this run's key
+    and numbers, the checkpoint is gone."""
+    R = _ref()
+    out = tmp_path / "ref.json"
+    R.store({"butterfly_kossel": {"key": "old"}}, out)
+    study = {"T_reference_s": 2.5, "error_s": 0.01, "order": 2.0, "grids": [{"nodes": 3, "T_s": 2.6}],
+             "check_at_T": {"execution_time_s": 2.6, "joint_peak_ratio": {"jerk": 1.0}}}
+
+    def solve_while_the_other_run_writes(path, machine, checkpoint=None, **kw):
+        checkpoint.save({"level": 0})
+        R.store({"butterfly_lcnc": {"key": "the other run's"}}, out)
+        return study
+
+    monkeypatch.setattr(R, "reference", solve_while_the_other_run_writes)
+    assert R.main(["--paths", "butterfly_keops", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert list(data["paths"]) == ["butterfly_keops", "butterfly_kossel", "butterfly_lcnc"]
+    assert data["paths"]["butterfly_lcnc"] == {"key": "the other run's"}
+    e = next(e for e in load_manifest() if e["name"] == "butterfly_keops")
+    assert data["paths"]["butterfly_keops"]["key"] == R.entry_key(e)
+    assert data["paths"]["butterfly_keops"]["T_reference_s"] == 2.5
+    assert not (tmp_path / "ref.checkpoints" / "butterfly_keops.pkl").exists()
+    assert "butterfly_keops: T_ref = 2.500000" in capsys.readouterr().out
 
 
 @pytest.mark.slow

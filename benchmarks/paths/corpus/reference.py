@@ -718,12 +718,14 @@ class Checkpoint:
         self.t0 = time.process_time()
         try:
             saved = pickle.loads(self.file.read_bytes())
+            if saved.get("key") == key:
+                self.state, self.before = saved["state"], float(saved["cpu_s"])
         except FileNotFoundError:
             return
-        except (OSError, pickle.UnpicklingError, EOFError, ValueError) as err:
-            raise RuntimeError(f"checkpoint {self.file} is unreadable ({err}); delete it or run with --restart") from err
-        if saved.get("key") == key:
-            self.state, self.before = saved["state"], saved["cpu_s"]
+        # a pickle of something else (no dict, no state) is as unreadable as a truncated one
+        except (OSError, pickle.UnpicklingError, EOFError, ValueError, AttributeError, KeyError, TypeError) as err:
+            raise RuntimeError(f"checkpoint {self.file} is unreadable ({type(err).__name__}: {err}); "
+                               "delete it or run with --restart") from err
 
     @property
     def cpu_s(self) -> float:
@@ -753,8 +755,20 @@ def load(file=OUT) -> dict:
         return {"paths": {}}
 
 
-def write(data, file=OUT):
-    Path(file).write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
+METHOD = ("piecewise-cubic s(t) between fixed path nodes (ṡ, s̈ at nodes, Δt and s⃛ per cell; CasADi + IPOPT) on nested "
+          "grids, Richardson limit of the last three; see benchmarks/paths/corpus/reference.py")
+
+
+def store(studies: dict, file=OUT):
+    """Write ``studies`` (path name → study) into the reference file as it is now, not as it was
+    when this run started: the studies another run wrote meanwhile (one path per core) are kept.
+    Atomic: a kill leaves the old file or the new one."""
+    data = load(file)
+    data["method"] = METHOD
+    data["paths"] = dict(sorted({**data.get("paths", {}), **studies}.items()))
+    tmp = Path(f"{file}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
+    os.replace(tmp, file)
 
 
 def main(argv=None):
@@ -773,19 +787,16 @@ def main(argv=None):
     if not todo:
         print(f"reference.py: --paths {args.paths} matches no corpus path", file=sys.stderr)
         return 2
-    data = load(args.out)
-    data.setdefault("paths", {})
-    data["method"] = ("piecewise-cubic s(t) between fixed path nodes (ṡ, s̈ at nodes, Δt and s⃛ per cell; CasADi + IPOPT) on nested grids, "
-                      "Richardson limit of the last three; see benchmarks/paths/corpus/reference.py")
-    machines, failed = {}, []
+    cached = load(args.out).get("paths", {})
+    machines, failed, mine = {}, [], {}
     cps = Path(args.checkpoints) if args.checkpoints else Path(args.out).with_suffix(".checkpoints")
     for e in todo:
         key = entry_key(e)
-        old = data["paths"].get(e["name"])
+        old = cached.get(e["name"])
         if old and old.get("key") == key and not args.force:
             # the extrapolation is arithmetic on the stored study: redone, never stale
             Ts, err, p = richardson([g["T_s"] for g in old["grids"]])
-            old.update(T_reference_s=Ts, error_s=err, order=None if math.isnan(p) else p)
+            mine[e["name"]] = {**old, "T_reference_s": Ts, "error_s": err, "order": None if math.isnan(p) else p}
             print(f"{e['name']}: cached T_ref = {Ts:.6f} ± {err:.2g} s")
             continue
         m = machines.get(e["machine"]) or machines.setdefault(e["machine"], load_machine(e["machine"]))
@@ -813,16 +824,14 @@ def main(argv=None):
             return 130
         r = {"key": key, "T_reference_s": r["T_reference_s"], "error_s": r["error_s"], **r,
              "cpu_s": round(cp.cpu_s, 1)}
-        data["paths"][e["name"]] = r
-        data["paths"] = dict(sorted(data["paths"].items()))
-        write(data, args.out)
+        mine[e["name"]] = r
+        store(mine, args.out)
         cp.clear()
         c = r["check_at_T"]
         print(f"{e['name']}: T_ref = {r['T_reference_s']:.6f} ± {r['error_s']:.2g} s (order {r['order']}); "
               f"finest at T: {c['execution_time_s']:.6f} s, joint v/a/j {c['joint_peak_ratio']} "
               f"({r['cpu_s']} s CPU)", flush=True)
-    data["paths"] = dict(sorted(data["paths"].items()))
-    write(data, args.out)
+    store(mine, args.out)
     if failed:
         print(f"reference.py: no study of {', '.join(failed)}", file=sys.stderr)
     return 1 if failed else 0
