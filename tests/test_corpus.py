@@ -510,6 +510,28 @@ def test_diagnose_phases_a_whole_period_late_reads_as_on_time(capsys):
     assert half != on_time and all(x > 0 for x in on_time)
 
 
+def test_diagnose_where_reads_a_study_under_way_from_its_checkpoint(tmp_path, capsys):
+    """``where --checkpoint``: the finest grid a study has finished, not solved again; its time
+    as the study logged it, and the losses near the joins and elsewhere add up to the difference
+    of the two times (t_ref − t_planner at the path's end). A checkpoint of another study, or
+    without a finished grid, is refused by name."""
+    diagnose = _diagnose()
+    ref = diagnose.ref
+    path, m = diagnose.corpus_path("contour_kossel")
+    key = ref.entry_key(diagnose.corpus_entry("contour_kossel"))
+    file = tmp_path / "contour_kossel.pkl"
+    r = ref.reference(path, m, levels=1, base_nodes=150, checkpoint=ref.Checkpoint(file, key))
+    diagnose.main(["where", "contour_kossel", "--planner", "scurve", "--checkpoint", str(file), "--within", "1"])
+    out = capsys.readouterr().out
+    T_ref, T_plan = (float(x) for x in re.search(r"finest grid (\S+) s, scurve (\S+) s", out).groups())
+    assert T_ref == round(r["grids"][0]["T_s"], 6)
+    near, far = (float(x) for x in re.search(r"of them: (\S+) s, elsewhere (\S+) s", out).groups())
+    assert near + far == pytest.approx(T_ref - T_plan, abs=2e-5)
+    ref.Checkpoint(file, "another study").save({"grids": []})
+    with pytest.raises(SystemExit, match="holds no finished grid of contour_kossel"):
+        diagnose.main(["where", "contour_kossel", "--checkpoint", str(file)])
+
+
 def test_diagnose_a_name_not_in_the_corpus_is_refused():
     with pytest.raises(SystemExit, match="'no_such_path' is not a corpus path"):
         _diagnose().main(["phases", "no_such_path"])

@@ -5,7 +5,8 @@
 
 ``phases``: the planner's profile sampled at T with its start delayed by d (the pieces it was
 sampled from, each evaluated at kT − d): the joint peaks a servo clock at another phase reads.
-``where``: the reference's finest profile (reference.py, solved again) against the planner's,
+``where``: the reference's finest profile (reference.py, solved again, or a study's checkpoint's
+finest finished grid: ``--checkpoint FILE``) against the planner's,
 by t_ref(s) − t_planner(s): the time each loses within a distance of the G1 joins and NURBS
 knots (where q″ jumps) and elsewhere, and the speeds at the joins.
 """
@@ -31,12 +32,17 @@ from planners.profile import Profile, Rest  # noqa: E402
 from planners.verify import command_metrics  # noqa: E402
 
 
-def corpus_path(name):
+def corpus_entry(name):
     entries = {e["name"]: e for e in json.loads((HERE / "manifest.json").read_text())["paths"]}
     if name not in entries:
         raise SystemExit(f"diagnose.py: {name!r} is not a corpus path (benchmarks/paths/corpus/manifest.json)")
-    m = load_machine(entries[name]["machine"])
-    return resolve_path(str(HERE / entries[name]["file"]), home=m.home), m
+    return entries[name]
+
+
+def corpus_path(name):
+    e = corpus_entry(name)
+    m = load_machine(e["machine"])
+    return resolve_path(str(HERE / e["file"]), home=m.home), m
 
 
 def plan_with_pieces(planner, path, machine, **options):
@@ -73,8 +79,14 @@ def phases(args):
               f"{'' if r['feasible'] else '  (above)'}")
 
 
-def where(args):
-    path, m = corpus_path(args.path)
+def study_profile(args, path, m):
+    """(the finest grid's profile, its time): solved again, or the finest grid a study under way
+    has finished (``--checkpoint``: its state file; a CAM program's study takes hours)."""
+    if args.checkpoint:
+        state = ref.Checkpoint(args.checkpoint, ref.entry_key(corpus_entry(args.path))).state
+        if state is None or not state["grids"]:
+            raise SystemExit(f"diagnose.py: {args.checkpoint} holds no finished grid of {args.path}'s current study")
+        return state["finest"], state["grids"][-1]["T_s"]
     finest = {}
     check = ref.check_at_T
     ref.check_at_T = lambda p, machine, prof: (finest.setdefault("prof", prof), check(p, machine, prof))[1]
@@ -82,10 +94,16 @@ def where(args):
         r = ref.reference(path, m, levels=args.levels)
     finally:
         ref.check_at_T = check
-    s_ref = np.concatenate([q[0] for q in finest["prof"]])
-    v_ref = np.concatenate([q[1] for q in finest["prof"]])
+    return finest["prof"], r["grids"][-1]["T_s"]
+
+
+def where(args):
+    path, m = corpus_path(args.path)
+    finest, T_finest = study_profile(args, path, m)
+    s_ref = np.concatenate([q[0] for q in finest])
+    v_ref = np.concatenate([q[1] for q in finest])
     t_ref, off = [], 0.0
-    for s, v, a, j, dt in finest["prof"]:
+    for s, v, a, j, dt in finest:
         t_ref.append(off + np.concatenate([[0.0], np.cumsum(dt)]))
         off = t_ref[-1][-1]
     t_ref = np.concatenate(t_ref)
@@ -93,7 +111,7 @@ def where(args):
     grid = np.linspace(0.0, path.length, 200_001)
     gained = np.diff(np.interp(grid, s_ref, t_ref) - np.interp(grid, prof.s, prof.t))
     jumps = np.array([sj for sj, _ in join_jumps(path, PathTable(path, m), m)] + list(ref.interior_knots(path)))
-    print(f"{args.path}: reference's finest grid {r['grids'][-1]['T_s']:.6f} s, {args.planner} "
+    print(f"{args.path}: reference's finest grid {T_finest:.6f} s, {args.planner} "
           f"{prof.execution_time_s:.6f} s; {len(jumps)} G1 joins and knots")
     for w in args.within:
         near = np.zeros(len(grid) - 1, bool)
@@ -120,6 +138,7 @@ def main(argv=None):
     b.add_argument("path")
     b.add_argument("--planner", default="optimal")
     b.add_argument("--levels", type=int, default=ref.LEVELS)
+    b.add_argument("--checkpoint", help="a study's checkpoint (reference.py): its finest finished grid, not solved again")
     b.add_argument("--within", type=lambda x: [float(v) for v in x.split(",")], default=[0.5, 2.0, 5.0],
                    help="distances in mm, comma-separated")
     b.set_defaults(run=where)
